@@ -1,0 +1,12 @@
+//! `fdfsi-fem`: the physics-free finite-element toolbox of fdfsi.
+//!
+//! Modules, each using only those listed before it:
+//! [`quadrature`] and [`element`] (reference cells, rules, tabulation) -> [`values`] (geometric
+//! map per cell) -> [`mesh`] (cells, tags, topology) -> [`generate`] (structured meshes) ->
+//! [`gmsh`] (MSH 4.1 import) -> [`dofs`] (dof maps) -> [`sparse`] (pattern, CSR matrix,
+//! coloured assembly) -> [`vtk`] (`.vtu`/`.pvd` output and read-back).
+
+pub mod element;
+pub mod quadrature;
+pub mod values;
+pub mod mesh;

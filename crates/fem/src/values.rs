@@ -1,0 +1,434 @@
+//! Per-cell values: the geometric map of one cell evaluated at a quadrature rule.
+//!
+//! A cell is the image of its reference cell under the isoparametric map
+//! `x(xi) = sum_k x_k N_k(xi)` of its geometry element (`N_k` P1/P2 on simplices, Q1/Q2 on tensor
+//! cells; P2 geometry gives curved boundary cells). With `J = dx/dxi`, basis gradients map as
+//! `grad phi = J^{-T} grad_xi phi`, and `dx = det J dxi`.
+//!
+//! [`CellValues`] holds the reference tabulations (computed once) and is re-initialised for each
+//! cell with [`CellValues::reinit`], as in Ferrite.jl's `CellValues`; [`FacetValues`] does the same
+//! on a facet of a cell, giving surface measure and outward unit normal.
+
+use crate::element::{ReferenceCell, ReferenceElement, Tabulation};
+use crate::quadrature::QuadratureRule;
+use thiserror::Error;
+
+/// A failure of the geometric map.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum MapError {
+    /// The Jacobian determinant is zero or negative at a quadrature point: the cell is inverted
+    /// or degenerate.
+    #[error("inverted or degenerate cell: det J = {det:.3e} at quadrature point {point}")]
+    NonPositiveJacobian { point: usize, det: f64 },
+}
+
+/// Determinant and inverse of a small `D x D` matrix `j[row][col]`.
+pub fn det_inv<const D: usize>(j: &[[f64; D]; D]) -> (f64, [[f64; D]; D]) {
+    let mut inv = [[0.0; D]; D];
+    match D {
+        1 => {
+            let det = j[0][0];
+            inv[0][0] = 1.0 / det;
+            (det, inv)
+        }
+        2 => {
+            let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+            inv[0][0] = j[1][1] / det;
+            inv[0][1] = -j[0][1] / det;
+            inv[1][0] = -j[1][0] / det;
+            inv[1][1] = j[0][0] / det;
+            (det, inv)
+        }
+        3 => {
+            let c00 = j[1][1] * j[2][2] - j[1][2] * j[2][1];
+            let c01 = j[1][2] * j[2][0] - j[1][0] * j[2][2];
+            let c02 = j[1][0] * j[2][1] - j[1][1] * j[2][0];
+            let det = j[0][0] * c00 + j[0][1] * c01 + j[0][2] * c02;
+            inv[0][0] = c00 / det;
+            inv[1][0] = c01 / det;
+            inv[2][0] = c02 / det;
+            inv[0][1] = (j[0][2] * j[2][1] - j[0][1] * j[2][2]) / det;
+            inv[1][1] = (j[0][0] * j[2][2] - j[0][2] * j[2][0]) / det;
+            inv[2][1] = (j[0][1] * j[2][0] - j[0][0] * j[2][1]) / det;
+            inv[0][2] = (j[0][1] * j[1][2] - j[0][2] * j[1][1]) / det;
+            inv[1][2] = (j[0][2] * j[1][0] - j[0][0] * j[1][2]) / det;
+            inv[2][2] = (j[0][0] * j[1][1] - j[0][1] * j[1][0]) / det;
+            (det, inv)
+        }
+        _ => unreachable!("dimension {D} not supported"),
+    }
+}
+
+/// The P1-discontinuous pressure basis `{1, x_1 - c_1, ..., x_D - c_D}` at physical point `x`,
+/// with `c` the cell's centroid: the dofs are the pressure at the centroid and its gradient.
+/// Written into `out[..D + 1]`.
+#[inline]
+pub fn p1disc_basis<const D: usize>(x: &[f64; D], centroid: &[f64; D], out: &mut [f64]) {
+    out[0] = 1.0;
+    for d in 0..D {
+        out[d + 1] = x[d] - centroid[d];
+    }
+}
+
+/// Geometric map and function-space values of one cell at the points of a quadrature rule.
+#[derive(Clone, Debug)]
+pub struct CellValues<const D: usize> {
+    qr: QuadratureRule<D>,
+    geo: Tabulation<D>,
+    geo_at_centroid: Vec<f64>,
+    fun: Tabulation<D>,
+    /// Physical coordinates of the quadrature points.
+    pub x: Vec<[f64; D]>,
+    /// `|det J| * weight` at each quadrature point.
+    pub jxw: Vec<f64>,
+    /// Physical gradients of the function basis: `dphi[q * n + i]`.
+    pub dphi: Vec<[f64; D]>,
+    /// Physical centroid (image of the reference centroid).
+    pub centroid: [f64; D],
+}
+
+impl<const D: usize> CellValues<D> {
+    /// Tabulates `function` (e.g. the P2+ velocity) and `geometry` (P1 or P2) at `qr`.
+    pub fn new(qr: QuadratureRule<D>, function: &ReferenceElement<D>, geometry: &ReferenceElement<D>) -> Self {
+        let geo = geometry.tabulate(&qr.points);
+        let fun = function.tabulate(&qr.points);
+        let c: [f64; D] = geometry.cell().centroid();
+        let geo_at_centroid = geometry.tabulate(&[c]).values;
+        let nq = qr.len();
+        let n = function.num_dofs();
+        CellValues {
+            qr,
+            geo,
+            geo_at_centroid,
+            fun,
+            x: vec![[0.0; D]; nq],
+            jxw: vec![0.0; nq],
+            dphi: vec![[0.0; D]; nq * n],
+            centroid: [0.0; D],
+        }
+    }
+
+    /// Number of quadrature points.
+    pub fn num_points(&self) -> usize {
+        self.qr.len()
+    }
+    /// Number of function basis functions.
+    pub fn num_dofs(&self) -> usize {
+        self.fun.num_dofs
+    }
+    /// The quadrature rule.
+    pub fn rule(&self) -> &QuadratureRule<D> {
+        &self.qr
+    }
+    /// Basis function values at point `q` (they do not depend on the cell).
+    #[inline]
+    pub fn phi(&self, q: usize) -> &[f64] {
+        let n = self.fun.num_dofs;
+        &self.fun.values[q * n..(q + 1) * n]
+    }
+    /// Physical basis gradients at point `q` (valid after [`Self::reinit`]).
+    #[inline]
+    pub fn grad_phi(&self, q: usize) -> &[[f64; D]] {
+        let n = self.fun.num_dofs;
+        &self.dphi[q * n..(q + 1) * n]
+    }
+
+    /// Re-initialises for the cell with geometry nodes `coords` (in the geometry element's node
+    /// order). Fails when `det J <= 0` at a quadrature point.
+    pub fn reinit(&mut self, coords: &[[f64; D]]) -> Result<(), MapError> {
+        let ng = self.geo.num_dofs;
+        debug_assert_eq!(coords.len(), ng);
+        let n = self.fun.num_dofs;
+        let mut c = [0.0; D];
+        for (k, xk) in coords.iter().enumerate() {
+            for d in 0..D {
+                c[d] += self.geo_at_centroid[k] * xk[d];
+            }
+        }
+        self.centroid = c;
+        for q in 0..self.qr.len() {
+            let mut x = [0.0; D];
+            let mut jac = [[0.0; D]; D];
+            for (k, xk) in coords.iter().enumerate() {
+                let nk = self.geo.values[q * ng + k];
+                let gk = self.geo.grads[q * ng + k];
+                for a in 0..D {
+                    x[a] += nk * xk[a];
+                    for b in 0..D {
+                        jac[a][b] += xk[a] * gk[b];
+                    }
+                }
+            }
+            let (det, inv) = det_inv(&jac);
+            if !(det > 0.0) {
+                return Err(MapError::NonPositiveJacobian { point: q, det });
+            }
+            self.x[q] = x;
+            self.jxw[q] = det * self.qr.weights[q];
+            // grad phi = J^{-T} grad_xi phi:  (grad phi)_a = sum_b inv[b][a] (grad_xi phi)_b
+            for i in 0..n {
+                let g = self.fun.grads[q * n + i];
+                let mut out = [0.0; D];
+                for a in 0..D {
+                    for b in 0..D {
+                        out[a] += inv[b][a] * g[b];
+                    }
+                }
+                self.dphi[q * n + i] = out;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Values on facet `f` of a cell: the facet rule mapped into the cell, surface measure
+/// `|J t_1|` (2D) or `|J t_1 x J t_2|` (3D) times the weight, and the outward unit normal.
+#[derive(Clone, Debug)]
+pub struct FacetValues<const D: usize> {
+    /// Per facet of the reference cell: tabulations of geometry and function at the mapped points.
+    per_facet: Vec<(Tabulation<D>, Tabulation<D>)>,
+    weights: Vec<f64>,
+    tangents: Vec<[[f64; D]; 2]>,
+    /// Physical coordinates of the quadrature points on the current facet.
+    pub x: Vec<[f64; D]>,
+    /// Surface measure times weight.
+    pub jxw: Vec<f64>,
+    /// Outward unit normal at each point.
+    pub normal: Vec<[f64; D]>,
+    /// Physical gradients of the function basis, `dphi[q * n + i]`.
+    pub dphi: Vec<[f64; D]>,
+    current: usize,
+}
+
+impl<const D: usize> FacetValues<D> {
+    /// `facet_points`/`facet_weights`: a rule on the reference facet cell (points with `D - 1`
+    /// components, padded in a `[f64; 2]`).
+    pub fn new(
+        cell: ReferenceCell,
+        facet_points: &[[f64; 2]],
+        facet_weights: &[f64],
+        function: &ReferenceElement<D>,
+        geometry: &ReferenceElement<D>,
+    ) -> Self {
+        let mut per_facet = Vec::new();
+        let mut tangents = Vec::new();
+        for f in 0..cell.num_facets() {
+            let pts: Vec<[f64; D]> = facet_points.iter().map(|eta| cell.facet_point(f, eta)).collect();
+            per_facet.push((geometry.tabulate(&pts), function.tabulate(&pts)));
+            // Reference tangents of the facet parameterisation (constant: facets are flat).
+            let p0: [f64; D] = cell.facet_point(f, &[0.0, 0.0]);
+            let p1: [f64; D] = cell.facet_point(f, &[1.0, 0.0]);
+            let p2: [f64; D] = cell.facet_point(f, &[0.0, 1.0]);
+            let t1 = std::array::from_fn(|d| p1[d] - p0[d]);
+            let t2 = std::array::from_fn(|d| p2[d] - p0[d]);
+            tangents.push([t1, t2]);
+        }
+        let nq = facet_weights.len();
+        let n = function.num_dofs();
+        FacetValues {
+            per_facet,
+            weights: facet_weights.to_vec(),
+            tangents,
+            x: vec![[0.0; D]; nq],
+            jxw: vec![0.0; nq],
+            normal: vec![[0.0; D]; nq],
+            dphi: vec![[0.0; D]; nq * n],
+            current: 0,
+        }
+    }
+
+    /// Number of quadrature points.
+    pub fn num_points(&self) -> usize {
+        self.weights.len()
+    }
+    /// Basis values at point `q` of the current facet.
+    #[inline]
+    pub fn phi(&self, q: usize) -> &[f64] {
+        let t = &self.per_facet[self.current].1;
+        &t.values[q * t.num_dofs..(q + 1) * t.num_dofs]
+    }
+    /// Physical basis gradients at point `q` of the current facet.
+    #[inline]
+    pub fn grad_phi(&self, q: usize) -> &[[f64; D]] {
+        let n = self.per_facet[self.current].1.num_dofs;
+        &self.dphi[q * n..(q + 1) * n]
+    }
+
+    /// Re-initialises for facet `facet` of the cell with geometry nodes `coords`.
+    pub fn reinit(&mut self, coords: &[[f64; D]], facet: usize) -> Result<(), MapError> {
+        self.current = facet;
+        let (geo, fun) = &self.per_facet[facet];
+        let ng = geo.num_dofs;
+        let n = fun.num_dofs;
+        let [t1, t2] = self.tangents[facet];
+        for q in 0..self.weights.len() {
+            let mut x = [0.0; D];
+            let mut jac = [[0.0; D]; D];
+            for (k, xk) in coords.iter().enumerate() {
+                let nk = geo.values[q * ng + k];
+                let gk = geo.grads[q * ng + k];
+                for a in 0..D {
+                    x[a] += nk * xk[a];
+                    for b in 0..D {
+                        jac[a][b] += xk[a] * gk[b];
+                    }
+                }
+            }
+            let (det, inv) = det_inv(&jac);
+            if !(det > 0.0) {
+                return Err(MapError::NonPositiveJacobian { point: q, det });
+            }
+            let jt = |t: &[f64; D]| -> [f64; D] {
+                std::array::from_fn(|a| (0..D).map(|b| jac[a][b] * t[b]).sum())
+            };
+            let (measure, mut nrm) = match D {
+                2 => {
+                    let a = jt(&t1);
+                    let len = (a[0] * a[0] + a[1] * a[1]).sqrt();
+                    let mut nv = [0.0; D];
+                    nv[0] = a[1] / len;
+                    nv[1] = -a[0] / len;
+                    (len, nv)
+                }
+                3 => {
+                    let a = jt(&t1);
+                    let b = jt(&t2);
+                    let c = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+                    let len = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+                    let mut nv = [0.0; D];
+                    for d in 0..3 {
+                        nv[d] = c[d] / len;
+                    }
+                    (len, nv)
+                }
+                _ => unreachable!(),
+            };
+            // The reference facets are outward oriented for positively oriented cells; a 2D edge
+            // (a -> b) traversed counter-clockwise has outward normal (dy, -dx). Guard anyway by
+            // the direction from the cell centre, cheap and robust for curved cells.
+            let centre: [f64; D] = {
+                let mut c = [0.0; D];
+                for xk in coords {
+                    for d in 0..D {
+                        c[d] += xk[d] / coords.len() as f64;
+                    }
+                }
+                c
+            };
+            let outward: f64 = (0..D).map(|d| (x[d] - centre[d]) * nrm[d]).sum();
+            if outward < 0.0 {
+                for v in nrm.iter_mut() {
+                    *v = -*v;
+                }
+            }
+            self.x[q] = x;
+            self.jxw[q] = measure * self.weights[q];
+            self.normal[q] = nrm;
+            for i in 0..n {
+                let g = fun.grads[q * n + i];
+                let mut out = [0.0; D];
+                for a in 0..D {
+                    for b in 0..D {
+                        out[a] += inv[b][a] * g[b];
+                    }
+                }
+                self.dphi[q * n + i] = out;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::quadrature;
+
+    #[test]
+    fn affine_triangle_area_and_gradients() {
+        let fun = ReferenceElement::p2plus_triangle();
+        let geo = ReferenceElement::p1_triangle();
+        let mut cv = CellValues::new(quadrature::triangle(5), &fun, &geo);
+        let coords = [[1.0, 1.0], [3.0, 1.5], [1.5, 4.0]];
+        cv.reinit(&coords).unwrap();
+        let area: f64 = cv.jxw.iter().sum();
+        let exact = 0.5 * ((2.0f64) * 3.0 - 0.5 * 0.5);
+        assert!((area - exact).abs() < 1e-13);
+        // Interpolate f(x, y) = x^2 - 3xy: gradients (2x - 3y, -3x) reproduced.
+        let nodes: Vec<[f64; 2]> = fun
+            .nodes()
+            .iter()
+            .map(|xi| {
+                let l = [1.0 - xi[0] - xi[1], xi[0], xi[1]];
+                std::array::from_fn(|d| (0..3).map(|k| l[k] * coords[k][d]).sum())
+            })
+            .collect();
+        let f: Vec<f64> = nodes.iter().map(|p| p[0] * p[0] - 3.0 * p[0] * p[1]).collect();
+        for q in 0..cv.num_points() {
+            let mut g = [0.0; 2];
+            for (i, gi) in cv.grad_phi(q).iter().enumerate() {
+                g[0] += f[i] * gi[0];
+                g[1] += f[i] * gi[1];
+            }
+            let [x, y] = cv.x[q];
+            assert!((g[0] - (2.0 * x - 3.0 * y)).abs() < 1e-12);
+            assert!((g[1] + 3.0 * x).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn inverted_cell_is_refused() {
+        let fun = ReferenceElement::p1_triangle();
+        let mut cv = CellValues::new(quadrature::triangle(2), &fun, &fun);
+        let err = cv.reinit(&[[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]).unwrap_err();
+        assert!(matches!(err, MapError::NonPositiveJacobian { .. }));
+    }
+
+    #[test]
+    fn curved_p2_triangle_area_matches_circle_sector() {
+        // Quarter disc of radius 1 as one P2 triangle: the curved edge's midpoint on the circle.
+        let fun = ReferenceElement::p2_triangle();
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let coords = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [s, s], [0.0, 0.5]];
+        let mut cv = CellValues::new(quadrature::triangle(8), &fun, &fun);
+        cv.reinit(&coords).unwrap();
+        let area: f64 = cv.jxw.iter().sum();
+        // The curved side is the parabola through (1,0), (s,s), (0,1): area = triangle 1/2 plus
+        // the parabolic segment 2/3 * chord * sagitta = (2/3) sqrt(2) (s - 1/2) sqrt(2).
+        let exact = 0.5 + 4.0 / 3.0 * (s - 0.5);
+        assert!((area - exact).abs() < 1e-14, "{area} vs {exact}");
+    }
+
+    #[test]
+    fn facet_normals_point_outward_and_measure_is_exact() {
+        let fun = ReferenceElement::p1_tetrahedron();
+        let q = quadrature::triangle(2);
+        let pts: Vec<[f64; 2]> = q.points.clone();
+        let mut fv = FacetValues::new(ReferenceCell::Tetrahedron, &pts, &q.weights, &fun, &fun);
+        let coords = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]];
+        let mut total = [0.0; 3];
+        for f in 0..4 {
+            fv.reinit(&coords, f).unwrap();
+            for qq in 0..fv.num_points() {
+                for d in 0..3 {
+                    total[d] += fv.jxw[qq] * fv.normal[qq][d];
+                }
+            }
+        }
+        // Closed surface: integral of the normal vanishes.
+        for t in total {
+            assert!(t.abs() < 1e-13);
+        }
+        fv.reinit(&coords, 3).unwrap(); // z = 0 face, area 2
+        let a: f64 = fv.jxw.iter().sum();
+        assert!((a - 2.0).abs() < 1e-13);
+        assert!((fv.normal[0][2] + 1.0).abs() < 1e-14);
+        let _ = [[0.0f64; 2]; 0];
+        let seg = quadrature::segment(3);
+        let pts2: Vec<[f64; 2]> = seg.points.iter().map(|p| [p[0], 0.0]).collect();
+        let tri = ReferenceElement::p1_triangle();
+        let mut fv2 = FacetValues::new(ReferenceCell::Triangle, &pts2, &seg.weights, &tri, &tri);
+        fv2.reinit(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], 0).unwrap();
+        assert!((fv2.normal[0][1] + 1.0).abs() < 1e-14);
+    }
+}
