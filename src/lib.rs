@@ -1,1 +1,14 @@
+//! fdfsi: fluid-structure interaction for heart-valve modelling.
+//!
+//! The library behind the `fdfsi` command line. The finite-element toolbox lives in the
+//! [`fdfsi_fem`] crate (re-exported as [`fem`]); this crate holds the physics and the drivers.
+//!
+//! Per solve, data flows one way: mesh -> [`flow::FlowDiscretization`] (dof maps, pattern)
+//! -> assembly with the kernels of [`physics`] -> [`solve::newton`] / [`solve::linear`]
+//! -> output.
+pub use fdfsi_fem as fem;
 
+pub mod flow;
+pub mod physics;
+pub mod solve;
+pub mod verify;

@@ -303,6 +303,27 @@ impl<const D: usize> ReferenceElement<D> {
         &self.entities
     }
 
+    /// Local nodes that lie on facet `f` of the cell: the facet's vertices, the edges with both
+    /// ends in the facet, and (3D) the face itself. Interior nodes never do.
+    pub fn facet_nodes(&self, f: usize) -> Vec<usize> {
+        let fv = self.cell.facet(f);
+        let dim = self.cell.dim();
+        let edges = self.cell.edges();
+        (0..self.num_dofs())
+            .filter(|&k| {
+                let e = self.entities[k];
+                let i = e.index as usize;
+                match e.dim as usize {
+                    d if d == dim => false,
+                    0 => fv.contains(&i),
+                    1 => fv.contains(&edges[i][0]) && fv.contains(&edges[i][1]),
+                    2 => i == f,
+                    _ => false,
+                }
+            })
+            .collect()
+    }
+
     /// Evaluates all basis functions and their reference gradients at `xi`, writing into
     /// `values[..n]` and `grads[..n]`. Allocation-free.
     pub fn eval_into(&self, xi: &[f64; D], values: &mut [f64], grads: &mut [[f64; D]]) {
@@ -880,6 +901,25 @@ mod tests {
             assert!((a[3 + k] - 0.5 * 2.0 / 15.0).abs() < 1e-14, "edge {k}: {}", a[3 + k]);
         }
         assert!((a[6] - 0.5 * 9.0 / 20.0).abs() < 1e-14, "bubble: {}", a[6]);
+    }
+
+    #[test]
+    fn facet_nodes_are_the_nodes_on_the_facet() {
+        let t = ReferenceElement::p2plus_tetrahedron();
+        for f in 0..4 {
+            let nodes = t.facet_nodes(f);
+            assert_eq!(nodes.len(), 7, "3 vertices, 3 edges, 1 face bubble");
+            // Facet f is opposite vertex f: barycentric l_f = 0 at its nodes.
+            for &k in &nodes {
+                let x = t.nodes()[k];
+                let l = [1.0 - x[0] - x[1] - x[2], x[0], x[1], x[2]];
+                assert!(l[f].abs() < 1e-15);
+            }
+        }
+        let tri = ReferenceElement::p2plus_triangle();
+        assert_eq!(tri.facet_nodes(1), vec![1, 2, 4]);
+        let q = ReferenceElement::q2_hexahedron();
+        assert_eq!(q.facet_nodes(0).len(), 9);
     }
 
     #[test]

@@ -10,3 +10,7 @@ pub mod element;
 pub mod quadrature;
 pub mod values;
 pub mod mesh;
+pub mod generate;
+pub mod dofs;
+pub mod sparse;
+pub mod vtk;

@@ -1,0 +1,289 @@
+//! Sparsity pattern, matrix values and parallel assembly.
+//!
+//! The pattern (symbolic) and the values (numeric) are separate objects: the [`Pattern`] is
+//! built once per mesh from the cell dof lists and keeps every structural entry, zero or not, so a
+//! sparse LU can compute its symbolic factorisation once and only refactor numerically.
+//!
+//! Storage is compressed sparse *column* (CSC), the layout faer's sparse LU reads without a copy.
+//! Finite-element coupling is structurally symmetric (cell `c` couples all its dofs with each
+//! other), so the pattern of `A` equals that of `A^T`.
+//!
+//! Assembly runs in parallel over cells with a colouring: cells of one colour share no vertex,
+//! hence no dof, so they write disjoint matrix entries and the threads of one colour never touch
+//! the same memory ([`assemble`]).
+
+use rayon::prelude::*;
+
+/// A CSC sparsity pattern with sorted row indices in each column.
+#[derive(Clone, Debug)]
+pub struct Pattern {
+    pub n: usize,
+    pub col_ptr: Vec<usize>,
+    pub row_idx: Vec<usize>,
+}
+
+impl Pattern {
+    /// Pattern of a matrix in which the dofs of every cell are coupled with each other.
+    /// `cell_dofs(c)` returns the global dofs of cell `c`.
+    pub fn from_cells<F>(n: usize, num_cells: usize, cell_dofs: F) -> Self
+    where
+        F: Fn(usize, &mut Vec<usize>) + Sync,
+    {
+        // dof -> cells adjacency (CSR).
+        let mut count = vec![0usize; n + 1];
+        let mut buf = Vec::new();
+        for c in 0..num_cells {
+            cell_dofs(c, &mut buf);
+            for &d in &buf {
+                count[d + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut dof_cells = vec![0usize; count[n]];
+        for c in 0..num_cells {
+            cell_dofs(c, &mut buf);
+            for &d in &buf {
+                dof_cells[fill[d]] = c;
+                fill[d] += 1;
+            }
+        }
+        // Column j: union of the dofs of the cells containing dof j.
+        let columns: Vec<Vec<usize>> = (0..n)
+            .into_par_iter()
+            .map_init(Vec::new, |buf, j| {
+                let mut rows: Vec<usize> = Vec::new();
+                for &c in &dof_cells[count[j]..count[j + 1]] {
+                    cell_dofs(c, buf);
+                    rows.extend_from_slice(buf);
+                }
+                rows.sort_unstable();
+                rows.dedup();
+                if rows.is_empty() {
+                    rows.push(j); // an unused dof still gets its diagonal
+                }
+                rows
+            })
+            .collect();
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        col_ptr.push(0);
+        let mut row_idx = Vec::with_capacity(columns.iter().map(Vec::len).sum());
+        for col in &columns {
+            row_idx.extend_from_slice(col);
+            col_ptr.push(row_idx.len());
+        }
+        Pattern { n, col_ptr, row_idx }
+    }
+
+    /// Number of stored entries.
+    pub fn nnz(&self) -> usize {
+        self.row_idx.len()
+    }
+
+    /// Position of entry `(row, col)` in the value array, if it is in the pattern.
+    #[inline]
+    pub fn find(&self, row: usize, col: usize) -> Option<usize> {
+        let (a, b) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        self.row_idx[a..b].binary_search(&row).ok().map(|k| a + k)
+    }
+}
+
+/// Values on a [`Pattern`]: a square sparse matrix in CSC storage.
+#[derive(Clone, Debug)]
+pub struct CscMatrix<'p> {
+    pub pattern: &'p Pattern,
+    pub values: Vec<f64>,
+}
+
+impl<'p> CscMatrix<'p> {
+    /// All-zero matrix on `pattern`.
+    pub fn zeros(pattern: &'p Pattern) -> Self {
+        CscMatrix { pattern, values: vec![0.0; pattern.nnz()] }
+    }
+    /// `y = A x`.
+    pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        let p = self.pattern;
+        for j in 0..p.n {
+            let xj = x[j];
+            if xj != 0.0 {
+                for k in p.col_ptr[j]..p.col_ptr[j + 1] {
+                    y[p.row_idx[k]] += self.values[k] * xj;
+                }
+            }
+        }
+    }
+    /// Entry `(row, col)`, zero when outside the pattern.
+    pub fn get(&self, row: usize, col: usize) -> f64 {
+        self.pattern.find(row, col).map(|k| self.values[k]).unwrap_or(0.0)
+    }
+}
+
+/// A colouring of the cells such that two cells of one colour share no vertex.
+#[derive(Clone, Debug)]
+pub struct Colouring {
+    /// Cells of each colour.
+    pub colours: Vec<Vec<usize>>,
+}
+
+impl Colouring {
+    /// Greedy colouring; `cell_vertices(c)` lists the vertices of cell `c`.
+    pub fn greedy<'a, F>(num_vertices: usize, num_cells: usize, cell_vertices: F) -> Self
+    where
+        F: Fn(usize) -> &'a [usize],
+    {
+        // vertex -> cells (CSR)
+        let mut count = vec![0usize; num_vertices + 1];
+        for c in 0..num_cells {
+            for &v in cell_vertices(c) {
+                count[v + 1] += 1;
+            }
+        }
+        for i in 0..num_vertices {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut vc = vec![0usize; count[num_vertices]];
+        for c in 0..num_cells {
+            for &v in cell_vertices(c) {
+                vc[fill[v]] = c;
+                fill[v] += 1;
+            }
+        }
+        let mut colour = vec![usize::MAX; num_cells];
+        let mut stamp: Vec<usize> = Vec::new(); // stamp[k] == c + 1: colour k is taken for cell c
+        let mut colours: Vec<Vec<usize>> = Vec::new();
+        for c in 0..num_cells {
+            for &v in cell_vertices(c) {
+                for &other in &vc[count[v]..count[v + 1]] {
+                    let k = colour[other];
+                    if k != usize::MAX {
+                        stamp[k] = c + 1;
+                    }
+                }
+            }
+            let k = (0..stamp.len()).find(|&k| stamp[k] != c + 1).unwrap_or(stamp.len());
+            if k == stamp.len() {
+                stamp.push(0);
+                colours.push(Vec::new());
+            }
+            colour[c] = k;
+            colours[k].push(c);
+        }
+        Colouring { colours }
+    }
+}
+
+/// Element matrix and vector of one cell, filled by a kernel: `ke` row-major `n x n`.
+#[derive(Clone, Debug, Default)]
+pub struct LocalSystem {
+    pub dofs: Vec<usize>,
+    pub ke: Vec<f64>,
+    pub fe: Vec<f64>,
+}
+
+impl LocalSystem {
+    /// Resizes to `n` dofs and zeroes the tensors.
+    pub fn reset(&mut self, n: usize) {
+        self.ke.clear();
+        self.ke.resize(n * n, 0.0);
+        self.fe.clear();
+        self.fe.resize(n, 0.0);
+    }
+}
+
+/// Raw pointers shared by the threads of one colour.
+struct SharedOut {
+    values: *mut f64,
+    rhs: *mut f64,
+}
+// SAFETY: threads only write entries of rows owned by the dofs of their own cell; within one
+// colour no two cells share a dof (see `Colouring`), so the writes are disjoint.
+unsafe impl Sync for SharedOut {}
+unsafe impl Send for SharedOut {}
+
+/// Assembles `sum_c P_c^T ke_c P_c` into `matrix` and `sum_c P_c^T fe_c` into `rhs`, in parallel
+/// over the cells of each colour. `kernel(c, scratch, local)` fills `local.dofs`, `local.ke`,
+/// `local.fe` for cell `c` (the loop stays visible in the caller's kernel; the kernel is pure).
+/// Rows of dofs with `skip_row[dof] == true` are not assembled (constrained dofs).
+///
+/// Returns the first kernel error, if any.
+pub fn assemble<S, E, K>(
+    matrix: &mut CscMatrix<'_>,
+    rhs: &mut [f64],
+    colouring: &Colouring,
+    skip_row: &[bool],
+    make_scratch: impl Fn() -> S + Sync + Send,
+    kernel: K,
+) -> Result<(), E>
+where
+    E: Send,
+    K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+{
+    let pattern = matrix.pattern;
+    let out = SharedOut { values: matrix.values.as_mut_ptr(), rhs: rhs.as_mut_ptr() };
+    let out = &out;
+    for cells in &colouring.colours {
+        cells.par_iter().with_min_len(64).try_for_each_init(
+            || (make_scratch(), LocalSystem::default()),
+            |(scratch, local), &c| -> Result<(), E> {
+                kernel(c, scratch, local)?;
+                let n = local.dofs.len();
+                for (i, &row) in local.dofs.iter().enumerate() {
+                    if skip_row[row] {
+                        continue;
+                    }
+                    // SAFETY: see `SharedOut`.
+                    unsafe { *out.rhs.add(row) += local.fe[i] };
+                    for (j, &col) in local.dofs.iter().enumerate() {
+                        let k = pattern.find(row, col).expect("cell dofs are in the pattern");
+                        unsafe { *out.values.add(k) += local.ke[i * n + j] };
+                    }
+                }
+                Ok(())
+            },
+        )?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pattern_and_assembly_of_a_1d_chain() {
+        // Cells [i, i+1] for i in 0..5: tridiagonal.
+        let n = 6;
+        let cells: Vec<[usize; 2]> = (0..5).map(|i| [i, i + 1]).collect();
+        let p = Pattern::from_cells(n, 5, |c, buf| {
+            buf.clear();
+            buf.extend_from_slice(&cells[c]);
+        });
+        assert_eq!(p.nnz(), 6 + 2 * 5);
+        let col = Colouring::greedy(n, 5, |c| &cells[c][..]);
+        assert_eq!(col.colours.len(), 2);
+        let mut m = CscMatrix::zeros(&p);
+        let mut rhs = vec![0.0; n];
+        let skip = vec![false; n];
+        assemble(&mut m, &mut rhs, &col, &skip, || (), |c, _, l: &mut LocalSystem| -> Result<(), ()> {
+            l.dofs.clear();
+            l.dofs.extend_from_slice(&cells[c]);
+            l.reset(2);
+            l.ke.copy_from_slice(&[1.0, -1.0, -1.0, 1.0]);
+            l.fe.copy_from_slice(&[0.5, 0.5]);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(m.get(0, 0), 1.0);
+        assert_eq!(m.get(2, 2), 2.0);
+        assert_eq!(m.get(2, 3), -1.0);
+        assert_eq!(m.get(0, 3), 0.0);
+        assert_eq!(rhs, vec![0.5, 1.0, 1.0, 1.0, 1.0, 0.5]);
+        let mut y = vec![0.0; n];
+        m.mul_vec(&[1.0; 6], &mut y);
+        assert!(y.iter().all(|v| v.abs() < 1e-15));
+    }
+}

@@ -1,0 +1,461 @@
+//! Incompressible flow on one fixed mesh: problem definition, discretisation, steady solve and
+//! error norms.
+//!
+//! Data flows one way: a [`FlowProblem`] (physics and boundary conditions) and a mesh give a
+//! [`FlowDiscretization`] (everything derived from the mesh: topology, dof maps, sparsity
+//! pattern, colouring; built once, never patched); [`solve_steady`] runs Newton on it with the
+//! kernel of [`crate::physics::fluid`] and returns a [`FlowSolution`].
+
+use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
+use crate::solve::linear::LinearSolver;
+use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use fdfsi_fem::dofs::{BlockLayout, NodeMap};
+use fdfsi_fem::element::{ReferenceCell, ReferenceElement};
+use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
+use fdfsi_fem::quadrature::{self, QuadratureRule};
+use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
+use fdfsi_fem::values::{p1disc_basis, CellValues, FacetValues, MapError};
+use std::sync::Arc;
+use thiserror::Error;
+
+/// A vector field of position and time.
+pub type VectorFn<const D: usize> = Arc<dyn Fn(&[f64; D], f64) -> [f64; D] + Send + Sync>;
+/// A traction of position, outward normal and time.
+pub type TractionFn<const D: usize> = Arc<dyn Fn(&[f64; D], &[f64; D], f64) -> [f64; D] + Send + Sync>;
+
+/// Velocity prescribed on a named boundary, for the listed components.
+#[derive(Clone)]
+pub struct DirichletBc<const D: usize> {
+    pub boundary: String,
+    pub components: Vec<usize>,
+    pub value: VectorFn<D>,
+}
+
+/// Traction `sigma n = t` prescribed on a named boundary.
+#[derive(Clone)]
+pub struct TractionBc<const D: usize> {
+    pub boundary: String,
+    pub traction: TractionFn<D>,
+}
+
+/// A flow problem: formulation, fluid parameters, body force, boundary conditions.
+#[derive(Clone)]
+pub struct FlowProblem<const D: usize> {
+    pub formulation: Formulation,
+    pub params: FluidParams,
+    pub body_force: Option<VectorFn<D>>,
+    pub dirichlet: Vec<DirichletBc<D>>,
+    pub traction: Vec<TractionBc<D>>,
+    /// Fix the pressure constant (needed when the velocity is prescribed on the whole boundary):
+    /// the mean-value dof of cell 0 is set to zero and the pressure shifted to zero mean after the
+    /// solve.
+    pub pin_pressure: bool,
+}
+
+/// Errors of a flow solve.
+#[derive(Debug, Error)]
+pub enum FlowError {
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error("cell {cell}: {source}")]
+    Map { cell: usize, source: MapError },
+    #[error("the {formulation:?} formulation does not apply to {dim}D meshes")]
+    Formulation { formulation: Formulation, dim: usize },
+    #[error("fluid meshes must be triangles (2D) or tetrahedra (3D), got {0:?}")]
+    CellType(ReferenceCell),
+    #[error(transparent)]
+    Newton(#[from] NewtonError<AssemblyError>),
+}
+
+/// An error inside assembly (reported through Newton).
+#[derive(Debug, Error)]
+#[error("cell {cell}: {source}")]
+pub struct AssemblyError {
+    pub cell: usize,
+    pub source: MapError,
+}
+
+/// Everything derived from one fluid mesh.
+pub struct FlowDiscretization<const D: usize> {
+    pub mesh: Mesh<D>,
+    pub topology: Topology,
+    pub velocity_element: ReferenceElement<D>,
+    pub geometry_element: ReferenceElement<D>,
+    /// Fields "velocity" (D components on P2+ nodes) and "pressure" (1 component, D + 1 dofs per
+    /// cell).
+    pub layout: BlockLayout,
+    /// Physical coordinates of the velocity nodes.
+    pub velocity_nodes: Vec<[f64; D]>,
+    pub pattern: Pattern,
+    pub colouring: Colouring,
+    pub cell_rule: QuadratureRule<D>,
+    facet_points: Vec<[f64; 2]>,
+    facet_weights: Vec<f64>,
+}
+
+/// The P2+ velocity element of a fluid cell type.
+fn p2plus<const D: usize>(cell: ReferenceCell) -> Result<ReferenceElement<D>, FlowError> {
+    use std::any::Any;
+    let e: Box<dyn Any> = match cell {
+        ReferenceCell::Triangle if D == 2 => Box::new(ReferenceElement::<2>::p2plus_triangle()),
+        ReferenceCell::Tetrahedron if D == 3 => Box::new(ReferenceElement::<3>::p2plus_tetrahedron()),
+        other => return Err(FlowError::CellType(other)),
+    };
+    Ok(*e.downcast::<ReferenceElement<D>>().expect("dimension checked"))
+}
+
+/// Quadrature degree of the cell integrals: exact for the P2+ stiffness on affine cells
+/// (bubble gradients of degree D, squared) and high enough for smooth data.
+fn cell_degree(d: usize) -> usize {
+    if d == 2 {
+        5
+    } else {
+        6
+    }
+}
+
+impl<const D: usize> FlowDiscretization<D> {
+    /// Builds topology, dof maps, pattern and colouring for `mesh`.
+    pub fn build(mesh: Mesh<D>, formulation: Formulation) -> Result<Self, FlowError> {
+        if (formulation == Formulation::ThreeD) != (D == 3) {
+            return Err(FlowError::Formulation { formulation, dim: D });
+        }
+        mesh.check()?;
+        let velocity_element = p2plus::<D>(mesh.cell_type)?;
+        let geometry_element = mesh.geometry_element();
+        let topology = Topology::build(&mesh);
+        let vmap = NodeMap::continuous(&mesh, &topology, &velocity_element);
+        let velocity_nodes = vmap.coordinates(&mesh, &velocity_element);
+        let mut layout = BlockLayout::default();
+        layout.push("velocity", D, vmap);
+        layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
+        let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
+        let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
+        let cell_rule = rule_for::<D>(mesh.cell_type, cell_degree(D));
+        let (facet_points, facet_weights) = facet_rule(mesh.cell_type, 6);
+        Ok(FlowDiscretization {
+            mesh,
+            topology,
+            velocity_element,
+            geometry_element,
+            layout,
+            velocity_nodes,
+            pattern,
+            colouring,
+            cell_rule,
+            facet_points,
+            facet_weights,
+        })
+    }
+
+    /// Number of unknowns.
+    pub fn num_dofs(&self) -> usize {
+        self.layout.num_dofs()
+    }
+
+    /// Fresh cell values for this discretisation at a rule.
+    pub fn cell_values(&self, rule: QuadratureRule<D>) -> CellValues<D> {
+        CellValues::new(rule, &self.velocity_element, &self.geometry_element)
+    }
+
+    /// Fresh facet values.
+    pub fn facet_values(&self) -> FacetValues<D> {
+        FacetValues::new(
+            self.mesh.cell_type,
+            &self.facet_points,
+            &self.facet_weights,
+            &self.velocity_element,
+            &self.geometry_element,
+        )
+    }
+
+    /// Global dofs constrained by the Dirichlet conditions and their values at time `t`.
+    pub fn dirichlet_dofs(&self, problem: &FlowProblem<D>, t: f64) -> Result<Vec<(usize, f64)>, FlowError> {
+        let vel = &self.layout.fields[0];
+        let mut out: Vec<(usize, f64)> = Vec::new();
+        let mut seen = vec![false; self.num_dofs()];
+        for bc in &problem.dirichlet {
+            for bf in self.mesh.boundary_facets(&bc.boundary)? {
+                let nodes = vel.nodes.cell(bf.cell);
+                for k in self.velocity_element.facet_nodes(bf.facet) {
+                    let node = nodes[k];
+                    let value = (bc.value)(&self.velocity_nodes[node], t);
+                    for &a in &bc.components {
+                        let dof = vel.dof(node, a);
+                        if !seen[dof] {
+                            seen[dof] = true;
+                            out.push((dof, value[a]));
+                        }
+                    }
+                }
+            }
+        }
+        if problem.pin_pressure {
+            let p = &self.layout.fields[1];
+            out.push((p.dof(0, 0), 0.0));
+        }
+        Ok(out)
+    }
+
+    /// Assembles the Jacobian `k` and `rhs = -R(x)` of the flow problem at time `t`; rows of the
+    /// constrained dofs become identity rows with zero right-hand side.
+    pub fn assemble_system(
+        &self,
+        problem: &FlowProblem<D>,
+        x: &[f64],
+        x_old: &[f64],
+        t: f64,
+        constrained: &[bool],
+        k: &mut CscMatrix<'_>,
+        rhs: &mut [f64],
+    ) -> Result<(), AssemblyError> {
+        let nv = self.velocity_element.num_dofs();
+        let nu = nv * D;
+        let n = self.layout.dofs_per_cell();
+        let zero = |_: &[f64; D], _: f64| [0.0; D];
+        let force: &(dyn Fn(&[f64; D], f64) -> [f64; D] + Send + Sync) = match &problem.body_force {
+            Some(f) => f.as_ref(),
+            None => &zero,
+        };
+        let mesh = &self.mesh;
+        assemble(
+            k,
+            rhs,
+            &self.colouring,
+            constrained,
+            || (self.cell_values(self.cell_rule.clone()), Vec::new(), Vec::new(), vec![0.0; n], vec![0.0; n]),
+            |c, (cv, coords, u_old, u_loc, _), local: &mut LocalSystem| {
+                mesh.cell_coords_into(c, coords);
+                cv.reinit(coords).map_err(|source| AssemblyError { cell: c, source })?;
+                self.layout.cell_dofs_into(c, &mut local.dofs);
+                local.reset(n);
+                for (i, &d) in local.dofs.iter().enumerate() {
+                    u_loc[i] = x[d];
+                }
+                u_old.clear();
+                u_old.extend(local.dofs[..nu].iter().map(|&d| x_old[d]));
+                let state = CellState { u: &u_loc[..nu], u_old, p: &u_loc[nu..] };
+                let f = |p: &[f64; D]| force(p, t);
+                fluid_cell(cv, problem.formulation, &problem.params, &state, &f, &mut local.ke, &mut local.fe);
+                local.fe.iter_mut().for_each(|v| *v = -*v);
+                Ok(())
+            },
+        )?;
+        // Traction boundaries (few facets: serial).
+        let mut fv = self.facet_values();
+        let mut coords = Vec::new();
+        let mut re = vec![0.0; nu];
+        let vel = &self.layout.fields[0];
+        for bc in &problem.traction {
+            let facets = self.mesh.boundary_facets(&bc.boundary).unwrap_or_default();
+            for bf in facets {
+                self.mesh.cell_coords_into(bf.cell, &mut coords);
+                fv.reinit(&coords, bf.facet).map_err(|source| AssemblyError { cell: bf.cell, source })?;
+                re.iter_mut().for_each(|v| *v = 0.0);
+                let tr = |p: &[f64; D], nrm: &[f64; D]| (bc.traction)(p, nrm, t);
+                traction_facet(&fv, problem.formulation, &tr, &mut re);
+                for (i, &node) in vel.nodes.cell(bf.cell).iter().enumerate() {
+                    for a in 0..D {
+                        let dof = vel.dof(node, a);
+                        if !constrained[dof] {
+                            rhs[dof] -= re[i * D + a];
+                        }
+                    }
+                }
+            }
+        }
+        for (dof, &c) in constrained.iter().enumerate() {
+            if c {
+                let pos = self.pattern.find(dof, dof).expect("diagonal in pattern");
+                k.values[pos] = 1.0;
+                rhs[dof] = 0.0;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The quadrature rule of degree `degree` on `cell`, whose dimension must be `D`.
+pub fn rule_for<const D: usize>(cell: ReferenceCell, degree: usize) -> QuadratureRule<D> {
+    use std::any::Any;
+    let b: Box<dyn Any> = match cell {
+        ReferenceCell::Triangle => Box::new(quadrature::triangle(degree)),
+        ReferenceCell::Quadrilateral => Box::new(quadrature::quadrilateral(degree)),
+        ReferenceCell::Tetrahedron => Box::new(quadrature::tetrahedron(degree)),
+        ReferenceCell::Hexahedron => Box::new(quadrature::hexahedron(degree)),
+        ReferenceCell::Segment => Box::new(quadrature::segment(degree)),
+    };
+    *b.downcast::<QuadratureRule<D>>().unwrap_or_else(|_| panic!("{cell:?} is not a {D}D cell"))
+}
+
+/// A rule on the facet cell of `cell`, as points padded to 2 components.
+fn facet_rule(cell: ReferenceCell, degree: usize) -> (Vec<[f64; 2]>, Vec<f64>) {
+    match cell.facet_cell() {
+        ReferenceCell::Triangle => {
+            let q = quadrature::triangle(degree);
+            (q.points, q.weights)
+        }
+        ReferenceCell::Quadrilateral => {
+            let q = quadrature::quadrilateral(degree);
+            (q.points, q.weights)
+        }
+        _ => {
+            let q = quadrature::segment(degree);
+            (q.points.iter().map(|p| [p[0], 0.0]).collect(), q.weights)
+        }
+    }
+}
+
+/// A flow solution on a discretisation: the global vector in the layout's numbering.
+#[derive(Clone, Debug)]
+pub struct FlowSolution {
+    pub x: Vec<f64>,
+    pub newton: NewtonReport,
+}
+
+impl FlowSolution {
+    /// Velocity at velocity node `node`.
+    pub fn velocity<const D: usize>(&self, disc: &FlowDiscretization<D>, node: usize) -> [f64; D] {
+        let f = &disc.layout.fields[0];
+        std::array::from_fn(|a| self.x[f.dof(node, a)])
+    }
+    /// Pressure dofs of cell `c`: value at the centroid, then the gradient.
+    pub fn pressure_dofs<'a, const D: usize>(&'a self, disc: &FlowDiscretization<D>, c: usize) -> &'a [f64] {
+        let f = &disc.layout.fields[1];
+        let s = f.dof(c * (D + 1), 0);
+        &self.x[s..s + D + 1]
+    }
+}
+
+/// Solves the steady problem (`params.inv_dt` must be 0) with Newton from a zero initial guess.
+pub fn solve_steady<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+) -> Result<FlowSolution, FlowError> {
+    let n = disc.num_dofs();
+    let mut x = vec![0.0; n];
+    let bcs = disc.dirichlet_dofs(problem, 0.0)?;
+    let mut constrained = vec![false; n];
+    for &(d, v) in &bcs {
+        constrained[d] = true;
+        x[d] = v;
+    }
+    let x_old = vec![0.0; n];
+    let report = newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| {
+        disc.assemble_system(problem, x, &x_old, 0.0, &constrained, k, rhs)
+    })?;
+    if problem.pin_pressure {
+        shift_pressure_to_zero_mean(disc, problem.formulation, &mut x)?;
+    }
+    Ok(FlowSolution { x, newton: report })
+}
+
+/// Adds a constant to the pressure so that its (weighted) mean over the domain is zero.
+fn shift_pressure_to_zero_mean<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    formulation: Formulation,
+    x: &mut [f64],
+) -> Result<(), FlowError> {
+    let mut cv = disc.cell_values(disc.cell_rule.clone());
+    let mut coords = Vec::new();
+    let (mut int_p, mut vol) = (0.0, 0.0);
+    let pf = &disc.layout.fields[1];
+    let mut psi = [0.0; 4];
+    for c in 0..disc.mesh.num_cells() {
+        disc.mesh.cell_coords_into(c, &mut coords);
+        cv.reinit(&coords).map_err(|source| FlowError::Map { cell: c, source })?;
+        for q in 0..cv.num_points() {
+            let w = cv.jxw[q] * formulation.weight(&cv.x[q]);
+            p1disc_basis(&cv.x[q], &cv.centroid, &mut psi);
+            let p: f64 = (0..=D).map(|k| x[pf.dof(c * (D + 1) + k, 0)] * psi[k]).sum();
+            int_p += w * p;
+            vol += w;
+        }
+    }
+    let mean = int_p / vol;
+    for c in 0..disc.mesh.num_cells() {
+        x[pf.dof(c * (D + 1), 0)] -= mean;
+    }
+    Ok(())
+}
+
+/// Exact solution for error norms: velocity, velocity gradient `g[a][b] = du_a/dx_b`, pressure.
+pub struct ExactFlow<'a, const D: usize> {
+    pub velocity: &'a dyn Fn(&[f64; D]) -> [f64; D],
+    pub gradient: &'a dyn Fn(&[f64; D]) -> [[f64; D]; D],
+    pub pressure: &'a dyn Fn(&[f64; D]) -> f64,
+}
+
+/// Errors of a discrete flow against an exact one (weighted by `r` when axisymmetric).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct FlowErrors {
+    pub velocity_l2: f64,
+    pub velocity_h1: f64,
+    pub pressure_l2: f64,
+    /// `max_K |int_K div u_h|` (weighted): zero to round-off for P2+/P1disc.
+    pub max_cell_divergence: f64,
+}
+
+/// Computes [`FlowErrors`] with a quadrature rule of degree `degree`.
+pub fn flow_errors<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    formulation: Formulation,
+    x: &[f64],
+    exact: &ExactFlow<'_, D>,
+    degree: usize,
+) -> Result<FlowErrors, FlowError> {
+    let mut cv = disc.cell_values(rule_for(disc.mesh.cell_type, degree));
+    let vf = &disc.layout.fields[0];
+    let pf = &disc.layout.fields[1];
+    let mut coords = Vec::new();
+    let mut e = FlowErrors::default();
+    let mut psi = [0.0; 4];
+    for c in 0..disc.mesh.num_cells() {
+        disc.mesh.cell_coords_into(c, &mut coords);
+        cv.reinit(&coords).map_err(|source| FlowError::Map { cell: c, source })?;
+        let nodes = vf.nodes.cell(c);
+        let mut cell_div = 0.0;
+        for q in 0..cv.num_points() {
+            let xq = cv.x[q];
+            let r = formulation.weight(&xq);
+            let w = cv.jxw[q] * r;
+            let (phi, dphi) = (cv.phi(q), cv.grad_phi(q));
+            let mut u = [0.0; D];
+            let mut g = [[0.0; D]; D];
+            for (i, &node) in nodes.iter().enumerate() {
+                for a in 0..D {
+                    let ua = x[vf.dof(node, a)];
+                    u[a] += ua * phi[i];
+                    for b in 0..D {
+                        g[a][b] += ua * dphi[i][b];
+                    }
+                }
+            }
+            p1disc_basis(&xq, &cv.centroid, &mut psi);
+            let p: f64 = (0..=D).map(|k| x[pf.dof(c * (D + 1) + k, 0)] * psi[k]).sum();
+            let (ue, ge, pe) = ((exact.velocity)(&xq), (exact.gradient)(&xq), (exact.pressure)(&xq));
+            for a in 0..D {
+                e.velocity_l2 += w * (u[a] - ue[a]).powi(2);
+                for b in 0..D {
+                    e.velocity_h1 += w * (g[a][b] - ge[a][b]).powi(2);
+                }
+            }
+            if formulation == Formulation::Axisymmetric {
+                e.velocity_h1 += w * ((u[1] - ue[1]) / r).powi(2);
+            }
+            e.pressure_l2 += w * (p - pe).powi(2);
+            let mut div: f64 = (0..D).map(|a| g[a][a]).sum();
+            if formulation == Formulation::Axisymmetric {
+                div += u[1] / r;
+            }
+            cell_div += w * div;
+        }
+        e.max_cell_divergence = e.max_cell_divergence.max(cell_div.abs());
+    }
+    e.velocity_l2 = e.velocity_l2.sqrt();
+    e.velocity_h1 = e.velocity_h1.sqrt();
+    e.pressure_l2 = e.pressure_l2.sqrt();
+    Ok(e)
+}

@@ -1,0 +1,255 @@
+//! Incompressible flow on P2+/P1disc (Crouzeix-Raviart) elements: the cell kernel.
+//!
+//! Weak form (METHOD.md section 2), in residual form for Newton, for every velocity test
+//! function `v` and pressure test function `q`:
+//!
+//! ```text
+//! R_u(v) = rho/dt (u - u_old, v) + rho (u . grad u, v) + (2 eta D(u), D(v)) - (p, div v) - (f, v)
+//!          - <t_N, v>_Gamma_N
+//! R_p(q) = -(q, div u)
+//! ```
+//!
+//! with `D(u) = (grad u + grad u^T) / 2`. The pressure row carries a minus sign so that the Stokes
+//! Jacobian is the symmetric saddle-point matrix `[A B^T; B 0]`.
+//!
+//! **Axisymmetric** (coordinates `x = (z, r)`, velocity `(u_z, u_r)`, no swirl): every integral
+//! carries the weight `r`, the strain rate gains the hoop component `D_tt = u_r / r`, and
+//! `div u = d u_z/dz + d u_r/dr + u_r / r`. The symmetry axis `r = 0` needs `u_r = 0` (a
+//! Dirichlet condition on the radial component); the weight `r` makes the other terms vanish there.
+//!
+//! The pressure space is P1 discontinuous in physical coordinates,
+//! `p|_K = p_0 + g . (x - x_c)` ([`fdfsi_fem::values::p1disc_basis`]): its test functions contain
+//! the constant on each cell, so `int_K div u_h = 0` for every cell (local mass conservation).
+
+use fdfsi_fem::values::{p1disc_basis, CellValues};
+
+/// The geometric formulation of the equations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Formulation {
+    /// 2D plane flow (or plane strain).
+    Plane,
+    /// 2D axisymmetric about the x axis: `x[0] = z` axial, `x[1] = r` radial.
+    Axisymmetric,
+    /// 3D.
+    #[serde(rename = "3d")]
+    ThreeD,
+}
+
+impl Formulation {
+    /// The integration weight at physical point `x`: `r = x[1]` (axisymmetric) or 1.
+    #[inline]
+    pub fn weight<const D: usize>(self, x: &[f64; D]) -> f64 {
+        match self {
+            Formulation::Axisymmetric => x[1],
+            _ => 1.0,
+        }
+    }
+}
+
+/// Material and time-discretisation parameters of the fluid kernel.
+#[derive(Clone, Copy, Debug)]
+pub struct FluidParams {
+    /// Dynamic viscosity `eta`.
+    pub viscosity: f64,
+    /// Density `rho`.
+    pub density: f64,
+    /// `1/dt` of implicit Euler; 0 for a steady problem.
+    pub inv_dt: f64,
+    /// Include the convective term `rho u . grad u` (Navier-Stokes) or not (Stokes).
+    pub convection: bool,
+}
+
+/// Local unknowns of one cell: velocity `u[i * D + a]` (node `i`, component `a`), the previous
+/// time level `u_old` (same layout, ignored when steady), pressure `p[k]` (P1disc dofs).
+pub struct CellState<'a> {
+    pub u: &'a [f64],
+    pub u_old: &'a [f64],
+    pub p: &'a [f64],
+}
+
+/// Fluid cell kernel: element residual `re` and Jacobian `ke` (row-major, local order: all
+/// velocity dofs `i * D + a`, then the `D + 1` pressure dofs). `cv` must be re-initialised for
+/// the cell; `body_force(x)` is `f`.
+pub fn fluid_cell<const D: usize>(
+    cv: &CellValues<D>,
+    formulation: Formulation,
+    params: &FluidParams,
+    state: &CellState<'_>,
+    body_force: &dyn Fn(&[f64; D]) -> [f64; D],
+    ke: &mut [f64],
+    re: &mut [f64],
+) {
+    let nv = cv.num_dofs();
+    let nu = nv * D;
+    let np = D + 1;
+    let n = nu + np;
+    debug_assert_eq!(ke.len(), n * n);
+    let axi = formulation == Formulation::Axisymmetric;
+    let eta = params.viscosity;
+    let rho = params.density;
+    let mut psi = [0.0; 4];
+    for q in 0..cv.num_points() {
+        let x = cv.x[q];
+        let r = if axi { x[1] } else { 1.0 };
+        let w = cv.jxw[q] * r;
+        let phi = cv.phi(q);
+        let dphi = cv.grad_phi(q);
+        p1disc_basis(&x, &cv.centroid, &mut psi);
+        // Interpolated fields at the point.
+        let mut u = [0.0; D];
+        let mut u_old = [0.0; D];
+        let mut gu = [[0.0; D]; D]; // gu[a][b] = d u_a / d x_b
+        for i in 0..nv {
+            for a in 0..D {
+                let ua = state.u[i * D + a];
+                u[a] += ua * phi[i];
+                if params.inv_dt != 0.0 {
+                    u_old[a] += state.u_old[i * D + a] * phi[i];
+                }
+                for b in 0..D {
+                    gu[a][b] += ua * dphi[i][b];
+                }
+            }
+        }
+        let p: f64 = (0..np).map(|k| state.p[k] * psi[k]).sum();
+        let mut div_u: f64 = (0..D).map(|a| gu[a][a]).sum();
+        let hoop = if axi { u[1] / r } else { 0.0 };
+        div_u += hoop;
+        let f = body_force(&x);
+        // Momentum "force" per component: inertia + convection - body force.
+        let mut m = [0.0; D];
+        for a in 0..D {
+            m[a] = rho * params.inv_dt * (u[a] - u_old[a]) - f[a];
+            if params.convection {
+                m[a] += rho * (0..D).map(|b| u[b] * gu[a][b]).sum::<f64>();
+            }
+        }
+        // Residual.
+        for i in 0..nv {
+            for a in 0..D {
+                let mut s = 0.0;
+                for b in 0..D {
+                    s += eta * (gu[a][b] + gu[b][a]) * dphi[i][b];
+                }
+                let mut div_v = dphi[i][a];
+                if axi && a == 1 {
+                    s += 2.0 * eta * hoop * phi[i] / r;
+                    div_v += phi[i] / r;
+                }
+                re[i * D + a] += w * (s - p * div_v + m[a] * phi[i]);
+            }
+        }
+        for k in 0..np {
+            re[nu + k] -= w * psi[k] * div_u;
+        }
+        // Jacobian.
+        let mass = rho * params.inv_dt;
+        for i in 0..nv {
+            for j in 0..nv {
+                let gij: f64 = (0..D).map(|b| dphi[i][b] * dphi[j][b]).sum();
+                let conv_j: f64 = if params.convection { (0..D).map(|b| u[b] * dphi[j][b]).sum() } else { 0.0 };
+                for a in 0..D {
+                    let row = (i * D + a) * n;
+                    for b in 0..D {
+                        let mut v = eta * dphi[i][b] * dphi[j][a];
+                        if a == b {
+                            v += eta * gij + (mass * phi[j] + rho * conv_j) * phi[i];
+                            if axi && a == 1 {
+                                v += 2.0 * eta * phi[i] * phi[j] / (r * r);
+                            }
+                        }
+                        if params.convection {
+                            v += rho * phi[i] * phi[j] * gu[a][b];
+                        }
+                        ke[row + j * D + b] += w * v;
+                    }
+                }
+            }
+            for a in 0..D {
+                let mut div_v = dphi[i][a];
+                if axi && a == 1 {
+                    div_v += phi[i] / r;
+                }
+                for k in 0..np {
+                    let b = -w * psi[k] * div_v;
+                    ke[(i * D + a) * n + nu + k] += b;
+                    ke[(nu + k) * n + i * D + a] += b;
+                }
+            }
+        }
+    }
+}
+
+/// Traction (Neumann) facet kernel: subtracts `int_facet t . v (r)` from the residual rows of the
+/// velocity. `phi` at each point comes from `fv`; `traction(x, n)` gives `t`.
+pub fn traction_facet<const D: usize>(
+    fv: &fdfsi_fem::values::FacetValues<D>,
+    formulation: Formulation,
+    traction: &dyn Fn(&[f64; D], &[f64; D]) -> [f64; D],
+    re: &mut [f64],
+) {
+    for q in 0..fv.num_points() {
+        let x = fv.x[q];
+        let w = fv.jxw[q] * formulation.weight(&x);
+        let t = traction(&x, &fv.normal[q]);
+        for (i, phi) in fv.phi(q).iter().enumerate() {
+            for a in 0..D {
+                re[i * D + a] -= w * t[a] * phi;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fdfsi_fem::element::ReferenceElement;
+    use fdfsi_fem::quadrature;
+
+    /// The kernel's Jacobian equals a central finite difference of its residual, for every
+    /// formulation, with convection and inertia switched on.
+    #[test]
+    fn jacobian_matches_finite_differences_of_residual() {
+        let fun = ReferenceElement::p2plus_triangle();
+        let geo = ReferenceElement::p1_triangle();
+        let mut cv = CellValues::new(quadrature::triangle(5), &fun, &geo);
+        cv.reinit(&[[0.2, 0.3], [1.1, 0.4], [0.5, 1.2]]).unwrap();
+        let nu = 14;
+        let n = nu + 3;
+        let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true };
+        let mut s = 7u64;
+        let mut rnd = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let x0: Vec<f64> = (0..n).map(|_| rnd()).collect();
+        let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
+        let f = |x: &[f64; 2]| [x[0].sin(), x[1] * x[0]];
+        for form in [Formulation::Plane, Formulation::Axisymmetric] {
+            let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
+                ke.iter_mut().for_each(|v| *v = 0.0);
+                re.iter_mut().for_each(|v| *v = 0.0);
+                let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
+                fluid_cell(&cv, form, &params, &st, &f, ke, re);
+            };
+            let mut ke = vec![0.0; n * n];
+            let mut re = vec![0.0; n];
+            eval(&x0, &mut ke, &mut re);
+            let h = 1e-6;
+            for j in 0..n {
+                let mut xp = x0.clone();
+                let mut xm = x0.clone();
+                xp[j] += h;
+                xm[j] -= h;
+                let (mut kp, mut rp, mut rm) = (vec![0.0; n * n], vec![0.0; n], vec![0.0; n]);
+                eval(&xp, &mut kp, &mut rp);
+                eval(&xm, &mut kp, &mut rm);
+                for i in 0..n {
+                    let fd = (rp[i] - rm[i]) / (2.0 * h);
+                    assert!((fd - ke[i * n + j]).abs() < 1e-6 * (1.0 + fd.abs()), "{form:?} K[{i}][{j}] = {} vs FD {fd}", ke[i * n + j]);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,2 @@
+//! Physics kernels: the fluid ([`fluid`]); the solid and the coupling join later.
+pub mod fluid;

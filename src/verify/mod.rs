@@ -1,0 +1,214 @@
+//! Convergence studies on manufactured solutions (`fdfsi verify`).
+//!
+//! A study solves one problem on a sequence of refined meshes, records an error norm per mesh,
+//! and reports the observed rate `log(e_{k-1}/e_k) / log(h_{k-1}/h_k)` of the last two meshes
+//! beside the expected one. The tests run the same code and assert the rates.
+//!
+//! | study | mesh | boundary conditions | expected rates (u L2, u H1, p L2) |
+//! |---|---|---|---|
+//! | `stokes-plane` | unit square, triangles | velocity on three sides, traction on `right` | 3, 2, 2 |
+//! | `stokes-axisymmetric` | `(z, r)` in unit square, axis at `r = 0` | `u_r = 0` on the axis, velocity on `left`/`top`, traction on `right` | 3, 2, 2 |
+//! | `stokes-3d` | unit cube, tetrahedra | velocity on five faces, traction on `xmax` | 3, 2, 2 |
+
+pub mod manufactured;
+
+use crate::flow::{
+    flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc,
+};
+use crate::physics::fluid::{FluidParams, Formulation};
+use crate::solve::linear::FaerLu;
+use crate::solve::newton::NewtonOptions;
+use fdfsi_fem::generate::{box_tetrahedra, rectangle_triangles, DiagonalPattern};
+use fdfsi_fem::mesh::Mesh;
+use manufactured::{AxisymmetricStokes, Manufactured, PlaneStokes, Stokes3d};
+use serde::Serialize;
+use std::sync::Arc;
+
+/// One convergence study of one quantity.
+#[derive(Clone, Debug, Serialize)]
+pub struct Study {
+    pub name: String,
+    pub quantity: String,
+    pub expected_rate: f64,
+    pub observed_rate: f64,
+    pub h: Vec<f64>,
+    pub errors: Vec<f64>,
+}
+
+impl Study {
+    fn new(name: &str, quantity: &str, expected_rate: f64, h: &[f64], errors: Vec<f64>) -> Self {
+        Study {
+            name: name.to_string(),
+            quantity: quantity.to_string(),
+            expected_rate,
+            observed_rate: observed_rate(h, &errors),
+            h: h.to_vec(),
+            errors,
+        }
+    }
+}
+
+/// Rate between the last two entries.
+pub fn observed_rate(h: &[f64], e: &[f64]) -> f64 {
+    let n = h.len();
+    if n < 2 {
+        return f64::NAN;
+    }
+    (e[n - 2] / e[n - 1]).ln() / (h[n - 2] / h[n - 1]).ln()
+}
+
+/// The JSON document `fdfsi verify --json` writes.
+#[derive(Clone, Debug, Serialize)]
+pub struct VerifyReport {
+    pub studies: Vec<Study>,
+}
+
+/// Mesh sizes of a study.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Effort {
+    /// Small meshes, seconds (the test suite).
+    Quick,
+    /// One more refinement.
+    Full,
+}
+
+/// Solves a Stokes manufactured problem on `mesh` and returns the error norms and the largest
+/// cell divergence.
+pub fn stokes_errors<const D: usize>(
+    mesh: Mesh<D>,
+    formulation: Formulation,
+    exact: Arc<dyn Manufactured<D>>,
+    dirichlet: &[(&str, Vec<usize>)],
+    traction: &[&str],
+) -> Result<(crate::flow::FlowErrors, usize), FlowError> {
+    let disc = FlowDiscretization::build(mesh, formulation)?;
+    let ex = exact.clone();
+    let problem = FlowProblem {
+        formulation,
+        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false },
+        body_force: Some(Arc::new(move |x: &[f64; D], _t| ex.body_force(x))),
+        dirichlet: dirichlet
+            .iter()
+            .map(|(name, comps)| {
+                let ex = exact.clone();
+                DirichletBc {
+                    boundary: name.to_string(),
+                    components: comps.clone(),
+                    value: Arc::new(move |x: &[f64; D], _t| ex.velocity(x)),
+                }
+            })
+            .collect(),
+        traction: traction
+            .iter()
+            .map(|name| {
+                let ex = exact.clone();
+                TractionBc { boundary: name.to_string(), traction: Arc::new(move |x: &[f64; D], n: &[f64; D], _t| ex.traction(x, n)) }
+            })
+            .collect(),
+        pin_pressure: false,
+    };
+    let mut lu = FaerLu::default();
+    let sol = solve_steady(&disc, &problem, &mut lu, &NewtonOptions::default())?;
+    let (u, g, p) = (|x: &[f64; D]| exact.velocity(x), |x: &[f64; D]| exact.gradient(x), |x: &[f64; D]| exact.pressure(x));
+    let errors = flow_errors(&disc, formulation, &sol.x, &ExactFlow { velocity: &u, gradient: &g, pressure: &p }, 8)?;
+    Ok((errors, disc.num_dofs()))
+}
+
+/// Result of one Stokes convergence run: three studies and the divergence check.
+pub struct StokesRun {
+    pub studies: Vec<Study>,
+    /// Largest `|int_K div u_h|` over all cells and meshes.
+    pub max_cell_divergence: f64,
+    pub dofs: Vec<usize>,
+}
+
+fn three_studies(name: &str, h: &[f64], errs: &[crate::flow::FlowErrors]) -> Vec<Study> {
+    vec![
+        Study::new(name, "velocity_l2", 3.0, h, errs.iter().map(|e| e.velocity_l2).collect()),
+        Study::new(name, "velocity_h1", 2.0, h, errs.iter().map(|e| e.velocity_h1).collect()),
+        Study::new(name, "pressure_l2", 2.0, h, errs.iter().map(|e| e.pressure_l2).collect()),
+    ]
+}
+
+fn run_levels<const D: usize>(
+    name: &str,
+    levels: &[usize],
+    mesh_of: impl Fn(usize) -> Mesh<D>,
+    formulation: Formulation,
+    exact: Arc<dyn Manufactured<D>>,
+    dirichlet: &[(&str, Vec<usize>)],
+    traction: &[&str],
+) -> Result<StokesRun, FlowError> {
+    let mut errs = Vec::new();
+    let mut dofs = Vec::new();
+    let mut max_div: f64 = 0.0;
+    for &n in levels {
+        let (e, nd) = stokes_errors(mesh_of(n), formulation, exact.clone(), dirichlet, traction)?;
+        max_div = max_div.max(e.max_cell_divergence);
+        errs.push(e);
+        dofs.push(nd);
+    }
+    let h: Vec<f64> = levels.iter().map(|&n| 1.0 / n as f64).collect();
+    Ok(StokesRun { studies: three_studies(name, &h, &errs), max_cell_divergence: max_div, dofs })
+}
+
+/// Stokes on the unit square with P2+/P1disc.
+pub fn stokes_plane(effort: Effort) -> Result<StokesRun, FlowError> {
+    let levels: &[usize] = if effort == Effort::Quick { &[4, 8, 16] } else { &[4, 8, 16, 32] };
+    run_levels(
+        "stokes-plane",
+        levels,
+        |n| rectangle_triangles(0.0, 1.0, 0.0, 1.0, n, n, DiagonalPattern::Alternating),
+        Formulation::Plane,
+        Arc::new(PlaneStokes { eta: 1.0 }),
+        &[("left", vec![0, 1]), ("bottom", vec![0, 1]), ("top", vec![0, 1])],
+        &["right"],
+    )
+}
+
+/// Axisymmetric Stokes on `(z, r)` in the unit square; `bottom` (r = 0) is the symmetry axis.
+pub fn stokes_axisymmetric(effort: Effort) -> Result<StokesRun, FlowError> {
+    let levels: &[usize] = if effort == Effort::Quick { &[4, 8, 16] } else { &[4, 8, 16, 32] };
+    run_levels(
+        "stokes-axisymmetric",
+        levels,
+        |n| rectangle_triangles(0.0, 1.0, 0.0, 1.0, n, n, DiagonalPattern::Alternating),
+        Formulation::Axisymmetric,
+        Arc::new(AxisymmetricStokes { eta: 1.0 }),
+        &[("bottom", vec![1]), ("left", vec![0, 1]), ("top", vec![0, 1])],
+        &["right"],
+    )
+}
+
+/// Stokes on the unit cube with 15-node P2+ tetrahedra.
+pub fn stokes_3d(effort: Effort) -> Result<StokesRun, FlowError> {
+    let levels: &[usize] = if effort == Effort::Quick { &[2, 3, 4] } else { &[2, 4, 6, 8] };
+    run_levels(
+        "stokes-3d",
+        levels,
+        |n| box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n),
+        Formulation::ThreeD,
+        Arc::new(Stokes3d { eta: 1.0 }),
+        &[
+            ("xmin", vec![0, 1, 2]),
+            ("ymin", vec![0, 1, 2]),
+            ("ymax", vec![0, 1, 2]),
+            ("zmin", vec![0, 1, 2]),
+            ("zmax", vec![0, 1, 2]),
+        ],
+        &["xmax"],
+    )
+}
+
+/// All studies of `fdfsi verify`.
+pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(VerifyReport, Vec<StokesRun>), FlowError> {
+    let mut runs = Vec::new();
+    progress("stokes-plane");
+    runs.push(stokes_plane(effort)?);
+    progress("stokes-axisymmetric");
+    runs.push(stokes_axisymmetric(effort)?);
+    progress("stokes-3d");
+    runs.push(stokes_3d(effort)?);
+    let studies = runs.iter().flat_map(|r| r.studies.clone()).collect();
+    Ok((VerifyReport { studies }, runs))
+}
