@@ -1,1 +1,220 @@
-fn main(){}
+//! Benchmark of the 3D Stokes problem (P2+/P1disc, 15-node tetrahedra) on the unit cube.
+//!
+//! Per mesh size (`box_tetrahedra` with `n` cells per side, sizes in increasing order) criterion
+//! measures separately:
+//!
+//! * `assembly/n`: zeroing the reused matrix and right-hand side plus
+//!   [`FlowDiscretization::assemble_system`] (Jacobian and residual);
+//! * `lu_numeric/n`: [`FaerLu::factorize`] after a first call, so only the numeric factorisation
+//!   runs (the symbolic one is cached; asserted through `symbolic_factorizations() == 1`);
+//! * `lu_solve/n`: one [`LinearSolver::solve_in_place`] with that factorisation (includes the
+//!   residual check and iterative refinement the solver does).
+//!
+//! Outside criterion's timing, once per size, it prints to stderr: dofs, nnz of the pattern, the
+//! symbolic factorisation time (faer's `SymbolicLu::try_new` on the same pattern), the time of the
+//! first `factorize` (symbolic + numeric), the discretisation setup time, the solution error
+//! against the manufactured solution (a sanity check that the benchmarked system is the right
+//! one) and the peak resident memory `VmHWM` from `/proc/self/status`. `VmHWM` is process-wide and
+//! monotone, so the sizes run in increasing order and the growth per size is reported.
+//!
+//! Run: `CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench stokes3d`.
+//! Sizes can be overridden with `FDFSI_BENCH_SIZES=3,5,7`.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use faer::sparse::linalg::solvers::SymbolicLu;
+use faer::sparse::SymbolicSparseColMatRef;
+use fdfsi::flow::{flow_errors, DirichletBc, ExactFlow, FlowDiscretization, FlowProblem, TractionBc};
+use fdfsi::physics::fluid::{FluidParams, Formulation};
+use fdfsi::solve::linear::{FaerLu, LinearSolver};
+use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
+use fdfsi_fem::generate::box_tetrahedra;
+use fdfsi_fem::sparse::{CscMatrix, Pattern};
+use std::hint::black_box;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Default mesh sizes (cells per side of the unit cube).
+const SIZES: [usize; 3] = [4, 6, 8];
+
+fn sizes() -> Vec<usize> {
+    match std::env::var("FDFSI_BENCH_SIZES") {
+        Ok(s) => s.split(',').map(|t| t.trim().parse().expect("FDFSI_BENCH_SIZES: comma-separated integers")).collect(),
+        Err(_) => SIZES.to_vec(),
+    }
+}
+
+/// Peak resident set size (`VmHWM`) of this process in KiB.
+fn vm_hwm_kib() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap_or(0)
+}
+
+fn mib(kib: u64) -> f64 {
+    kib as f64 / 1024.0
+}
+
+/// The `stokes-3d` verification problem (src/verify/mod.rs): manufactured solution, velocity on
+/// five faces, traction on `xmax`.
+fn problem(exact: Arc<Stokes3d>) -> FlowProblem<3> {
+    let velocity_faces = ["xmin", "ymin", "ymax", "zmin", "zmax"];
+    let ex = exact.clone();
+    FlowProblem {
+        formulation: Formulation::ThreeD,
+        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false },
+        body_force: Some(Arc::new(move |x: &[f64; 3], _t| ex.body_force(x))),
+        dirichlet: velocity_faces
+            .iter()
+            .map(|name| {
+                let ex = exact.clone();
+                DirichletBc {
+                    boundary: name.to_string(),
+                    components: vec![0, 1, 2],
+                    value: Arc::new(move |x: &[f64; 3], _t| ex.velocity(x)),
+                }
+            })
+            .collect(),
+        traction: vec![{
+            let ex = exact.clone();
+            TractionBc { boundary: "xmax".to_string(), traction: Arc::new(move |x: &[f64; 3], n: &[f64; 3], _t| ex.traction(x, n)) }
+        }],
+        pin_pressure: false,
+    }
+}
+
+/// faer's symbolic LU of `pattern`, built exactly as `FaerLu` builds it; returns the time.
+fn time_symbolic(pattern: &Pattern) -> Duration {
+    // SAFETY: `Pattern` keeps sorted, in-range row indices and monotone column pointers (the same
+    // view `FaerLu` hands to faer).
+    let sym = unsafe { SymbolicSparseColMatRef::new_unchecked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx) };
+    let t = Instant::now();
+    let s = SymbolicLu::try_new(sym).expect("symbolic LU");
+    let dt = t.elapsed();
+    drop(black_box(s));
+    dt
+}
+
+fn stokes3d(c: &mut Criterion) {
+    let exact = Arc::new(Stokes3d { eta: 1.0 });
+    let problem = problem(exact.clone());
+    let mut group = c.benchmark_group("stokes3d");
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_millis(500));
+    group.measurement_time(Duration::from_secs(3));
+
+    let start_hwm = vm_hwm_kib();
+    eprintln!("[stokes3d] VmHWM at start: {:.1} MiB", mib(start_hwm));
+    let mut prev_hwm = start_hwm;
+    for n in sizes() {
+        let hwm_before = vm_hwm_kib();
+        // --- Setup (not timed by criterion) ---
+        let t = Instant::now();
+        let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n);
+        let cells = mesh.num_cells();
+        let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).expect("discretisation");
+        let setup = t.elapsed();
+        let ndofs = disc.num_dofs();
+        let nnz = disc.pattern.nnz();
+
+        let bcs = disc.dirichlet_dofs(&problem, 0.0).expect("dirichlet dofs");
+        let mut x = vec![0.0; ndofs];
+        let mut constrained = vec![false; ndofs];
+        for &(d, v) in &bcs {
+            constrained[d] = true;
+            x[d] = v;
+        }
+        let x_old = vec![0.0; ndofs];
+        let mut k = CscMatrix::zeros(&disc.pattern);
+        let mut rhs = vec![0.0; ndofs];
+
+        let t = Instant::now();
+        disc.assemble_system(&problem, &x, &x_old, 0.0, &constrained, &mut k, &mut rhs).expect("assembly");
+        let first_assembly = t.elapsed();
+
+        let symbolic: Vec<Duration> = (0..3).map(|_| time_symbolic(&disc.pattern)).collect();
+        let symbolic_min = symbolic.iter().min().copied().unwrap_or_default();
+
+        let mut lu = FaerLu::default();
+        let t = Instant::now();
+        lu.factorize(&k).expect("first factorisation");
+        let first_factorize = t.elapsed();
+        assert_eq!(lu.symbolic_factorizations(), 1);
+
+        // Stokes is linear: one Newton step from x (Dirichlet values set) is the solution.
+        let mut dx = rhs.clone();
+        let t = Instant::now();
+        let stats = lu.solve_in_place(&k, &mut dx).expect("solve");
+        let first_solve = t.elapsed();
+        let sol: Vec<f64> = x.iter().zip(&dx).map(|(a, b)| a + b).collect();
+        let (u, g, p) = (|x: &[f64; 3]| exact.velocity(x), |x: &[f64; 3]| exact.gradient(x), |x: &[f64; 3]| exact.pressure(x));
+        let errs = flow_errors(&disc, Formulation::ThreeD, &sol, &ExactFlow { velocity: &u, gradient: &g, pressure: &p }, 8)
+            .expect("errors");
+        let hwm_setup = vm_hwm_kib();
+
+        eprintln!(
+            "[stokes3d] n={n}: cells={cells} dofs={ndofs} nnz={nnz} (nnz/dof {:.1}) constrained={} setup(build)={:.3}s \
+             first_assembly={:.3}s symbolic_lu(min of 3)={:.3}s [{}] first_factorize(symbolic+numeric)={:.3}s \
+             first_solve={:.3}s residual={:.2e} refinements={} |u-u_h|_L2={:.3e} |p-p_h|_L2={:.3e}",
+            nnz as f64 / ndofs as f64,
+            bcs.len(),
+            setup.as_secs_f64(),
+            first_assembly.as_secs_f64(),
+            symbolic_min.as_secs_f64(),
+            symbolic.iter().map(|d| format!("{:.3}", d.as_secs_f64())).collect::<Vec<_>>().join(", "),
+            first_factorize.as_secs_f64(),
+            first_solve.as_secs_f64(),
+            stats.residual,
+            stats.refinements,
+            errs.velocity_l2,
+            errs.pressure_l2,
+        );
+        eprintln!(
+            "[stokes3d] n={n}: VmHWM before={:.1} MiB, after setup+assembly+first LU+solve={:.1} MiB (growth {:.1} MiB)",
+            mib(hwm_before),
+            mib(hwm_setup),
+            mib(hwm_setup.saturating_sub(hwm_before)),
+        );
+
+        // --- (a) assembly into the reused matrix, zeroed inside the iteration ---
+        group.bench_with_input(BenchmarkId::new("assembly", n), &n, |b, _| {
+            b.iter(|| {
+                k.values.iter_mut().for_each(|v| *v = 0.0);
+                rhs.iter_mut().for_each(|v| *v = 0.0);
+                disc.assemble_system(&problem, &x, &x_old, 0.0, &constrained, &mut k, &mut rhs).expect("assembly");
+                black_box(&k.values);
+            })
+        });
+
+        // --- (b) numeric LU (symbolic cached) ---
+        group.bench_with_input(BenchmarkId::new("lu_numeric", n), &n, |b, _| {
+            b.iter(|| lu.factorize(black_box(&k)).expect("factorisation"))
+        });
+        assert_eq!(lu.symbolic_factorizations(), 1, "the symbolic factorisation must be reused");
+
+        // --- (c) one solve with the factorisation ---
+        let mut buf = vec![0.0; ndofs];
+        group.bench_with_input(BenchmarkId::new("lu_solve", n), &n, |b, _| {
+            b.iter(|| {
+                buf.copy_from_slice(&rhs);
+                black_box(lu.solve_in_place(&k, &mut buf).expect("solve"));
+            })
+        });
+
+        let hwm_after = vm_hwm_kib();
+        eprintln!(
+            "[stokes3d] n={n}: symbolic_factorizations={} ; VmHWM after the benchmark loops={:.1} MiB \
+             (growth over previous size's peak {:.1} MiB)",
+            lu.symbolic_factorizations(),
+            mib(hwm_after),
+            mib(hwm_after.saturating_sub(prev_hwm)),
+        );
+        prev_hwm = hwm_after;
+    }
+    group.finish();
+}
+
+criterion_group!(benches, stokes3d);
+criterion_main!(benches);

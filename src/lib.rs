@@ -12,3 +12,7 @@ pub mod flow;
 pub mod physics;
 pub mod solve;
 pub mod verify;
+pub mod case;
+pub mod output;
+pub mod quantities;
+pub mod run;

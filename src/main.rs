@@ -1,1 +1,125 @@
-fn main() {}
+//! `fdfsi`: the command line, a thin layer over the library.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use fdfsi::case::Case;
+use fdfsi::run::{check_case, run_case, RunOptions, BUILTIN_CASES, DEFAULT_CASE};
+use fdfsi::verify::{self, Effort};
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(name = "fdfsi", version, about = "Fluid-structure interaction for heart-valve modelling (van Loon et al. 2005)")]
+struct Cli {
+    /// Print only errors.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a case (a TOML file or a built-in case name; default: the built-in channel-stokes case).
+    Run {
+        case: Option<String>,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Parse and validate a case without running it; print a summary of the problem.
+    Check { case: String },
+    /// List the built-in cases, or print one (to start a case file from it).
+    Cases { name: Option<String> },
+    /// Run the manufactured-solution convergence studies and print errors and rates.
+    Verify {
+        /// Also write the studies as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// One more refinement level (slower).
+        #[arg(long)]
+        full: bool,
+    },
+}
+
+/// A case from a file path or a built-in name, with the directory its relative paths refer to.
+fn load_case(arg: Option<&str>) -> Result<(Case, PathBuf, String)> {
+    let builtin_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    match arg {
+        None => Ok((Case::from_toml_str(DEFAULT_CASE, "channel-stokes (built-in)")?, builtin_dir, "channel-stokes (built-in)".into())),
+        Some(a) => {
+            let path = Path::new(a);
+            if path.exists() {
+                let case = Case::read(path)?;
+                let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+                Ok((case, dir, a.to_string()))
+            } else if let Some((name, text)) = BUILTIN_CASES.iter().find(|(n, _)| *n == a) {
+                let label = format!("{name} (built-in)");
+                Ok((Case::from_toml_str(text, &label)?, builtin_dir, label))
+            } else {
+                let names: Vec<&str> = BUILTIN_CASES.iter().map(|(n, _)| *n).collect();
+                bail!("no case file '{a}' and no built-in case of that name (built-in: {})", names.join(", "))
+            }
+        }
+    }
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    let quiet = cli.quiet;
+    let mut log = |line: &str| {
+        if !quiet {
+            eprintln!("{line}");
+        }
+    };
+    match cli.command {
+        Command::Run { case, out } => {
+            let (case, case_dir, label) = load_case(case.as_deref())?;
+            log(&format!("case: {label}: {}", case.title));
+            let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir }, &mut log)
+                .with_context(|| format!("running {label}"))?;
+            log(&format!(
+                "done in {:.2} s (assemble {:.2} s, factorize {:.2} s, solve {:.2} s); results in {}",
+                summary.timings.total,
+                summary.timings.assemble,
+                summary.timings.factorize,
+                summary.timings.solve,
+                out.display()
+            ));
+        }
+        Command::Check { case } => {
+            let (c, dir, label) = load_case(Some(&case))?;
+            let text = check_case(&c, &label, &dir)?;
+            println!("{label}: ok\n{text}");
+        }
+        Command::Cases { name } => match name {
+            None => {
+                for (n, text) in BUILTIN_CASES {
+                    let title = Case::from_toml_str(text, n).map(|c| c.title).unwrap_or_default();
+                    println!("{n:28} {title}");
+                }
+            }
+            Some(n) => {
+                let (_, text) = BUILTIN_CASES.iter().find(|(k, _)| *k == n).with_context(|| format!("no built-in case '{n}'"))?;
+                print!("{text}");
+            }
+        },
+        Command::Verify { json, full } => {
+            let effort = if full { Effort::Full } else { Effort::Quick };
+            let (report, runs) = verify::run_all(effort, |name| log(&format!("running {name} ...")))?;
+            println!("{:24} {:12} {:>10} {:>10}   errors (h = 1/n)", "study", "quantity", "expected", "observed");
+            for s in &report.studies {
+                let errs: Vec<String> = s.errors.iter().map(|e| format!("{e:.3e}")).collect();
+                println!("{:24} {:12} {:>10.2} {:>10.3}   {}", s.name, s.quantity, s.expected_rate, s.observed_rate, errs.join(" "));
+            }
+            for r in &runs {
+                println!("{}: max |int_K div u_h| = {:.2e}, dofs {:?}", r.studies[0].name, r.max_cell_divergence, r.dofs);
+            }
+            if let Some(path) = json {
+                let text = serde_json::to_string_pretty(&report)?;
+                fdfsi::output::write_atomic(&path, text.as_bytes())?;
+                log(&format!("wrote {}", path.display()));
+            }
+        }
+    }
+    Ok(())
+}

@@ -80,15 +80,7 @@ pub fn rectangle_triangles(
 ///
 /// # Panics
 /// If an interval is empty or not finite, or `nx` or `ny` is 0.
-pub fn rectangle_quads(
-    x0: f64,
-    x1: f64,
-    y0: f64,
-    y1: f64,
-    nx: usize,
-    ny: usize,
-    order: GeometryOrder,
-) -> Mesh<2> {
+pub fn rectangle_quads(x0: f64, x1: f64, y0: f64, y1: f64, nx: usize, ny: usize, order: GeometryOrder) -> Mesh<2> {
     check_interval("x", x0, x1);
     check_interval("y", y0, y1);
     check_count("nx", nx);
@@ -195,9 +187,7 @@ pub fn box_tetrahedra(
         }
     }
     orient_simplices(&points, &mut cells, 4);
-    finish(points, ReferenceCell::Tetrahedron, GeometryOrder::Linear, cells, &BOX_BOUNDARIES, |v| {
-        grid_side(m, v)
-    })
+    finish(points, ReferenceCell::Tetrahedron, GeometryOrder::Linear, cells, &BOX_BOUNDARIES, |v| grid_side(m, v))
 }
 
 /// Hexahedral mesh of the box `[x0, x1] x [y0, y1] x [z0, z1]` with `nx x ny x nz` cells: 8-node
@@ -259,8 +249,7 @@ pub fn pipe_tetrahedra(radius: f64, length: f64, n_radial: usize, n_axial: usize
     let section = disc_section(radius, n_radial, quarter);
     let n2 = section.points.len();
     let zs = uniform_axis(0.0, length, n_axial);
-    let points: Vec<[f64; 3]> =
-        zs.iter().flat_map(|&z| section.points.iter().map(move |p| [p[0], p[1], z])).collect();
+    let points: Vec<[f64; 3]> = zs.iter().flat_map(|&z| section.points.iter().map(move |p| [p[0], p[1], z])).collect();
     let mut cells = Vec::with_capacity(12 * section.triangles.len() * n_axial);
     for layer in 0..n_axial {
         let (lo, hi) = (layer * n2, (layer + 1) * n2);
@@ -321,7 +310,7 @@ fn ring_segments(k: usize, quarter: bool) -> usize {
 fn unit_vector(j: usize, n: usize, quarter: bool) -> [f64; 2] {
     let quarters = if quarter { 1 } else { 4 };
     // The angle is (j / n) * quarters quarter turns; exact multiples of a quarter turn are exact.
-    if (j * quarters) % n == 0 {
+    if (j * quarters).is_multiple_of(n) {
         return match (j * quarters / n) % 4 {
             0 => [1.0, 0.0],
             1 => [0.0, 1.0],
@@ -658,7 +647,9 @@ mod tests {
 
     #[test]
     fn rectangle_triangles_all_patterns() {
-        for pattern in [DiagonalPattern::Right, DiagonalPattern::Left, DiagonalPattern::Alternating, DiagonalPattern::Crossed] {
+        for pattern in
+            [DiagonalPattern::Right, DiagonalPattern::Left, DiagonalPattern::Alternating, DiagonalPattern::Crossed]
+        {
             let m = rectangle_triangles(-1.0, 2.0, 0.5, 1.5, 6, 4, pattern);
             m.check().unwrap();
             let per_square = if pattern == DiagonalPattern::Crossed { 4 } else { 2 };
@@ -699,7 +690,8 @@ mod tests {
                         let (a, b, mid) = (m.points[n[e[0]]], m.points[n[e[1]]], m.points[n[4 + k]]);
                         assert_eq!(mid, [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]);
                     }
-                    let centre: [f64; 2] = std::array::from_fn(|d| (0..4).map(|i| m.points[n[i]][d]).sum::<f64>() / 4.0);
+                    let centre: [f64; 2] =
+                        std::array::from_fn(|d| (0..4).map(|i| m.points[n[i]][d]).sum::<f64>() / 4.0);
                     let p8 = m.points[n[8]];
                     assert!((p8[0] - centre[0]).abs() < 1e-15 && (p8[1] - centre[1]).abs() < 1e-15);
                 }
@@ -797,7 +789,8 @@ mod tests {
                         assert_eq!(p(8 + k), mid, "edge node {k}");
                     }
                     for (f, face) in HEX_FACETS.iter().enumerate() {
-                        let centre: [f64; 3] = std::array::from_fn(|d| face.iter().map(|&i| p(i)[d]).sum::<f64>() / 4.0);
+                        let centre: [f64; 3] =
+                            std::array::from_fn(|d| face.iter().map(|&i| p(i)[d]).sum::<f64>() / 4.0);
                         let q = p(20 + f);
                         assert!((0..3).all(|d| (q[d] - centre[d]).abs() < 1e-15), "face node {f}");
                     }

@@ -102,7 +102,7 @@ pub enum GmshError {
     UnsupportedElement { file: String, element_tag: Option<u64>, type_number: Option<i64>, detail: String },
     #[error("{file}: element {element_tag} refers to node {node_tag}, which is not in $Nodes")]
     MissingNode { file: String, element_tag: u64, node_tag: u64 },
-    #[error("{file}: element {element_tag} is a {found}, but the mesh's cells are {first}s (one cell type per mesh)")]
+    #[error("{file}: element {element_tag} is a {found}, but the first cell is a {first} (one cell type per mesh)")]
     MixedCellTypes { file: String, element_tag: u64, first: String, found: String },
     #[error("{file}: nodes {node_a} and {node_b} coincide at {coords:?} (duplicate nodes)")]
     DuplicateNodes { file: String, node_a: u64, node_b: u64, coords: [f64; 3] },
@@ -198,10 +198,10 @@ fn check_header(bytes: &[u8], file: &str) -> Result<bool, GmshError> {
         .unwrap_or_default();
     let token = |i: usize| line.get(i).map(|t| String::from_utf8_lossy(t).into_owned());
     let version = token(0).ok_or_else(|| parse_err("$MeshFormat has no version line"))?;
-    match version.parse::<f64>() {
-        Ok(v) if v == 4.1 => {}
-        Ok(_) => return Err(GmshError::UnsupportedVersion { file: file.to_string(), version }),
-        Err(_) => return Err(parse_err(&format!("invalid format version '{version}' in $MeshFormat"))),
+    let number =
+        version.parse::<f64>().map_err(|_| parse_err(&format!("invalid format version '{version}' in $MeshFormat")))?;
+    if number != 4.1 {
+        return Err(GmshError::UnsupportedVersion { file: file.to_string(), version });
     }
     let binary = match token(1).as_deref() {
         Some("0") => false,
@@ -210,15 +210,14 @@ fn check_header(bytes: &[u8], file: &str) -> Result<bool, GmshError> {
     };
     match token(2).as_deref().map(str::parse::<usize>) {
         Some(Ok(1 | 2 | 4 | 8 | 16)) => Ok(binary),
-        _ => Err(parse_err(&format!("invalid data size {:?} in $MeshFormat", token(2)))),
+        _ => Err(parse_err(&format!("invalid data size '{}' in $MeshFormat", token(2).unwrap_or_default()))),
     }
 }
 
 /// Runs `mshio`, turning its errors (and, defensively, its panics) into [`GmshError`]s.
 fn run_mshio(bytes: &[u8], file: &str, binary: bool) -> Result<MshFile<u64, i32, f64>, GmshError> {
-    let result = std::panic::catch_unwind(|| {
-        mshio::parse_msh_bytes(bytes).map_err(|e| mshio_error(bytes, &e, file, binary))
-    });
+    let result =
+        std::panic::catch_unwind(|| mshio::parse_msh_bytes(bytes).map_err(|e| mshio_error(bytes, &e, file, binary)));
     match result {
         Ok(r) => r,
         Err(_) => Err(GmshError::Parse { file: file.to_string(), message: "the MSH parser failed".into() }),
@@ -249,18 +248,19 @@ fn mshio_error(bytes: &[u8], err: &mshio::MshParserError<&[u8]>, file: &str, bin
         };
     }
     let message = match trace.first() {
-        None => "unknown parse error".to_string(),
+        None if !contains(bytes, b"$EndElements") => "the file ends before $EndElements (truncated?)".to_string(),
+        None => "malformed file (the parser gave no details)".to_string(),
         Some((at, kind)) => {
             let off = offset(at);
-            let line = bytes[..off.min(bytes.len())].iter().filter(|&&b| b == b'\n').count() + 1;
-            let contexts: Vec<String> =
-                trace[1..].iter().rev().map(|(_, k)| k.context().map_or_else(|| k.to_string(), String::from)).collect();
-            let place = if binary { format!("byte {off}") } else { format!("line {line}") };
-            if contexts.is_empty() {
-                format!("{kind} (at {place})")
+            let place = if binary {
+                format!("byte {off}")
             } else {
-                format!("{kind} (in {}; at {place})", contexts.join(" > "))
-            }
+                format!("line {}", bytes[..off].iter().filter(|&&b| b == b'\n').count() + 1)
+            };
+            // Contexts from the outermost in; the innermost entry is the error itself.
+            let chain: Vec<String> = trace.iter().rev().filter_map(|(_, k)| k.context().map(String::from)).collect();
+            let what = if kind.context().is_some() { String::new() } else { format!(": {kind}") };
+            format!("parse error in {} ({place}){what}", chain.join(" > "))
         }
     };
     GmshError::Parse { file: file.to_string(), message }
@@ -286,10 +286,15 @@ fn physical_names(bytes: &[u8], file: &str) -> Result<HashMap<(usize, i32), Stri
     let mut read = 0;
     for line in lines {
         let bad = || err(format!("invalid line in $PhysicalNames: '{line}'"));
-        let mut parts = line.splitn(3, char::is_whitespace);
+        // `dim tag "name"`; the name is everything between the first and the last quote.
+        let (numbers, quoted) = line.split_once('"').ok_or_else(bad)?;
+        let name = quoted.rsplit_once('"').map_or(quoted, |(n, _)| n).to_string();
+        let mut parts = numbers.split_whitespace();
         let dim: usize = parts.next().and_then(|t| t.parse().ok()).ok_or_else(bad)?;
-        let tag: i32 = parts.next().and_then(|t| t.trim().parse().ok()).ok_or_else(bad)?;
-        let name = parts.next().ok_or_else(bad)?.trim().trim_matches('"').to_string();
+        let tag: i32 = parts.next().and_then(|t| t.parse().ok()).ok_or_else(bad)?;
+        if parts.next().is_some() {
+            return Err(bad());
+        }
         names.insert((dim, tag), name);
         read += 1;
     }
@@ -297,6 +302,10 @@ fn physical_names(bytes: &[u8], file: &str) -> Result<HashMap<(usize, i32), Stri
         return Err(err(format!("$PhysicalNames announces {count} names but has {read}")));
     }
     Ok(names)
+}
+
+fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    find(haystack, needle).is_some()
 }
 
 fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
@@ -323,7 +332,10 @@ fn node_table(msh: &MshFile<u64, i32, f64>, file: &str) -> Result<HashMap<u64, [
                 message: format!("node {tag} has no coordinates"),
             })?;
             if table.insert(tag, x).is_some() {
-                return Err(GmshError::Inconsistent { file: file.to_string(), message: format!("node tag {tag} is defined twice") });
+                return Err(GmshError::Inconsistent {
+                    file: file.to_string(),
+                    message: format!("node tag {tag} is defined twice"),
+                });
             }
         }
         next += block.nodes.len() as u64;
@@ -484,7 +496,9 @@ const GMSH_HEX27: [[f64; 3]; 27] = [
 /// (tensor cells from `[-1, 1]^d` to `[0, 1]^d`; simplices are the same).
 fn gmsh_reference(cell: ReferenceCell, order: GeometryOrder) -> Vec<[f64; 3]> {
     let n = geometry_nodes(cell, order);
-    let to_unit = |p: &[f64; 3], dim: usize| -> [f64; 3] { std::array::from_fn(|d| if d < dim { 0.5 * (p[d] + 1.0) } else { 0.0 }) };
+    let to_unit = |p: &[f64; 3], dim: usize| -> [f64; 3] {
+        std::array::from_fn(|d| if d < dim { 0.5 * (p[d] + 1.0) } else { 0.0 })
+    };
     match cell {
         ReferenceCell::Triangle => GMSH_TRI6[..n].to_vec(),
         ReferenceCell::Tetrahedron => GMSH_TET10[..n].to_vec(),
@@ -539,15 +553,15 @@ pub fn reflection_permutation(cell: ReferenceCell, order: GeometryOrder) -> Opti
 
 /// Builds the `D`-dimensional mesh from the file's contents.
 fn build<const D: usize>(input: &Input) -> Result<Mesh<D>, GmshError> {
-    let cells = collect_cells(input, D)?;
+    let mut cells = collect_cells(input, D)?;
     let points = planar_points::<D>(&cells.points, &cells.point_tags, &input.file)?;
     check_duplicates(&points, &cells.point_tags, &input.file)?;
     let mut mesh = Mesh {
         points,
         cell_type: cells.cell_type,
         order: cells.order,
-        cell_nodes: cells.nodes,
-        cell_tags: Vec::new(),
+        cell_nodes: std::mem::take(&mut cells.nodes),
+        cell_tags: vec![0; cells.element_tags.len()],
         region_names: Vec::new(),
         boundary: Vec::new(),
         boundary_names: Vec::new(),
@@ -587,7 +601,8 @@ fn collect_cells(input: &Input, dim: usize) -> Result<Cells, GmshError> {
         detail: format!("{}; {SUPPORTED}", type_name(e.ty)),
     };
     let (cell_type, order) = cell_kind(first.ty).ok_or_else(|| unsupported(first))?;
-    let internal = |what: &str| GmshError::Inconsistent { file: file.clone(), message: format!("internal error: {what}") };
+    let internal =
+        |what: &str| GmshError::Inconsistent { file: file.clone(), message: format!("internal error: {what}") };
     let perm = gmsh_to_vtk_permutation(cell_type, order).ok_or_else(|| internal("no Gmsh node permutation"))?;
     let mut cells = Cells {
         cell_type,
@@ -646,7 +661,7 @@ fn keep_node(cells: &mut Cells, input: &Input, element_tag: u64, tag: u64) -> Re
 fn planar_points<const D: usize>(points: &[[f64; 3]], tags: &[u64], file: &str) -> Result<Vec<[f64; D]>, GmshError> {
     if D == 2 {
         let tol = 1e-12 * bounding_diagonal(points).max(f64::MIN_POSITIVE);
-        if let Some((i, p)) = points.iter().enumerate().find(|(_, p)| !(p[2].abs() <= tol)) {
+        if let Some((i, p)) = points.iter().enumerate().find(|(_, p)| p[2].abs().is_nan() || p[2].abs() > tol) {
             return Err(GmshError::NotPlanar { file: file.to_string(), node_tag: tags[i], z: p[2] });
         }
     }
@@ -674,7 +689,10 @@ fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &st
     }
     let diag = bounding_diagonal(points);
     if !diag.is_finite() {
-        return Err(GmshError::Inconsistent { file: file.to_string(), message: "node coordinates are not finite".into() });
+        return Err(GmshError::Inconsistent {
+            file: file.to_string(),
+            message: "node coordinates are not finite".into(),
+        });
     }
     let h = 1e-12 * diag.max(f64::MIN_POSITIVE);
     let lo: [f64; D] = std::array::from_fn(|d| points.iter().map(|p| p[d]).fold(f64::INFINITY, f64::min));
@@ -695,7 +713,12 @@ fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &st
             for &j in bins.get(&nb).map(Vec::as_slice).unwrap_or(&[]) {
                 if j > i && (0..D).all(|d| (points[j][d] - p[d]).abs() <= h) {
                     let coords = std::array::from_fn(|d| if d < D { p[d] } else { 0.0 });
-                    return Err(GmshError::DuplicateNodes { file: file.to_string(), node_a: tags[i], node_b: tags[j], coords });
+                    return Err(GmshError::DuplicateNodes {
+                        file: file.to_string(),
+                        node_a: tags[i],
+                        node_b: tags[j],
+                        coords,
+                    });
                 }
             }
         }
@@ -710,15 +733,15 @@ fn orient_cells<const D: usize>(mesh: &mut Mesh<D>, element_tags: &[u64], file: 
         message: "internal error: no reflection permutation".into(),
     })?;
     let npc = mesh.nodes_per_cell();
-    for c in 0..mesh.num_cells() {
+    for (c, &element_tag) in element_tags.iter().enumerate() {
         let measure = mesh.signed_vertex_measure(c);
         let h = cell_extent(mesh, c);
-        if !(measure.abs() > 1e-12 * h.powi(D as i32)) {
-            return Err(GmshError::DegenerateCell { file: file.to_string(), element_tag: element_tags[c], measure });
+        if measure.is_nan() || measure.abs() <= 1e-12 * h.powi(D as i32) {
+            return Err(GmshError::DegenerateCell { file: file.to_string(), element_tag, measure });
         }
         if measure < 0.0 {
             if D == 3 {
-                return Err(GmshError::InvertedCell { file: file.to_string(), element_tag: element_tags[c], measure });
+                return Err(GmshError::InvertedCell { file: file.to_string(), element_tag, measure });
             }
             let old: Vec<usize> = mesh.cell(c).to_vec();
             for (k, &r) in reflect.iter().enumerate() {
@@ -750,7 +773,7 @@ fn check_jacobians<const D: usize>(mesh: &Mesh<D>, element_tags: &[u64], file: &
     let tab = geo.tabulate(geo.nodes());
     let n = tab.num_dofs;
     let mut coords = Vec::with_capacity(n);
-    for c in 0..mesh.num_cells() {
+    for (c, &element_tag) in element_tags.iter().enumerate() {
         mesh.cell_coords_into(c, &mut coords);
         for q in 0..tab.num_points {
             let mut jac = [[0.0; D]; D];
@@ -763,8 +786,8 @@ fn check_jacobians<const D: usize>(mesh: &Mesh<D>, element_tags: &[u64], file: &
                 }
             }
             let (det, _) = det_inv(&jac);
-            if !(det > 0.0) {
-                return Err(GmshError::InvertedCell { file: file.to_string(), element_tag: element_tags[c], measure: det });
+            if det.is_nan() || det <= 0.0 {
+                return Err(GmshError::InvertedCell { file: file.to_string(), element_tag, measure: det });
             }
         }
     }
@@ -834,7 +857,11 @@ fn facet_key(verts: impl Iterator<Item = usize>) -> [usize; 4] {
 }
 
 /// Boundary facets from the tagged elements of dimension `D - 1`.
-fn assign_boundary<const D: usize>(mesh: &mut Mesh<D>, input: &Input, compact: &HashMap<u64, usize>) -> Result<(), GmshError> {
+fn assign_boundary<const D: usize>(
+    mesh: &mut Mesh<D>,
+    input: &Input,
+    compact: &HashMap<u64, usize>,
+) -> Result<(), GmshError> {
     let file = &input.file;
     let ct = mesh.cell_type;
     let mut facets: HashMap<[usize; 4], (usize, usize)> = HashMap::with_capacity(mesh.num_cells() * ct.num_facets());
@@ -888,5 +915,628 @@ fn assign_boundary<const D: usize>(mesh: &mut Mesh<D>, input: &Input, compact: &
 
 #[cfg(test)]
 mod tests {
-//TESTS
+    use super::*;
+    use crate::element::{HEX_EDGES, HEX_FACETS, TET_EDGES, TET_FACETS};
+    use crate::mesh::Topology;
+    use crate::quadrature;
+    use crate::values::{CellValues, FacetValues};
+    use std::collections::HashSet;
+
+    /// An element block: entity dimension, entity tag, element type, elements `(tag, nodes)`.
+    type Block = (usize, i32, i32, Vec<(u64, Vec<u64>)>);
+
+    /// A small MSH 4.1 ASCII file: physical names, entities (without bounding boxes), one node
+    /// block, element blocks `(entity dim, entity tag, element type, [(tag, nodes)])`.
+    #[derive(Default, Clone)]
+    struct Msh {
+        format: &'static str,
+        names: Vec<(usize, i32, &'static str)>,
+        entities: Vec<(usize, i32, Vec<i32>)>,
+        nodes: Vec<(u64, [f64; 3])>,
+        blocks: Vec<Block>,
+    }
+
+    impl Msh {
+        fn text(&self) -> String {
+            let format = if self.format.is_empty() { "4.1 0 8" } else { self.format };
+            let mut s = format!("$MeshFormat\n{format}\n$EndMeshFormat\n");
+            if !self.names.is_empty() {
+                s += &format!("$PhysicalNames\n{}\n", self.names.len());
+                for (d, t, n) in &self.names {
+                    s += &format!("{d} {t} \"{n}\"\n");
+                }
+                s += "$EndPhysicalNames\n";
+            }
+            if !self.entities.is_empty() {
+                let count = |d: usize| self.entities.iter().filter(|e| e.0 == d).count();
+                s += &format!("$Entities\n{} {} {} {}\n", count(0), count(1), count(2), count(3));
+                for d in 0..4 {
+                    for (_, tag, phys) in self.entities.iter().filter(|e| e.0 == d) {
+                        let ph: String = phys.iter().map(|p| format!(" {p}")).collect();
+                        if d == 0 {
+                            s += &format!("{tag} 0 0 0 {}{ph}\n", phys.len());
+                        } else {
+                            s += &format!("{tag} 0 0 0 0 0 0 {}{ph} 0\n", phys.len());
+                        }
+                    }
+                }
+                s += "$EndEntities\n";
+            }
+            let n = self.nodes.len();
+            let min = self.nodes.iter().map(|x| x.0).min().unwrap_or(1);
+            let max = self.nodes.iter().map(|x| x.0).max().unwrap_or(1);
+            let dim = self.blocks.iter().map(|b| b.0).max().unwrap_or(0);
+            s += &format!("$Nodes\n1 {n} {min} {max}\n{dim} 1 0 {n}\n");
+            for (t, _) in &self.nodes {
+                s += &format!("{t}\n");
+            }
+            for (_, x) in &self.nodes {
+                s += &format!("{} {} {}\n", x[0], x[1], x[2]);
+            }
+            s += "$EndNodes\n";
+            let all: Vec<u64> = self.blocks.iter().flat_map(|b| b.3.iter().map(|e| e.0)).collect();
+            let (emin, emax) = (all.iter().min().unwrap_or(&1), all.iter().max().unwrap_or(&1));
+            s += &format!("$Elements\n{} {} {emin} {emax}\n", self.blocks.len(), all.len());
+            for (d, ent, ty, elems) in &self.blocks {
+                s += &format!("{d} {ent} {ty} {}\n", elems.len());
+                for (t, nodes) in elems {
+                    let ns: Vec<String> = nodes.iter().map(|x| x.to_string()).collect();
+                    s += &format!("{t} {}\n", ns.join(" "));
+                }
+            }
+            s += "$EndElements\n";
+            s
+        }
+    }
+
+    fn parse(m: &Msh, name: &str) -> Result<AnyMesh, GmshError> {
+        parse_msh(m.text().as_bytes(), name)
+    }
+
+    fn parse_2d(m: &Msh) -> Mesh<2> {
+        parse(m, "test.msh").unwrap().into_2d().unwrap()
+    }
+
+    fn parse_3d(m: &Msh) -> Mesh<3> {
+        parse(m, "test.msh").unwrap().into_3d().unwrap()
+    }
+
+    /// The unit square as two triangles (the second written clockwise), sparse node tags, a
+    /// tagged bottom edge ("bottom", tag 3), a tagged right edge (unnamed tag 4), an untagged left
+    /// edge.
+    fn square() -> Msh {
+        Msh {
+            names: vec![(2, 7, "plate"), (1, 3, "bottom")],
+            entities: vec![(2, 1, vec![7]), (1, 1, vec![3]), (1, 2, vec![4]), (1, 3, vec![])],
+            nodes: vec![(10, [0.0, 0.0, 0.0]), (20, [1.0, 0.0, 0.0]), (30, [1.0, 1.0, 0.0]), (40, [0.0, 1.0, 0.0])],
+            blocks: vec![
+                (1, 1, 1, vec![(1, vec![10, 20])]),
+                (1, 2, 1, vec![(2, vec![30, 20])]),
+                (1, 3, 1, vec![(3, vec![40, 10])]),
+                (2, 1, 2, vec![(4, vec![10, 20, 30]), (5, vec![10, 40, 30])]),
+            ],
+            ..Default::default()
+        }
+    }
+
+    fn facet_coords<const D: usize>(m: &Mesh<D>, b: &BoundaryFacet) -> Vec<[f64; D]> {
+        let v = m.cell_vertices(b.cell);
+        let mut pts: Vec<[f64; D]> = m.cell_type.facet(b.facet).iter().map(|&i| m.points[v[i]]).collect();
+        pts.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        pts
+    }
+
+    #[test]
+    fn two_triangle_square_tags_and_orientation() {
+        let m = parse_2d(&square());
+        m.check().unwrap();
+        assert_eq!((m.cell_type, m.order), (ReferenceCell::Triangle, GeometryOrder::Linear));
+        assert_eq!(m.num_cells(), 2);
+        assert_eq!(m.points.len(), 4);
+        assert_eq!(m.cell_tags, vec![7, 7]);
+        assert_eq!(m.region_names, vec![("plate".to_string(), 7)]);
+        assert_eq!(m.boundary_names, vec![("bottom".to_string(), 3), ("4".to_string(), 4)]);
+        assert_eq!(m.boundary.len(), 2);
+        let bottom = m.boundary_facets("bottom").unwrap();
+        assert_eq!(facet_coords(&m, &bottom[0]), vec![[0.0, 0.0], [1.0, 0.0]]);
+        let right = m.boundary_facets("4").unwrap();
+        assert_eq!(facet_coords(&m, &right[0]), vec![[1.0, 0.0], [1.0, 1.0]]);
+        // The clockwise triangle was reoriented.
+        assert!(m.signed_vertex_measure(1) > 0.0);
+        assert_eq!(Topology::build(&m).exterior_facets().len(), 4);
+    }
+
+    #[test]
+    fn physical_names_are_read_from_the_text() {
+        let text = b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\r\n$PhysicalNames\r\n2\r\n1   3 \"no slip wall\"\r\n2 7 \"a\"\r\n$EndPhysicalNames\n";
+        let names = physical_names(text, "n.msh").unwrap();
+        assert_eq!(names[&(1, 3)], "no slip wall");
+        assert_eq!(names[&(2, 7)], "a");
+        let bad = b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n1 3 \"x\"\n$EndPhysicalNames\n";
+        assert!(matches!(physical_names(bad, "n.msh"), Err(GmshError::Parse { .. })));
+        let bad = b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n1\n1 x \"x\"\n$EndPhysicalNames\n";
+        assert!(matches!(physical_names(bad, "n.msh"), Err(GmshError::Parse { .. })));
+    }
+
+    #[test]
+    fn dense_node_tags_and_no_physical_groups() {
+        let mut s = square();
+        s.entities.clear();
+        s.names.clear();
+        s.nodes = vec![(1, [0.0, 0.0, 0.0]), (2, [1.0, 0.0, 0.0]), (3, [1.0, 1.0, 0.0]), (4, [0.0, 1.0, 0.0])];
+        s.blocks = vec![(2, 1, 2, vec![(4, vec![1, 2, 3]), (5, vec![1, 3, 4])]), (1, 1, 1, vec![(1, vec![1, 2])])];
+        let m = parse_2d(&s);
+        assert_eq!(m.cell_tags, vec![0, 0]);
+        assert!(m.region_names.is_empty());
+        assert!(m.boundary.is_empty(), "untagged lines are not boundary facets");
+        assert_eq!(m.points[m.cell(0)[2]], [1.0, 1.0]);
+    }
+
+    #[test]
+    fn quad9_mesh_is_read_in_vtk_order() {
+        // One 9-node quadrangle on [0,2]x[0,1]; Gmsh and VTK orders coincide.
+        let p = |x: f64, y: f64| [x, y, 0.0];
+        let coords =
+            [p(0., 0.), p(2., 0.), p(2., 1.), p(0., 1.), p(1., 0.), p(2., 0.5), p(1., 1.), p(0., 0.5), p(1., 0.5)];
+        let m = parse_2d(&Msh {
+            nodes: coords.iter().enumerate().map(|(i, x)| (i as u64 + 1, *x)).collect(),
+            blocks: vec![(2, 1, 10, vec![(1, (1..=9).collect())])],
+            ..Default::default()
+        });
+        assert_eq!((m.cell_type, m.order), (ReferenceCell::Quadrilateral, GeometryOrder::Quadratic));
+        for (k, x) in coords.iter().enumerate() {
+            assert_eq!(m.points[m.cell(0)[k]], [x[0], x[1]]);
+        }
+    }
+
+    const GMSH_TET_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [3, 0], [3, 2], [3, 1]];
+    const GMSH_HEX_EDGES: [[usize; 2]; 12] =
+        [[0, 1], [0, 3], [0, 4], [1, 2], [1, 5], [2, 3], [2, 6], [3, 7], [4, 5], [4, 7], [5, 6], [6, 7]];
+    const GMSH_HEX_FACES: [[usize; 4]; 6] =
+        [[0, 3, 2, 1], [0, 1, 5, 4], [0, 4, 7, 3], [1, 2, 6, 5], [2, 3, 7, 6], [4, 5, 6, 7]];
+
+    fn mean(points: &[[f64; 3]]) -> [f64; 3] {
+        std::array::from_fn(|d| points.iter().map(|p| p[d]).sum::<f64>() / points.len() as f64)
+    }
+
+    fn near(a: [f64; 3], b: [f64; 3]) -> bool {
+        (0..3).all(|d| (a[d] - b[d]).abs() < 1e-14)
+    }
+
+    /// A 10-node tetrahedron written in Gmsh's node order (mid-edge nodes per Gmsh's
+    /// `MTetrahedron` edge list), with a tagged 6-node boundary triangle on the face opposite
+    /// vertex 0.
+    fn tet10() -> Msh {
+        let v = [[0.1, 0.0, 0.0], [1.0, 0.2, 0.0], [0.0, 1.0, 0.3], [0.2, 0.1, 1.0]];
+        let mut nodes: Vec<[f64; 3]> = v.to_vec();
+        nodes.extend(GMSH_TET_EDGES.iter().map(|e| mean(&[v[e[0]], v[e[1]]])));
+        Msh {
+            names: vec![(2, 5, "slanted")],
+            entities: vec![(3, 1, vec![]), (2, 1, vec![5])],
+            nodes: nodes.iter().enumerate().map(|(i, x)| (i as u64 + 1, *x)).collect(),
+            // Boundary triangle (v3, v1, v2): edges (3,1) = Gmsh node 10, (1,2) = 6, (2,3) = 9.
+            blocks: vec![(2, 1, 9, vec![(2, vec![4, 2, 3, 10, 6, 9])]), (3, 1, 11, vec![(1, (1..=10).collect())])],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn tet10_mid_edge_nodes_follow_tet_edges() {
+        let m = parse_3d(&tet10());
+        m.check().unwrap();
+        assert_eq!((m.cell_type, m.order), (ReferenceCell::Tetrahedron, GeometryOrder::Quadratic));
+        let n = m.cell(0);
+        let p = |k: usize| m.points[n[k]];
+        for (k, e) in TET_EDGES.iter().enumerate() {
+            assert!(near(p(4 + k), mean(&[p(e[0]), p(e[1])])), "mid-edge node of edge {e:?}");
+        }
+        assert!(m.is_affine_cell(0));
+        assert_eq!(m.cell_tags, vec![0]);
+        assert_eq!(m.boundary, vec![BoundaryFacet { cell: 0, facet: 0, tag: 5 }]);
+        assert_eq!(TET_FACETS[0], [1, 2, 3]);
+        assert_eq!(m.boundary_names, vec![("slanted".to_string(), 5)]);
+    }
+
+    /// A 27-node hexahedron (distorted trilinear box) in Gmsh's node order, sparse node tags,
+    /// with a tagged 9-node quadrangle on Gmsh face (0, 3, 2, 1).
+    fn hex27() -> Msh {
+        let mut v = [[0.0; 3]; 8];
+        for (i, p) in v.iter_mut().enumerate() {
+            let (x, y, z) = ((i == 1 || i == 2 || i == 5 || i == 6) as u8, (i % 4 >= 2) as u8, (i >= 4) as u8);
+            *p = [2.0 * x as f64, 3.0 * y as f64, 0.5 * z as f64];
+        }
+        v[6] = [2.2, 3.1, 0.6];
+        v[0] = [-0.1, 0.05, 0.0];
+        let mut nodes: Vec<[f64; 3]> = v.to_vec();
+        nodes.extend(GMSH_HEX_EDGES.iter().map(|e| mean(&[v[e[0]], v[e[1]]])));
+        nodes.extend(GMSH_HEX_FACES.iter().map(|f| mean(&f.map(|i| v[i]))));
+        nodes.push(mean(&v));
+        let tag = |i: usize| 100 + 7 * i as u64;
+        // Gmsh quad9 on face (0,3,2,1): vertices, then its edges (0,3), (3,2), (2,1), (1,0), centre.
+        let quad = vec![tag(0), tag(3), tag(2), tag(1), tag(9), tag(13), tag(11), tag(8), tag(20)];
+        Msh {
+            names: vec![(3, 1, "solid"), (2, 2, "bottom")],
+            entities: vec![(3, 1, vec![1]), (2, 1, vec![2])],
+            nodes: nodes.iter().enumerate().map(|(i, x)| (tag(i), *x)).collect(),
+            blocks: vec![(3, 1, 12, vec![(1, (0..27).map(tag).collect())]), (2, 1, 10, vec![(2, quad)])],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn hex27_nodes_follow_vtk_edges_and_faces() {
+        let m = parse_3d(&hex27());
+        m.check().unwrap();
+        assert_eq!((m.cell_type, m.order), (ReferenceCell::Hexahedron, GeometryOrder::Quadratic));
+        let n = m.cell(0);
+        let p = |k: usize| m.points[n[k]];
+        for (k, e) in HEX_EDGES.iter().enumerate() {
+            assert!(near(p(8 + k), mean(&[p(e[0]), p(e[1])])), "edge node {k}");
+        }
+        for (f, face) in HEX_FACETS.iter().enumerate() {
+            assert!(near(p(20 + f), mean(&face.map(p))), "face node {f}");
+        }
+        assert!(near(p(26), mean(&(0..8).map(p).collect::<Vec<_>>())));
+        assert_eq!(m.cell_tags, vec![1]);
+        assert_eq!(m.region_names, vec![("solid".to_string(), 1)]);
+        // Gmsh face (0,3,2,1) is z-min, facet 4 of HEX_FACETS.
+        assert_eq!(m.boundary, vec![BoundaryFacet { cell: 0, facet: 4, tag: 2 }]);
+    }
+
+    #[test]
+    fn node_permutations_are_bijections() {
+        use GeometryOrder::*;
+        use ReferenceCell::*;
+        for cell in [Triangle, Quadrilateral, Tetrahedron, Hexahedron] {
+            for order in [Linear, Quadratic] {
+                let perm = gmsh_to_vtk_permutation(cell, order).expect("Gmsh table matches ours");
+                let n = geometry_nodes(cell, order);
+                let set: HashSet<usize> = perm.iter().copied().collect();
+                assert_eq!((perm.len(), set.len()), (n, n));
+                assert!(
+                    perm[..cell.num_vertices()].iter().enumerate().all(|(i, &p)| i == p),
+                    "vertices keep their order"
+                );
+                let r = reflection_permutation(cell, order).unwrap();
+                assert!(r.iter().enumerate().all(|(k, &j)| r[j] == k), "a reflection is an involution");
+            }
+        }
+        assert_eq!(gmsh_to_vtk_permutation(Tetrahedron, Quadratic).unwrap(), vec![0, 1, 2, 3, 4, 5, 6, 7, 9, 8]);
+        assert_eq!(gmsh_to_vtk_permutation(Triangle, Quadratic).unwrap(), (0..6).collect::<Vec<_>>());
+        assert_eq!(gmsh_to_vtk_permutation(Quadrilateral, Quadratic).unwrap(), (0..9).collect::<Vec<_>>());
+        assert_eq!(reflection_permutation(Triangle, Quadratic).unwrap(), vec![0, 2, 1, 5, 4, 3]);
+        // The reflection reverses the orientation of a reference triangle and quadrilateral.
+        for (cell, order) in [(Triangle, Quadratic), (Quadrilateral, Quadratic)] {
+            let nodes: Vec<[f64; 2]> = our_reference(cell, order).iter().map(|p| [p[0], p[1]]).collect();
+            let r = reflection_permutation(cell, order).unwrap();
+            let mut m = Mesh {
+                points: nodes,
+                cell_type: cell,
+                order,
+                cell_nodes: r,
+                cell_tags: vec![0],
+                region_names: vec![],
+                boundary: vec![],
+                boundary_names: vec![],
+            };
+            assert!(m.signed_vertex_measure(0) < 0.0);
+            m.cell_nodes = (0..geometry_nodes(cell, order)).collect();
+            assert!(m.signed_vertex_measure(0) > 0.0);
+        }
+    }
+
+    fn meshes_dir() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../meshes")
+    }
+
+    /// Reads a DFG 2D mesh, checks it, and returns the relative error of its cylinder length.
+    fn check_dfg(name: &str) -> f64 {
+        let m = read_msh(&meshes_dir().join(name)).unwrap().into_2d().expect("a 2D mesh");
+        m.check().unwrap();
+        assert_eq!((m.cell_type, m.order), (ReferenceCell::Triangle, GeometryOrder::Quadratic));
+        for b in ["inlet", "outlet", "walls", "cylinder"] {
+            assert!(!m.boundary_facets(b).unwrap().is_empty(), "boundary {b}");
+        }
+        assert_eq!(m.region_tag("fluid").unwrap(), 1);
+        assert!(m.cell_tags.iter().all(|&t| t == 1));
+        // Area with the curved P2 geometry.
+        let geo = m.geometry_element();
+        let mut cv = CellValues::new(quadrature::triangle(4), &geo, &geo);
+        let mut coords = Vec::new();
+        let mut area = 0.0;
+        for c in 0..m.num_cells() {
+            m.cell_coords_into(c, &mut coords);
+            cv.reinit(&coords).unwrap();
+            area += cv.jxw.iter().sum::<f64>();
+        }
+        let pi = std::f64::consts::PI;
+        let exact = 2.2 * 0.41 - pi * 0.05 * 0.05;
+        assert!((area - exact).abs() < 1e-6 * exact, "area {area} vs {exact}");
+        // Length of the cylinder.
+        let seg = quadrature::segment(6);
+        let pts: Vec<[f64; 2]> = seg.points.iter().map(|p| [p[0], 0.0]).collect();
+        let mut fv = FacetValues::new(ReferenceCell::Triangle, &pts, &seg.weights, &geo, &geo);
+        let mut length = 0.0;
+        for b in m.boundary_facets("cylinder").unwrap() {
+            m.cell_coords_into(b.cell, &mut coords);
+            fv.reinit(&coords, b.facet).unwrap();
+            length += fv.jxw.iter().sum::<f64>();
+            // Outward normal of the fluid points into the cylinder, towards its centre (0.2, 0.2).
+            let (x, nrm) = (fv.x[0], fv.normal[0]);
+            assert!((x[0] - 0.2) * nrm[0] + (x[1] - 0.2) * nrm[1] < 0.0);
+        }
+        let circ = 2.0 * pi * 0.05;
+        // Every exterior facet is tagged, once.
+        let exterior: HashSet<(usize, usize)> = Topology::build(&m).exterior_facets().into_iter().collect();
+        let tagged: HashSet<(usize, usize)> = m.boundary.iter().map(|b| (b.cell, b.facet)).collect();
+        assert_eq!(tagged.len(), m.boundary.len());
+        assert_eq!(exterior, tagged);
+        (length - circ) / circ
+    }
+
+    /// The cylinder length converges at the 4th order of the P2 geometry: the coarse mesh has 32
+    /// equal arcs of the cylinder (arc angle 0.196), whose parabolic interpolants are shorter than
+    /// the circle by the relative 1.544e-6 (computed independently); the medium mesh has 64
+    /// (9.7e-8). So the coarse mesh meets 2e-6, the medium one 1e-6.
+    #[test]
+    fn dfg2d_meshes_are_curved_p2_meshes() {
+        let coarse = check_dfg("dfg2d-coarse.msh");
+        let medium = check_dfg("dfg2d-medium.msh");
+        assert!((coarse + 1.5436e-6).abs() < 1e-9, "coarse cylinder length error {coarse:e}");
+        assert!(coarse.abs() < 2e-6 && medium.abs() < 1e-6, "{coarse:e} {medium:e}");
+        assert!(coarse / medium > 14.0, "4th-order convergence: {coarse:e} / {medium:e}");
+    }
+
+    /// The error of parsing `text` as `name`, checking that its message names the file.
+    fn error_of(text: &[u8], name: &str) -> GmshError {
+        let e = parse_msh(text, name).expect_err("the input is malformed");
+        assert!(e.to_string().contains(name), "message '{e}' does not name the file");
+        e
+    }
+
+    fn single_tet(v: [[f64; 3]; 4]) -> Msh {
+        Msh {
+            nodes: v.iter().enumerate().map(|(i, x)| (i as u64 + 1, *x)).collect(),
+            blocks: vec![(3, 1, 4, vec![(42, vec![1, 2, 3, 4])])],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn unsupported_element_type_is_named() {
+        // A prism (Gmsh type 6) in a 3D mesh.
+        let mut m = single_tet([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        m.nodes.extend([(5, [1.0, 0.0, 1.0]), (6, [0.0, 1.0, 1.0])]);
+        m.blocks = vec![(3, 1, 6, vec![(17, vec![1, 2, 3, 4, 5, 6])])];
+        let e = error_of(m.text().as_bytes(), "prism.msh");
+        assert!(matches!(e, GmshError::UnsupportedElement { element_tag: Some(17), type_number: Some(6), .. }), "{e}");
+        // A type number Gmsh does not know.
+        let mut m = square();
+        m.blocks.push((2, 1, 200, vec![(77, vec![10, 20, 30])]));
+        let e = error_of(m.text().as_bytes(), "unknown-type.msh");
+        assert!(
+            matches!(e, GmshError::UnsupportedElement { element_tag: Some(77), type_number: Some(200), .. }),
+            "{e}"
+        );
+        // A 20-node hexahedron (serendipity, Gmsh type 17).
+        let mut m = single_tet([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+        m.blocks = vec![(3, 1, 17, vec![(3, (1..=20).map(|i| (i - 1) % 4 + 1).collect())])];
+        let e = error_of(m.text().as_bytes(), "hex20.msh");
+        assert!(matches!(e, GmshError::UnsupportedElement { element_tag: Some(3), type_number: Some(17), .. }), "{e}");
+    }
+
+    #[test]
+    fn missing_node_is_named() {
+        let mut m = square();
+        m.blocks[3].3[1].1 = vec![10, 99, 30];
+        let e = error_of(m.text().as_bytes(), "missing.msh");
+        assert!(matches!(e, GmshError::MissingNode { element_tag: 5, node_tag: 99, .. }), "{e}");
+        assert!(e.to_string().contains("99"));
+    }
+
+    #[test]
+    fn duplicate_nodes_are_found() {
+        let mut m = square();
+        m.nodes.push((50, [1.0, 1.0, 0.0]));
+        m.blocks[3].3[1].1 = vec![10, 50, 40];
+        let e = error_of(m.text().as_bytes(), "dup.msh");
+        assert!(matches!(e, GmshError::DuplicateNodes { node_a: 30, node_b: 50, .. }), "{e}");
+    }
+
+    #[test]
+    fn inverted_and_degenerate_tets_are_refused() {
+        let m = single_tet([[0.0; 3], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]);
+        let e = error_of(m.text().as_bytes(), "inverted.msh");
+        assert!(matches!(e, GmshError::InvertedCell { element_tag: 42, .. }), "{e}");
+        let m = single_tet([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]]);
+        let e = error_of(m.text().as_bytes(), "flat.msh");
+        assert!(matches!(e, GmshError::DegenerateCell { element_tag: 42, .. }), "{e}");
+        // A curved tet10 whose mid-edge node is pulled through the opposite face.
+        let mut m = tet10();
+        m.nodes[4].1 = [0.3, 3.0, 0.0];
+        let e = error_of(m.text().as_bytes(), "tangled.msh");
+        assert!(matches!(e, GmshError::InvertedCell { element_tag: 1, .. }), "{e}");
+    }
+
+    #[test]
+    fn boundary_element_off_the_cells_is_refused() {
+        let mut m = square();
+        m.blocks[0].3[0].1 = vec![20, 40]; // the diagonal that is not an edge
+        let e = error_of(m.text().as_bytes(), "off-facet.msh");
+        assert!(matches!(e, GmshError::BoundaryNotOnFacet { element_tag: 1, .. }), "{e}");
+    }
+
+    #[test]
+    fn truncated_garbage_and_empty_files_are_parse_errors() {
+        let text = square().text();
+        for cut in [text.len() / 2, text.len() - 20, 30] {
+            let e = error_of(&text.as_bytes()[..cut], "truncated.msh");
+            assert!(matches!(e, GmshError::Parse { .. }), "cut {cut}: {e}");
+        }
+        let e = error_of(b"\x00\xffthis is not a mesh\n\x13\x37", "garbage.msh");
+        assert!(matches!(e, GmshError::Parse { .. }), "{e}");
+        let e = error_of(b"", "empty.msh");
+        assert!(matches!(e, GmshError::Parse { .. }), "{e}");
+        // Garbage after a valid header.
+        let e = error_of(b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 x\n", "bad-nodes.msh");
+        assert!(matches!(e, GmshError::Parse { .. }), "{e}");
+        // Binary headers that mshio would choke on.
+        let e = error_of(b"$MeshFormat\n4.1 1 3\n\x01\x00\x00\x00\n$EndMeshFormat\n", "size3.msh");
+        assert!(matches!(e, GmshError::Parse { .. }), "{e}");
+        let e = error_of(b"$MeshFormat\n4.1 1 8\n\x07\x07\x07\x07\n$EndMeshFormat\n", "endian.msh");
+        assert!(matches!(e, GmshError::Parse { .. }), "{e}");
+    }
+
+    #[test]
+    fn old_format_version_is_refused() {
+        let m = Msh { format: "2.2 0 8", ..square() };
+        let e = error_of(m.text().as_bytes(), "old.msh");
+        assert!(matches!(e, GmshError::UnsupportedVersion { ref version, .. } if version == "2.2"), "{e}");
+    }
+
+    #[test]
+    fn mixed_cell_types_are_refused() {
+        let mut m = square();
+        m.nodes.extend([(60, [2.0, 0.0, 0.0]), (70, [2.0, 1.0, 0.0])]);
+        m.blocks.push((2, 1, 3, vec![(9, vec![20, 60, 70, 30])]));
+        let e = error_of(m.text().as_bytes(), "mixed.msh");
+        assert!(matches!(e, GmshError::MixedCellTypes { element_tag: 9, .. }), "{e}");
+    }
+
+    #[test]
+    fn cell_without_physical_group_is_refused() {
+        let mut m = square();
+        m.entities.push((2, 2, vec![]));
+        let last = m.blocks.len() - 1;
+        let second = m.blocks[last].3.pop().unwrap();
+        m.blocks.push((2, 2, 2, vec![second]));
+        let e = error_of(m.text().as_bytes(), "ungrouped.msh");
+        assert!(matches!(e, GmshError::MissingPhysicalGroup { element_tag: 5, entity_tag: 2, .. }), "{e}");
+    }
+
+    #[test]
+    fn non_planar_and_lower_dimensional_meshes_are_refused() {
+        let mut m = square();
+        m.nodes[2].1[2] = 0.5;
+        let e = error_of(m.text().as_bytes(), "bent.msh");
+        assert!(matches!(e, GmshError::NotPlanar { node_tag: 30, .. }), "{e}");
+        let mut m = square();
+        m.blocks.truncate(3);
+        let e = error_of(m.text().as_bytes(), "lines.msh");
+        assert!(matches!(e, GmshError::NoCells { .. }), "{e}");
+    }
+
+    #[test]
+    fn unreadable_file_is_an_io_error() {
+        let path = Path::new("/nonexistent/dir/none.msh");
+        let e = read_msh(path).unwrap_err();
+        assert!(matches!(e, GmshError::Io { .. }));
+        assert!(e.to_string().contains("none.msh"));
+    }
+
+    /// Corrupted files (bytes overwritten, deleted or duplicated at pseudo-random places) give an
+    /// error or a mesh, never a panic.
+    #[test]
+    fn corrupted_files_never_panic() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |n: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as usize
+        };
+        const BYTES: &[u8] = b"0123456789 -.\n$eE\x00\xff";
+        for original in
+            [square().text().into_bytes(), tet10().text().into_bytes(), hex27().text().into_bytes(), binary_square()]
+        {
+            for _ in 0..300 {
+                let mut b = original.clone();
+                for _ in 0..1 + next(3) {
+                    let at = next(b.len());
+                    match next(3) {
+                        0 => b[at] = BYTES[next(BYTES.len())],
+                        1 => {
+                            b.remove(at);
+                        }
+                        _ => b.insert(at, b[at]),
+                    }
+                }
+                if let Ok(AnyMesh::D2(m)) = parse_msh(&b, "fuzz.msh") {
+                    m.check().unwrap();
+                } else if let Ok(AnyMesh::D3(m)) = parse_msh(&b, "fuzz.msh") {
+                    m.check().unwrap();
+                }
+            }
+        }
+    }
+
+    /// The square of [`square`] as a binary (little-endian) MSH 4.1 file.
+    fn binary_square() -> Vec<u8> {
+        let mut b: Vec<u8> = b"$MeshFormat\n4.1 1 8\n".to_vec();
+        b.extend(1i32.to_le_bytes());
+        b.extend(b"\n$EndMeshFormat\n$PhysicalNames\n2\n1 3 \"bottom\"\n2 7 \"plate\"\n$EndPhysicalNames\n$Entities\n");
+        let size = |b: &mut Vec<u8>, v: u64| b.extend(v.to_le_bytes());
+        let int = |b: &mut Vec<u8>, v: i32| b.extend(v.to_le_bytes());
+        let dbl = |b: &mut Vec<u8>, v: f64| b.extend(v.to_le_bytes());
+        for n in [0, 1, 1, 0] {
+            size(&mut b, n);
+        }
+        // Curve 1 (physical 3) and surface 1 (physical 7).
+        for phys in [3, 7] {
+            int(&mut b, 1);
+            for _ in 0..6 {
+                dbl(&mut b, 0.0);
+            }
+            size(&mut b, 1);
+            int(&mut b, phys);
+            size(&mut b, 0);
+        }
+        b.extend(b"\n$EndEntities\n$Nodes\n");
+        for v in [1, 4, 10, 40] {
+            size(&mut b, v);
+        }
+        int(&mut b, 2);
+        int(&mut b, 1);
+        int(&mut b, 0);
+        size(&mut b, 4);
+        for t in [10, 20, 30, 40] {
+            size(&mut b, t);
+        }
+        for x in [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] {
+            dbl(&mut b, x[0]);
+            dbl(&mut b, x[1]);
+            dbl(&mut b, 0.0);
+        }
+        b.extend(b"\n$EndNodes\n$Elements\n");
+        for v in [2, 3, 1, 3] {
+            size(&mut b, v);
+        }
+        let blocks: [(i32, i32, Vec<Vec<u64>>); 2] =
+            [(1, 1, vec![vec![1, 10, 20]]), (2, 2, vec![vec![2, 10, 20, 30], vec![3, 10, 30, 40]])];
+        for (dim, ty, elems) in blocks {
+            int(&mut b, dim);
+            int(&mut b, 1);
+            int(&mut b, ty);
+            size(&mut b, elems.len() as u64);
+            for e in elems {
+                for v in e {
+                    size(&mut b, v);
+                }
+            }
+        }
+        b.extend(b"\n$EndElements\n");
+        b
+    }
+
+    #[test]
+    fn binary_msh_is_read() {
+        let m = parse_msh(&binary_square(), "binary.msh").unwrap().into_2d().unwrap();
+        m.check().unwrap();
+        assert_eq!(m.num_cells(), 2);
+        assert_eq!(m.cell_tags, vec![7, 7]);
+        assert_eq!(m.region_names, vec![("plate".to_string(), 7)]);
+        let bottom = m.boundary_facets("bottom").unwrap();
+        assert_eq!(bottom.len(), 1);
+        assert_eq!(facet_coords(&m, &bottom[0]), vec![[0.0, 0.0], [1.0, 0.0]]);
+    }
 }

@@ -11,6 +11,8 @@ pub mod quadrature;
 pub mod values;
 pub mod mesh;
 pub mod generate;
+pub mod gmsh;
 pub mod dofs;
 pub mod sparse;
+pub mod locate;
 pub mod vtk;

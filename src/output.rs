@@ -1,0 +1,103 @@
+//! Results on disk: the contract tests and users read.
+//!
+//! In `--out DIR`:
+//! - `solution.pvd` + `solution_fluid_NNNNNN.vtu`: the fluid piece (quadratic cells: 6-node
+//!   triangles / 10-node tetrahedra through the P2 nodes of the P2+ velocity; point data
+//!   `velocity`; cell data `pressure` (value at the centroid) and `pressure_gradient`);
+//! - `history.csv`: one row per step, `step,time,newton_iterations,residual,<quantities...>`;
+//! - `summary.json`: `{"quantities": {NAME: final value}, "dofs": ..., "steps": ..., "timings": ...}`;
+//! - `case.toml`: the case as used.
+//!
+//! Every file is written to a temporary name and renamed, so an interrupted run never leaves a
+//! truncated file.
+
+use crate::flow::FlowDiscretization;
+use fdfsi_fem::vtk::{UnstructuredGrid, VtkCellType, VtkError};
+use std::io::Write;
+use std::path::Path;
+use thiserror::Error;
+
+/// An output failure.
+#[derive(Debug, Error)]
+pub enum OutputError {
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    #[error(transparent)]
+    Vtk(#[from] VtkError),
+}
+
+/// Writes `contents` to `path` atomically (temporary file in the same folder, then rename).
+pub fn write_atomic(path: &Path, contents: &[u8]) -> Result<(), OutputError> {
+    let io = |source| OutputError::Io { path: path.display().to_string(), source };
+    let tmp = path.with_extension(format!("{}.tmp", path.extension().and_then(|e| e.to_str()).unwrap_or("")));
+    let mut f = std::fs::File::create(&tmp).map_err(io)?;
+    f.write_all(contents).map_err(io)?;
+    f.sync_all().map_err(io)?;
+    drop(f);
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// The fluid solution as a VTK grid of quadratic cells.
+pub fn fluid_grid<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Result<UnstructuredGrid, VtkError> {
+    let vf = &disc.layout.fields[0];
+    let pf = &disc.layout.fields[1];
+    let (cell_type, corner_nodes) = if D == 2 { (VtkCellType::QuadraticTriangle, 6) } else { (VtkCellType::QuadraticTetra, 10) };
+    // The P2 nodes (vertices and edges) come first in the velocity numbering.
+    let num_p2 = disc.topology.num_vertices + disc.topology.edges.len();
+    let points: Vec<[f64; 3]> =
+        disc.velocity_nodes[..num_p2].iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect();
+    let mut grid = UnstructuredGrid::new(points);
+    for c in 0..disc.mesh.num_cells() {
+        grid.push_cell(cell_type, &vf.nodes.cell(c)[..corner_nodes])?;
+    }
+    let mut vel = Vec::with_capacity(num_p2 * 3);
+    for node in 0..num_p2 {
+        for a in 0..3 {
+            vel.push(if a < D { x[vf.dof(node, a)] } else { 0.0 });
+        }
+    }
+    grid.add_point_data("velocity", 3, vel)?;
+    let nc = disc.mesh.num_cells();
+    let mut p = Vec::with_capacity(nc);
+    let mut gp = Vec::with_capacity(nc * 3);
+    for c in 0..nc {
+        let dofs = &x[pf.dof(c * (D + 1), 0)..pf.dof(c * (D + 1), 0) + D + 1];
+        p.push(dofs[0]);
+        for a in 0..3 {
+            gp.push(if a < D { dofs[a + 1] } else { 0.0 });
+        }
+    }
+    grid.add_cell_data("pressure", 1, p)?;
+    grid.add_cell_data("pressure_gradient", 3, gp)?;
+    grid.add_cell_data("region", 1, disc.mesh.cell_tags.iter().map(|&t| t as f64).collect())?;
+    Ok(grid)
+}
+
+/// A `history.csv` being written row by row (rewritten atomically after each row).
+pub struct History {
+    path: std::path::PathBuf,
+    text: String,
+}
+
+impl History {
+    /// Starts a history with the quantity names as columns after `step,time,newton_iterations,residual`.
+    pub fn new(path: &Path, quantities: &[String]) -> Self {
+        let mut text = String::from("step,time,newton_iterations,residual");
+        for q in quantities {
+            text.push(',');
+            text.push_str(q);
+        }
+        text.push('\n');
+        History { path: path.to_path_buf(), text }
+    }
+
+    /// Appends a row and rewrites the file.
+    pub fn push(&mut self, step: usize, time: f64, iterations: usize, residual: f64, values: &[f64]) -> Result<(), OutputError> {
+        self.text.push_str(&format!("{step},{time:.12e},{iterations},{residual:.6e}"));
+        for v in values {
+            self.text.push_str(&format!(",{v:.15e}"));
+        }
+        self.text.push('\n');
+        write_atomic(&self.path, self.text.as_bytes())
+    }
+}

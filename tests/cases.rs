@@ -1,0 +1,99 @@
+//! Every case in `cases/` runs and reproduces its documented check (see each file's header).
+
+use fdfsi::case::Case;
+use fdfsi::run::{run_case, RunOptions, RunSummary, BUILTIN_CASES};
+use fdfsi::fem::vtk::{read_pvd, read_vtu};
+use std::path::{Path, PathBuf};
+
+fn run(name: &str) -> (RunSummary, PathBuf) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let file = dir.join(format!("{name}.toml"));
+    let case = Case::read(&file).unwrap();
+    let out = std::env::temp_dir().join(format!("fdfsi-test-{name}-{}", std::process::id()));
+    let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir: dir }, &mut |_| {}).unwrap();
+    (summary, out)
+}
+
+fn q(s: &RunSummary, name: &str) -> f64 {
+    *s.quantities.get(name).unwrap_or_else(|| panic!("quantity {name} missing"))
+}
+
+#[test]
+fn every_case_file_is_a_builtin_and_is_tested() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok()?.path().file_stem()?.to_str().map(String::from))
+        .collect();
+    files.sort();
+    let mut builtin: Vec<String> = BUILTIN_CASES.iter().map(|(n, _)| n.to_string()).collect();
+    builtin.sort();
+    assert_eq!(files, builtin, "cases/ and BUILTIN_CASES must list the same cases");
+    let this = include_str!("cases.rs");
+    for name in &files {
+        assert!(this.contains(&format!("run(\"{name}\")")), "case {name} has no test here");
+    }
+}
+
+#[test]
+fn channel_stokes_is_poiseuille_mid_channel() {
+    let (s, out) = run("channel-stokes");
+    // Plane Poiseuille lies in P2: exact mid-channel (the zero-pressure outlet disturbs the
+    // flow only within about one channel height of the outlet).
+    assert!((q(&s, "centre_velocity") - 1.5).abs() < 1e-9, "{}", q(&s, "centre_velocity"));
+    // dp/dx = -12 eta U / H^2 = -12.
+    let dp = q(&s, "pressure_at_x9") - q(&s, "centre_pressure");
+    assert!((dp - 12.0).abs() < 1e-8, "pressure drop per unit length {dp}");
+    // Mass conservation to round-off.
+    assert!((q(&s, "inlet_flux") + 1.0).abs() < 1e-12);
+    assert!((q(&s, "inlet_flux") + q(&s, "outlet_flux")).abs() < 1e-12);
+    assert_eq!(s.symbolic_factorizations, 1);
+    // The written solution reads back: P2 nodes carry the Poiseuille profile.
+    let entries = read_pvd(&out.join("solution.pvd")).unwrap();
+    assert_eq!(entries.len(), 1);
+    assert_eq!(entries[0].name, "fluid");
+    let grid = read_vtu(&entries[0].resolve(&out.join("solution.pvd"))).unwrap();
+    let vel = grid.point_array("velocity").unwrap();
+    let mut checked = 0;
+    for (i, p) in grid.points.iter().enumerate() {
+        if (p[0] - 10.0).abs() < 3.0 {
+            let exact = 6.0 * p[1] * (1.0 - p[1]);
+            assert!((vel.values[3 * i] - exact).abs() < 1e-9, "u at {p:?}");
+            assert!(vel.values[3 * i + 1].abs() < 1e-9);
+            checked += 1;
+        }
+    }
+    assert!(checked > 20);
+    assert_eq!(grid.cell_array("pressure").unwrap().values.len(), s.cells);
+    let history = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    assert!(history.starts_with("step,time,newton_iterations,residual,"));
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["quantities"]["centre_velocity"].as_f64().is_some());
+    assert!(out.join("case.toml").exists());
+}
+
+#[test]
+fn axisymmetric_pipe_is_hagen_poiseuille_to_round_off() {
+    let (s, _) = run("pipe-axisymmetric-stokes");
+    assert!((q(&s, "axis_velocity") - 2.0).abs() < 1e-10, "{}", q(&s, "axis_velocity"));
+    assert!((q(&s, "inlet_flux") + std::f64::consts::PI).abs() < 1e-11);
+    assert!((q(&s, "outlet_flux") - std::f64::consts::PI).abs() < 1e-11);
+    let dp = q(&s, "pressure_at_z2") - q(&s, "pressure_at_z3");
+    assert!((dp - 8.0).abs() < 1e-9, "{dp}");
+}
+
+#[test]
+fn quarter_pipe_3d_conserves_mass() {
+    let (s, _) = run("quarter-pipe-3d-stokes");
+    let (qin, qout) = (q(&s, "inlet_flux"), q(&s, "outlet_flux"));
+    assert!((qin + qout).abs() < 1e-11 * qin.abs(), "{qin} vs {qout}");
+    // Coarse polygonal pipe: the axis velocity is near 2 (within 5 %).
+    assert!((q(&s, "axis_velocity") - 2.0).abs() < 0.1, "{}", q(&s, "axis_velocity"));
+}
+
+#[test]
+fn cylinder_on_curved_gmsh_mesh_conserves_mass() {
+    let (s, _) = run("cylinder-stokes-gmsh");
+    assert!((q(&s, "inlet_flux") + 0.082).abs() < 1e-12);
+    assert!((q(&s, "inlet_flux") + q(&s, "outlet_flux")).abs() < 1e-12);
+}
