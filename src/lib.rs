@@ -16,3 +16,4 @@ pub mod case;
 pub mod output;
 pub mod quantities;
 pub mod run;
+pub mod picture;

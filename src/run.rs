@@ -288,6 +288,13 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, lo
     history.push(0, 0.0, rep.iterations, *rep.residual_norms.last().unwrap_or(&0.0), &values)?;
     let mut series = PvdSeries::new(&options.out_dir, "solution");
     series.add(0.0, "fluid", &fluid_grid(&disc, &sol.x)?)?;
+    if let Some(disc2) = (&disc as &dyn std::any::Any).downcast_ref::<FlowDiscretization<2>>() {
+        let png = options.out_dir.join("speed.png");
+        crate::picture::write_speed_png(disc2, &sol.x, &png, 1600).map_err(|message| OutputError::Io {
+            path: png.display().to_string(),
+            source: std::io::Error::other(message),
+        })?;
+    }
     let output = t.elapsed().as_secs_f64();
     let mut dofs = BTreeMap::new();
     dofs.insert("velocity".to_string(), nv);
