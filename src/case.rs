@@ -128,6 +128,10 @@ pub struct FluidSpec {
     pub density: f64,
     /// Dynamic viscosity eta (> 0).
     pub viscosity: f64,
+    /// `stress` (default, the paper's: natural condition sigma n = t) or `laplace` (natural
+    /// condition eta du/dn - p n = t: the "do-nothing" outlet of the Schaefer-Turek benchmarks).
+    #[serde(default)]
+    pub viscous_form: crate::physics::fluid::ViscousForm,
 }
 
 /// A number or an expression of `x, y, z, r, t` (exmex syntax: `+ - * / ^`, `sin`, `cos`,
@@ -191,9 +195,21 @@ pub struct OutputSpec {
     /// Point values of a field, written as quantities.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub probe: Vec<ProbeSpec>,
-    /// Integrals over a boundary: `flux` (int u.n) or `mean_pressure`.
+    /// Integrals over a boundary: `flux`, `mean-pressure`, `force`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary_integral: Vec<BoundaryIntegralSpec>,
+    /// Linear combinations of other quantities (evaluated after them, in file order).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub combination: Vec<CombinationSpec>,
+}
+
+/// `name = sum_k coefficient_k * quantity_k`, e.g. a pressure difference of two probes.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CombinationSpec {
+    pub name: String,
+    /// `[[quantity, coefficient], ...]`
+    pub terms: Vec<(String, f64)>,
 }
 
 /// A point probe.
@@ -222,6 +238,12 @@ pub struct BoundaryIntegralSpec {
     pub name: String,
     pub boundary: String,
     pub kind: BoundaryIntegralKind,
+    /// For `force`: the component (0-based).
+    #[serde(default)]
+    pub component: usize,
+    /// Factor the integral is multiplied by (e.g. `2 / (rho U^2 D)` for a drag coefficient).
+    #[serde(default = "one")]
+    pub scale: f64,
 }
 
 /// Kinds of boundary integral.
@@ -232,6 +254,12 @@ pub enum BoundaryIntegralKind {
     Flux,
     /// `int p ds / int ds`.
     MeanPressure,
+    /// Component `component` of the force of the fluid on the boundary, `-int sigma n ds` (`n`
+    /// out of the fluid), computed by the consistent residual (volume-integral) method: the
+    /// residual of the momentum equations tested with a function equal to `e_component` on the
+    /// boundary and zero on the other Dirichlet boundaries. Axisymmetric: the axial force
+    /// `2 pi int ... r ds`.
+    Force,
 }
 
 impl Case {
@@ -371,6 +399,21 @@ impl Case {
             if p.field == ProbeField::Velocity && p.component >= d {
                 problems.push(format!("probe '{}': component must be < {d}", p.name));
             }
+        }
+        let mut known: std::collections::HashSet<&str> = self.output.probe.iter().map(|p| p.name.as_str()).collect();
+        known.extend(self.output.boundary_integral.iter().map(|b| b.name.as_str()));
+        for b in &self.output.boundary_integral {
+            if b.kind == BoundaryIntegralKind::Force && b.component >= d {
+                problems.push(format!("boundary_integral '{}': component must be < {d}", b.name));
+            }
+        }
+        for c in &self.output.combination {
+            for (q, _) in &c.terms {
+                if !known.contains(q.as_str()) {
+                    problems.push(format!("combination '{}': unknown quantity '{q}' (define it before)", c.name));
+                }
+            }
+            known.insert(&c.name);
         }
         let n = &self.solver.newton;
         if n.max_iterations == 0 || !(n.abs_tol > 0.0) || !(n.rel_tol > 0.0) {

@@ -197,6 +197,16 @@ impl<const D: usize> FlowDiscretization<D> {
         Ok(out)
     }
 
+    /// The residual `R(x)` with no rows constrained (Dirichlet rows included), for reaction forces.
+    pub fn raw_residual(&self, problem: &FlowProblem<D>, x: &[f64], x_old: &[f64], t: f64) -> Result<Vec<f64>, FlowError> {
+        let mut k = CscMatrix::zeros(&self.pattern);
+        let mut rhs = vec![0.0; self.num_dofs()];
+        let free = vec![false; self.num_dofs()];
+        self.assemble_system(problem, x, x_old, t, &free, &mut k, &mut rhs).map_err(|e| FlowError::Map { cell: e.cell, source: e.source })?;
+        rhs.iter_mut().for_each(|v| *v = -*v);
+        Ok(rhs)
+    }
+
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the flow problem at time `t`; rows of the
     /// constrained dofs become identity rows with zero right-hand side.
     pub fn assemble_system(

@@ -1,24 +1,25 @@
 //! Derived quantities of a flow solution: point probes and boundary integrals.
 //!
 //! - probe: `u_a(x_p)` or `p(x_p)`, by evaluating the P2+ (or P1disc) basis of the cell that
-//!   contains `x_p` at its reference coordinates;
+//!   contains `x_p` at its reference coordinates; the pressure jumps between cells, so a pressure
+//!   probe on a facet, edge or vertex is the mean of the values of all cells that contain it;
 //! - flux: `Q = int_Gamma u . n ds` (axisymmetric: `2 pi int u . n r ds`, the physical volume
 //!   flow);
 //! - mean pressure: `int_Gamma p w ds / int_Gamma w ds` (`w = r` axisymmetric, else 1).
 
 use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, ProbeField, ProbeSpec};
-use crate::flow::{FlowDiscretization, FlowError};
+use crate::flow::{FlowDiscretization, FlowError, FlowProblem};
 use crate::physics::fluid::Formulation;
 use fdfsi_fem::element::MAX_DOFS;
-use fdfsi_fem::locate::locate_point;
+use fdfsi_fem::locate::{cells_containing, locate_point};
 use fdfsi_fem::values::p1disc_basis;
 
 /// Evaluates a probe; `None` when the point lies outside the mesh.
 pub fn probe<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &ProbeSpec) -> Option<f64> {
     let xp: [f64; D] = std::array::from_fn(|d| spec.point.get(d).copied().unwrap_or(0.0));
-    let (c, xi) = locate_point(&disc.mesh, &xp)?;
     match spec.field {
         ProbeField::Velocity => {
+            let (c, xi) = locate_point(&disc.mesh, &xp)?;
             let vf = &disc.layout.fields[0];
             let n = disc.velocity_element.num_dofs();
             let mut vals = [0.0; MAX_DOFS];
@@ -28,10 +29,19 @@ pub fn probe<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &Pro
         }
         ProbeField::Pressure => {
             let pf = &disc.layout.fields[1];
-            let centroid = cell_centroid(disc, c);
+            let cells = cells_containing(&disc.mesh, &xp);
+            if cells.is_empty() {
+                return None;
+            }
             let mut psi = [0.0; 4];
-            p1disc_basis(&xp, &centroid, &mut psi);
-            Some((0..=D).map(|k| x[pf.dof(c * (D + 1) + k, 0)] * psi[k]).sum())
+            let sum: f64 = cells
+                .iter()
+                .map(|&(c, _)| {
+                    p1disc_basis(&xp, &cell_centroid(disc, c), &mut psi);
+                    (0..=D).map(|k| x[pf.dof(c * (D + 1) + k, 0)] * psi[k]).sum::<f64>()
+                })
+                .sum();
+            Some(sum / cells.len() as f64)
         }
     }
 }
@@ -50,13 +60,52 @@ fn cell_centroid<const D: usize>(disc: &FlowDiscretization<D>, c: usize) -> [f64
     out
 }
 
-/// Evaluates a boundary integral.
+/// Force of the fluid on boundary `boundary`, `F = -int sigma n ds`, by the consistent residual
+/// method: with `R` the unconstrained residual of the momentum equations at the solution and
+/// `v_a` the discrete function equal to `e_a` at the velocity nodes of the boundary and zero
+/// elsewhere, `int (sigma n) . e_a ds = R(v_a)`. Exact for the discrete solution (no
+/// differentiation of the velocity on the wall) and converges at the rate of the energy norm
+/// squared. Axisymmetric: multiplied by `2 pi` (the weight `r` is in `R`).
+pub fn boundary_force<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    x: &[f64],
+    boundary: &str,
+) -> Result<[f64; D], FlowError> {
+    let n = disc.num_dofs();
+    let raw = disc.raw_residual(problem, x, x, 0.0)?;
+    let vf = &disc.layout.fields[0];
+    let mut on_boundary = vec![false; vf.nodes.num_nodes];
+    for bf in disc.mesh.boundary_facets(boundary)? {
+        let nodes = vf.nodes.cell(bf.cell);
+        for k in disc.velocity_element.facet_nodes(bf.facet) {
+            on_boundary[nodes[k]] = true;
+        }
+    }
+    debug_assert_eq!(raw.len(), n);
+    let mut f = [0.0; D];
+    for (node, _) in on_boundary.iter().enumerate().filter(|(_, &b)| b) {
+        for a in 0..D {
+            f[a] -= raw[vf.dof(node, a)];
+        }
+    }
+    if problem.formulation == Formulation::Axisymmetric {
+        f.iter_mut().for_each(|v| *v *= 2.0 * std::f64::consts::PI);
+    }
+    Ok(f)
+}
+
+/// Evaluates a boundary integral (times its `scale`).
 pub fn boundary_integral<const D: usize>(
     disc: &FlowDiscretization<D>,
-    formulation: Formulation,
+    problem: &FlowProblem<D>,
     x: &[f64],
     spec: &BoundaryIntegralSpec,
 ) -> Result<f64, FlowError> {
+    let formulation = problem.formulation;
+    if spec.kind == BoundaryIntegralKind::Force {
+        return Ok(spec.scale * boundary_force(disc, problem, x, &spec.boundary)?[spec.component]);
+    }
     let facets = disc.mesh.boundary_facets(&spec.boundary)?;
     let mut fv = disc.facet_values();
     let vf = &disc.layout.fields[0];
@@ -83,6 +132,7 @@ pub fn boundary_integral<const D: usize>(
                     }
                     num += w * un;
                 }
+                BoundaryIntegralKind::Force => unreachable!("forces return above"),
                 BoundaryIntegralKind::MeanPressure => {
                     p1disc_basis(&xq, &centroid, &mut psi);
                     let p: f64 = (0..=D).map(|k| x[pf.dof(bf.cell * (D + 1) + k, 0)] * psi[k]).sum();
@@ -92,9 +142,10 @@ pub fn boundary_integral<const D: usize>(
             }
         }
     }
-    Ok(match spec.kind {
-        BoundaryIntegralKind::Flux if formulation == Formulation::Axisymmetric => 2.0 * std::f64::consts::PI * num,
-        BoundaryIntegralKind::Flux => num,
-        BoundaryIntegralKind::MeanPressure => num / den,
-    })
+    Ok(spec.scale
+        * match spec.kind {
+            BoundaryIntegralKind::Flux if formulation == Formulation::Axisymmetric => 2.0 * std::f64::consts::PI * num,
+            BoundaryIntegralKind::MeanPressure => num / den,
+            _ => num,
+        })
 }

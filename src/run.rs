@@ -28,6 +28,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("pipe-axisymmetric-stokes", include_str!("../cases/pipe-axisymmetric-stokes.toml")),
     ("quarter-pipe-3d-stokes", include_str!("../cases/quarter-pipe-3d-stokes.toml")),
     ("cylinder-stokes-gmsh", include_str!("../cases/cylinder-stokes-gmsh.toml")),
+    ("schaefer-turek-2d1", include_str!("../cases/schaefer-turek-2d1.toml")),
 ];
 
 /// A run failure.
@@ -241,6 +242,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowP
             density: case.fluid.density,
             inv_dt: 0.0,
             convection: case.physics.model == FlowModel::NavierStokes,
+            viscous_form: case.fluid.viscous_form,
         },
         body_force,
         dirichlet,
@@ -277,7 +279,11 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, lo
         quantities.insert(p.name.clone(), v);
     }
     for b in &case.output.boundary_integral {
-        quantities.insert(b.name.clone(), boundary_integral(&disc, case.physics.formulation, &sol.x, b)?);
+        quantities.insert(b.name.clone(), boundary_integral(&disc, &problem, &sol.x, b)?);
+    }
+    for c in &case.output.combination {
+        let v = c.terms.iter().map(|(q, k)| k * quantities.get(q).copied().unwrap_or(f64::NAN)).sum();
+        quantities.insert(c.name.clone(), v);
     }
     for (name, v) in &quantities {
         log(&format!("{name} = {v:.10e}"));

@@ -97,3 +97,20 @@ fn cylinder_on_curved_gmsh_mesh_conserves_mass() {
     assert!((q(&s, "inlet_flux") + 0.082).abs() < 1e-12);
     assert!((q(&s, "inlet_flux") + q(&s, "outlet_flux")).abs() < 1e-12);
 }
+
+#[test]
+fn schaefer_turek_2d1_matches_the_benchmark() {
+    let (s, _) = run("schaefer-turek-2d1");
+    let rel = |name: &str, reference: f64| (q(&s, name) - reference).abs() / reference.abs();
+    // Tolerances of the benchmark issue: drag 0.1 %, lift 2 %, pressure difference 0.5 %.
+    assert!(rel("drag_coefficient", 5.57953523384) < 1e-3, "drag {}", q(&s, "drag_coefficient"));
+    assert!(rel("lift_coefficient", 0.010618948146) < 2e-2, "lift {}", q(&s, "lift_coefficient"));
+    assert!(rel("pressure_difference", 0.11752016697) < 5e-3, "dp {}", q(&s, "pressure_difference"));
+    // Newton converges quadratically: the last residual drops far below the square of the one
+    // before it times a modest constant.
+    let r = &s.residual_norms;
+    assert!(r.len() >= 3 && r.len() <= 8, "{r:?}");
+    let (a, b) = (r[r.len() - 3], r[r.len() - 2]);
+    assert!(b < 1e-2 * a, "{r:?}");
+    assert_eq!(s.symbolic_factorizations, 1, "one symbolic factorisation per mesh");
+}

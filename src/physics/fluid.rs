@@ -47,6 +47,20 @@ impl Formulation {
     }
 }
 
+/// Form of the viscous term. Both give the same solution where the velocity is prescribed on the
+/// whole boundary (`div u = 0`), and the same force on no-slip walls; they differ in the natural
+/// boundary condition of outlets:
+/// - `Stress`: `(2 eta D(u), D(v))`, natural condition `sigma n = t` (the paper's);
+/// - `Laplace`: `(eta grad u, grad v)` (axisymmetric: plus `eta u_r v_r / r^2`), natural condition
+///   `eta du/dn - p n = t`, the "do-nothing" outlet of the Schaefer-Turek benchmarks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ViscousForm {
+    #[default]
+    Stress,
+    Laplace,
+}
+
 /// Material and time-discretisation parameters of the fluid kernel.
 #[derive(Clone, Copy, Debug)]
 pub struct FluidParams {
@@ -58,6 +72,8 @@ pub struct FluidParams {
     pub inv_dt: f64,
     /// Include the convective term `rho u . grad u` (Navier-Stokes) or not (Stokes).
     pub convection: bool,
+    /// Form of the viscous term.
+    pub viscous_form: ViscousForm,
 }
 
 /// Local unknowns of one cell: velocity `u[i * D + a]` (node `i`, component `a`), the previous
@@ -88,6 +104,12 @@ pub fn fluid_cell<const D: usize>(
     let axi = formulation == Formulation::Axisymmetric;
     let eta = params.viscosity;
     let rho = params.density;
+    // Weight of the transposed-gradient term and of the hoop term: stress form 1 and 2,
+    // Laplace form 0 and 1.
+    let (sym, hoop_k) = match params.viscous_form {
+        ViscousForm::Stress => (1.0, 2.0),
+        ViscousForm::Laplace => (0.0, 1.0),
+    };
     let mut psi = [0.0; 4];
     for q in 0..cv.num_points() {
         let x = cv.x[q];
@@ -130,11 +152,11 @@ pub fn fluid_cell<const D: usize>(
             for a in 0..D {
                 let mut s = 0.0;
                 for b in 0..D {
-                    s += eta * (gu[a][b] + gu[b][a]) * dphi[i][b];
+                    s += eta * (gu[a][b] + sym * gu[b][a]) * dphi[i][b];
                 }
                 let mut div_v = dphi[i][a];
                 if axi && a == 1 {
-                    s += 2.0 * eta * hoop * phi[i] / r;
+                    s += hoop_k * eta * hoop * phi[i] / r;
                     div_v += phi[i] / r;
                 }
                 re[i * D + a] += w * (s - p * div_v + m[a] * phi[i]);
@@ -152,11 +174,11 @@ pub fn fluid_cell<const D: usize>(
                 for a in 0..D {
                     let row = (i * D + a) * n;
                     for b in 0..D {
-                        let mut v = eta * dphi[i][b] * dphi[j][a];
+                        let mut v = sym * eta * dphi[i][b] * dphi[j][a];
                         if a == b {
                             v += eta * gij + (mass * phi[j] + rho * conv_j) * phi[i];
                             if axi && a == 1 {
-                                v += 2.0 * eta * phi[i] * phi[j] / (r * r);
+                                v += hoop_k * eta * phi[i] * phi[j] / (r * r);
                             }
                         }
                         if params.convection {
@@ -217,7 +239,8 @@ mod tests {
         cv.reinit(&[[0.2, 0.3], [1.1, 0.4], [0.5, 1.2]]).unwrap();
         let nu = 14;
         let n = nu + 3;
-        let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true };
+        for form_v in [ViscousForm::Stress, ViscousForm::Laplace] {
+        let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true, viscous_form: form_v };
         let mut s = 7u64;
         let mut rnd = || {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
@@ -250,6 +273,7 @@ mod tests {
                     assert!((fd - ke[i * n + j]).abs() < 1e-6 * (1.0 + fd.abs()), "{form:?} K[{i}][{j}] = {} vs FD {fd}", ke[i * n + j]);
                 }
             }
+        }
         }
     }
 }

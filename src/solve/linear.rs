@@ -6,9 +6,10 @@
 //! `|b - A x| / |b|` is checked and the solution refined iteratively (`x += A^{-1} r`) while it is
 //! above [`LinearSolverOptions::refine_tolerance`].
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, Par};
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use thiserror::Error;
 
@@ -60,18 +61,33 @@ pub trait LinearSolver {
     fn symbolic_factorizations(&self) -> usize;
 }
 
-/// faer's sparse LU with the symbolic factorisation cached per pattern.
+/// faer's sparse LU with the symbolic factorisation cached per pattern. The numeric factors and
+/// the factorisation workspace are kept between factorisations, so a Newton iteration allocates
+/// nothing large.
 pub struct FaerLu {
     options: LinearSolverOptions,
     symbolic: Option<(u64, SymbolicLu<usize>)>,
-    numeric: Option<Lu<usize, f64>>,
+    numeric: NumericLu<usize, f64>,
+    workspace: MemBuffer,
+    factorized: bool,
     symbolic_count: usize,
 }
 
 impl FaerLu {
     /// A solver with the given options.
     pub fn new(options: LinearSolverOptions) -> Self {
-        FaerLu { options, symbolic: None, numeric: None, symbolic_count: 0 }
+        FaerLu {
+            options,
+            symbolic: None,
+            numeric: NumericLu::new(),
+            workspace: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            factorized: false,
+            symbolic_count: 0,
+        }
+    }
+
+    fn par() -> Par {
+        faer::get_global_parallelism()
     }
 }
 
@@ -108,23 +124,36 @@ impl LinearSolver for FaerLu {
     fn factorize(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
         let key = pattern_key(a.pattern);
         let view = faer_view(a);
+        let par = Self::par();
+        self.factorized = false;
         if self.symbolic.as_ref().map(|(k, _)| *k) != Some(key) {
-            let s = SymbolicLu::try_new(view.symbolic()).map_err(|e| LinearSolveError::Symbolic(format!("{e:?}")))?;
+            let s = factorize_symbolic_lu(view.symbolic(), Default::default())
+                .map_err(|e| LinearSolveError::Symbolic(format!("{e:?}")))?;
+            let req = s.factorize_numeric_lu_scratch::<f64>(par, Default::default());
+            self.workspace = MemBuffer::try_new(req).map_err(|e| LinearSolveError::Symbolic(format!("workspace: {e:?}")))?;
             self.symbolic = Some((key, s));
             self.symbolic_count += 1;
         }
-        let symbolic = self.symbolic.as_ref().expect("set above").1.clone();
-        let lu = Lu::try_new_with_symbolic(symbolic, view).map_err(|e| LinearSolveError::Numeric(format!("{e:?}")))?;
-        self.numeric = Some(lu);
+        let symbolic = &self.symbolic.as_ref().expect("set above").1;
+        symbolic
+            .factorize_numeric_lu(&mut self.numeric, view, par, MemStack::new(&mut self.workspace), Default::default())
+            .map_err(|e| LinearSolveError::Numeric(format!("{e:?}")))?;
+        self.factorized = true;
         Ok(())
     }
 
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
-        let lu = self.numeric.as_ref().ok_or_else(|| LinearSolveError::Numeric("solve before factorize".into()))?;
+        let symbolic = match (&self.symbolic, self.factorized) {
+            (Some((_, s)), true) => s,
+            _ => return Err(LinearSolveError::Numeric("solve before a successful factorisation".into())),
+        };
+        let par = Self::par();
+        let lu = LuRef::new_unchecked(symbolic, &self.numeric);
+        let mut scratch = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(1, par));
         let n = rhs.len();
         let b = rhs.to_vec();
         let bnorm = norm(&b).max(f64::MIN_POSITIVE);
-        lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(rhs, n, 1));
+        lu.solve_in_place_with_conj(Conj::No, faer::MatMut::from_column_major_slice_mut(rhs, n, 1), par, MemStack::new(&mut scratch));
         let mut r = vec![0.0; n];
         let residual = |x: &[f64], r: &mut Vec<f64>| -> f64 {
             a.mul_vec(x, r);
@@ -136,7 +165,7 @@ impl LinearSolver for FaerLu {
         let mut res = residual(rhs, &mut r);
         let mut refinements = 0;
         while res > self.options.refine_tolerance && refinements < self.options.max_refinements && res.is_finite() {
-            lu.solve_in_place(faer::MatMut::from_column_major_slice_mut(&mut r, n, 1));
+            lu.solve_in_place_with_conj(Conj::No, faer::MatMut::from_column_major_slice_mut(&mut r, n, 1), par, MemStack::new(&mut scratch));
             for (x, d) in rhs.iter_mut().zip(&r) {
                 *x += d;
             }

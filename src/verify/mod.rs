@@ -85,7 +85,7 @@ pub fn stokes_errors<const D: usize>(
     let ex = exact.clone();
     let problem = FlowProblem {
         formulation,
-        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false },
+        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: Default::default() },
         body_force: Some(Arc::new(move |x: &[f64; D], _t| ex.body_force(x))),
         dirichlet: dirichlet
             .iter()
