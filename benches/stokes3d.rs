@@ -24,7 +24,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use faer::sparse::linalg::solvers::SymbolicLu;
 use faer::sparse::SymbolicSparseColMatRef;
 use fdfsi::flow::{flow_errors, DirichletBc, ExactFlow, FlowDiscretization, FlowProblem, TractionBc};
-use fdfsi::physics::fluid::{FluidParams, Formulation};
+use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -66,7 +66,7 @@ fn problem(exact: Arc<Stokes3d>) -> FlowProblem<3> {
     let ex = exact.clone();
     FlowProblem {
         formulation: Formulation::ThreeD,
-        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false },
+        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: ViscousForm::Stress },
         body_force: Some(Arc::new(move |x: &[f64; 3], _t| ex.body_force(x))),
         dirichlet: velocity_faces
             .iter()

@@ -70,10 +70,56 @@ pub struct Case {
     /// Body force per unit volume, per component (numbers or expressions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_force: Option<Vec<Scalar>>,
+    /// Time stepping; without it the problem is steady.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<TimeSpec>,
     #[serde(default)]
     pub solver: SolverSpec,
     #[serde(default)]
     pub output: OutputSpec,
+}
+
+/// Time stepping of an unsteady run.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Time step (> 0).
+    pub dt: f64,
+    /// End time (> 0); the run starts at t = 0 from rest.
+    pub end: f64,
+    /// `euler` (implicit Euler, the paper's; default) or `bdf2`.
+    #[serde(default)]
+    pub scheme: crate::time::TimeScheme,
+    /// Write the fields every this many steps (the last step is always written).
+    #[serde(default = "one_usize")]
+    pub output_every: usize,
+    /// How often a step whose Newton solve fails is halved before the run stops.
+    #[serde(default = "four")]
+    pub max_cuts: usize,
+}
+
+fn one_usize() -> usize {
+    1
+}
+fn four() -> usize {
+    4
+}
+
+/// A function of time multiplying a boundary value.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TimeFunction {
+    /// 1.
+    Constant,
+    /// `min(t / duration, 1)`.
+    Ramp { duration: f64 },
+    /// `sin(2 pi t / period + phase)`.
+    Sine { period: f64, #[serde(default)] phase: f64 },
+    /// `sin(pi t / (2 rise))` for `t < rise`, then 1 (the first quarter of a sine, then held).
+    QuarterSineHold { rise: f64 },
+    /// Linear interpolation in a CSV file of `t,value` rows (a header line is allowed), held
+    /// constant outside its range. Path relative to the case file.
+    Table { file: PathBuf },
 }
 
 /// The fluid mesh: a built-in generator or a Gmsh file.
@@ -178,6 +224,9 @@ pub struct BoundarySpec {
     /// For `symmetry`: the coordinate axis the plane is normal to.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal_axis: Option<usize>,
+    /// Multiplies `value` (unsteady runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_function: Option<TimeFunction>,
 }
 
 /// Solver options.
@@ -415,6 +464,21 @@ impl Case {
             }
             known.insert(&c.name);
         }
+        if let Some(t) = &self.time {
+            positive(t.dt, "time.dt", &mut problems);
+            positive(t.end, "time.end", &mut problems);
+            if t.output_every == 0 {
+                problems.push("time.output_every must be >= 1".into());
+            }
+        }
+        for b in &self.boundary {
+            match &b.time_function {
+                Some(TimeFunction::Ramp { duration: v }) | Some(TimeFunction::Sine { period: v, .. }) | Some(TimeFunction::QuarterSineHold { rise: v }) => {
+                    positive(*v, &format!("boundary '{}': time_function duration/period/rise", b.name), &mut problems)
+                }
+                _ => {}
+            }
+        }
         let n = &self.solver.newton;
         if n.max_iterations == 0 || !(n.abs_tol > 0.0) || !(n.rel_tol > 0.0) {
             problems.push("solver.newton: max_iterations >= 1 and positive tolerances required".into());
@@ -582,5 +646,111 @@ value = ["4*y*(1-y)", 0]
         assert!(Expr::compile(&Scalar::Expression("sin(q)".into())).unwrap_err().contains("unknown variable `q`"));
         let e = Expr::compile(&Scalar::Expression("r^2 + t*PI".into())).unwrap();
         assert!((e.eval(&[0.0, 2.0], 1.0) - (4.0 + std::f64::consts::PI)).abs() < 1e-14);
+    }
+}
+
+/// A [`TimeFunction`] ready to evaluate (tables loaded).
+#[derive(Clone, Debug)]
+pub enum TimeFn {
+    Constant,
+    Ramp(f64),
+    Sine(f64, f64),
+    QuarterSineHold(f64),
+    Table(Arc<Vec<(f64, f64)>>),
+}
+
+impl TimeFn {
+    /// Loads a time function (reads a table file relative to `case_dir`).
+    pub fn load(f: &TimeFunction, case_dir: &std::path::Path) -> Result<TimeFn, CaseError> {
+        Ok(match f {
+            TimeFunction::Constant => TimeFn::Constant,
+            TimeFunction::Ramp { duration } => TimeFn::Ramp(*duration),
+            TimeFunction::Sine { period, phase } => TimeFn::Sine(*period, *phase),
+            TimeFunction::QuarterSineHold { rise } => TimeFn::QuarterSineHold(*rise),
+            TimeFunction::Table { file } => {
+                let path = case_dir.join(file);
+                let name = path.display().to_string();
+                let text = std::fs::read_to_string(&path).map_err(|source| CaseError::Io { file: name.clone(), source })?;
+                TimeFn::Table(Arc::new(parse_table(&text, &name)?))
+            }
+        })
+    }
+
+    /// Value at time `t`.
+    pub fn eval(&self, t: f64) -> f64 {
+        use std::f64::consts::PI;
+        match self {
+            TimeFn::Constant => 1.0,
+            TimeFn::Ramp(d) => (t / d).clamp(0.0, 1.0),
+            TimeFn::Sine(p, phase) => (2.0 * PI * t / p + phase).sin(),
+            TimeFn::QuarterSineHold(r) => {
+                if t < *r {
+                    (0.5 * PI * t / r).sin()
+                } else {
+                    1.0
+                }
+            }
+            TimeFn::Table(rows) => interpolate(rows, t),
+        }
+    }
+}
+
+/// Rows `t,value` of a CSV table, strictly increasing in `t`.
+fn parse_table(text: &str, file: &str) -> Result<Vec<(f64, f64)>, CaseError> {
+    let mut rows: Vec<(f64, f64)> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let cols: Vec<&str> = line.split(',').map(str::trim).collect();
+        let parsed = (cols.len() == 2).then(|| (cols[0].parse::<f64>(), cols[1].parse::<f64>()));
+        match parsed {
+            Some((Ok(t), Ok(v))) => {
+                if rows.last().is_some_and(|&(tp, _)| t <= tp) {
+                    return Err(CaseError::Invalid { file: file.into(), message: format!("line {}: times must increase", i + 1) });
+                }
+                rows.push((t, v));
+            }
+            _ if rows.is_empty() && i == 0 => {} // header
+            _ => return Err(CaseError::Invalid { file: file.into(), message: format!("line {}: expected `t,value`, got `{line}`", i + 1) }),
+        }
+    }
+    if rows.is_empty() {
+        return Err(CaseError::Invalid { file: file.into(), message: "the table has no rows".into() });
+    }
+    Ok(rows)
+}
+
+fn interpolate(rows: &[(f64, f64)], t: f64) -> f64 {
+    let k = rows.partition_point(|&(tk, _)| tk <= t);
+    if k == 0 {
+        return rows[0].1;
+    }
+    if k == rows.len() {
+        return rows[k - 1].1;
+    }
+    let ((t0, v0), (t1, v1)) = (rows[k - 1], rows[k]);
+    v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+}
+
+#[cfg(test)]
+mod time_function_tests {
+    use super::*;
+
+    #[test]
+    fn time_functions_evaluate() {
+        assert_eq!(TimeFn::Ramp(2.0).eval(1.0), 0.5);
+        assert_eq!(TimeFn::Ramp(2.0).eval(3.0), 1.0);
+        assert!((TimeFn::QuarterSineHold(2.0).eval(1.0) - (std::f64::consts::PI / 4.0).sin()).abs() < 1e-15);
+        assert_eq!(TimeFn::QuarterSineHold(2.0).eval(5.0), 1.0);
+        assert!((TimeFn::Sine(4.0, 0.0).eval(1.0) - 1.0).abs() < 1e-15);
+        let rows = parse_table("t,value\n0,0\n1,2\n3,2\n", "x.csv").unwrap();
+        let f = TimeFn::Table(Arc::new(rows));
+        assert_eq!(f.eval(0.5), 1.0);
+        assert_eq!(f.eval(10.0), 2.0);
+        assert_eq!(f.eval(-1.0), 0.0);
+        assert!(parse_table("0,1\n0,2\n", "x.csv").unwrap_err().to_string().contains("times must increase"));
+        assert!(parse_table("0,1\nfoo\n", "x.csv").unwrap_err().to_string().contains("line 2"));
     }
 }

@@ -9,6 +9,7 @@
 pub use fdfsi_fem as fem;
 
 pub mod flow;
+pub mod solid;
 pub mod physics;
 pub mod solve;
 pub mod verify;
@@ -17,3 +18,4 @@ pub mod output;
 pub mod quantities;
 pub mod run;
 pub mod picture;
+pub mod time;

@@ -3,7 +3,9 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use fdfsi::case::Case;
-use fdfsi::run::{check_case, run_case, RunOptions, BUILTIN_CASES, DEFAULT_CASE};
+use fdfsi::run::{check_case, run_case, RunObserver, RunOptions, BUILTIN_CASES, DEFAULT_CASE};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
 use fdfsi::verify::{self, Effort};
 use std::path::{Path, PathBuf};
 
@@ -63,10 +65,49 @@ fn load_case(arg: Option<&str>) -> Result<(Case, PathBuf, String)> {
     }
 }
 
+/// Log lines on stderr; on a terminal, step progress as a bar (step, time, ETA) with the log
+/// lines printed above it.
+struct CliObserver {
+    quiet: bool,
+    bar: Option<ProgressBar>,
+    terminal: bool,
+}
+
+impl RunObserver for CliObserver {
+    fn log(&mut self, line: &str) {
+        if self.quiet {
+            return;
+        }
+        match &self.bar {
+            Some(bar) if line.starts_with("step ") => bar.set_message(line.to_string()),
+            Some(bar) => bar.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+    fn step(&mut self, step: usize, total: usize, time: f64) {
+        if self.quiet || !self.terminal {
+            return;
+        }
+        let bar = self.bar.get_or_insert_with(|| {
+            let b = ProgressBar::new(total as u64);
+            b.set_style(
+                ProgressStyle::with_template("{bar:30} {pos}/{len} steps, t = {prefix}, ETA {eta}  {wide_msg}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            b
+        });
+        bar.set_prefix(format!("{time:.4e}"));
+        bar.set_position(step as u64);
+        if step == total {
+            bar.finish();
+        }
+    }
+}
+
 fn main() -> Result<()> {
     let cli = Cli::parse();
     let quiet = cli.quiet;
-    let mut log = |line: &str| {
+    let log = |line: &str| {
         if !quiet {
             eprintln!("{line}");
         }
@@ -75,7 +116,8 @@ fn main() -> Result<()> {
         Command::Run { case, out } => {
             let (case, case_dir, label) = load_case(case.as_deref())?;
             log(&format!("case: {label}: {}", case.title));
-            let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir }, &mut log)
+            let mut observer = CliObserver { quiet, bar: None, terminal: std::io::stderr().is_terminal() };
+            let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir }, &mut observer)
                 .with_context(|| format!("running {label}"))?;
             log(&format!(
                 "done in {:.2} s (assemble {:.2} s, factorize {:.2} s, solve {:.2} s); results in {}",

@@ -66,14 +66,19 @@ fn cell_centroid<const D: usize>(disc: &FlowDiscretization<D>, c: usize) -> [f64
 /// elsewhere, `int (sigma n) . e_a ds = R(v_a)`. Exact for the discrete solution (no
 /// differentiation of the velocity on the wall) and converges at the rate of the energy norm
 /// squared. Axisymmetric: multiplied by `2 pi` (the weight `r` is in `R`).
+/// For unsteady runs `state` gives the step's `inv_dt`, history `u*` and time (see
+/// [`crate::time`]), so the inertia of the fluid next to the wall is included.
 pub fn boundary_force<const D: usize>(
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,
     x: &[f64],
+    state: &StepState<'_>,
     boundary: &str,
 ) -> Result<[f64; D], FlowError> {
     let n = disc.num_dofs();
-    let raw = disc.raw_residual(problem, x, x, 0.0)?;
+    let mut step_problem = problem.clone();
+    step_problem.params.inv_dt = state.inv_dt;
+    let raw = disc.raw_residual(&step_problem, x, state.u_star.unwrap_or(x), state.time)?;
     let vf = &disc.layout.fields[0];
     let mut on_boundary = vec![false; vf.nodes.num_nodes];
     for bf in disc.mesh.boundary_facets(boundary)? {
@@ -95,16 +100,26 @@ pub fn boundary_force<const D: usize>(
     Ok(f)
 }
 
+/// The time level a quantity is evaluated at: steady (`inv_dt = 0`, no history) or a step of
+/// the time loop.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StepState<'a> {
+    pub time: f64,
+    pub inv_dt: f64,
+    pub u_star: Option<&'a [f64]>,
+}
+
 /// Evaluates a boundary integral (times its `scale`).
 pub fn boundary_integral<const D: usize>(
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,
     x: &[f64],
+    state: &StepState<'_>,
     spec: &BoundaryIntegralSpec,
 ) -> Result<f64, FlowError> {
     let formulation = problem.formulation;
     if spec.kind == BoundaryIntegralKind::Force {
-        return Ok(spec.scale * boundary_force(disc, problem, x, &spec.boundary)?[spec.component]);
+        return Ok(spec.scale * boundary_force(disc, problem, x, state, &spec.boundary)?[spec.component]);
     }
     let facets = disc.mesh.boundary_facets(&spec.boundary)?;
     let mut fv = disc.facet_values();
@@ -148,4 +163,40 @@ pub fn boundary_integral<const D: usize>(
             BoundaryIntegralKind::MeanPressure => num / den,
             _ => num,
         })
+}
+
+/// Every quantity a case requests, in the order probes, boundary integrals, combinations.
+pub fn evaluate_all<const D: usize>(
+    output: &crate::case::OutputSpec,
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    x: &[f64],
+    state: &StepState<'_>,
+) -> Result<Vec<(String, f64)>, QuantityError> {
+    let mut out: Vec<(String, f64)> = Vec::new();
+    for p in &output.probe {
+        let v = probe(disc, x, p).ok_or_else(|| QuantityError::ProbeOutside { name: p.name.clone(), point: p.point.clone() })?;
+        out.push((p.name.clone(), v));
+    }
+    for b in &output.boundary_integral {
+        out.push((b.name.clone(), boundary_integral(disc, problem, x, state, b)?));
+    }
+    for c in &output.combination {
+        let v = c
+            .terms
+            .iter()
+            .map(|(q, k)| k * out.iter().find(|(n, _)| n == q).map(|(_, v)| *v).unwrap_or(f64::NAN))
+            .sum();
+        out.push((c.name.clone(), v));
+    }
+    Ok(out)
+}
+
+/// A quantity that cannot be evaluated.
+#[derive(Debug, thiserror::Error)]
+pub enum QuantityError {
+    #[error("probe '{name}' at {point:?} lies outside the fluid mesh")]
+    ProbeOutside { name: String, point: Vec<f64> },
+    #[error(transparent)]
+    Flow(#[from] FlowError),
 }

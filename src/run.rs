@@ -2,11 +2,12 @@
 //!
 //! Each phase runs inside a named timer whose seconds go to `summary.json`.
 
-use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec};
+use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, TimeFn};
 use crate::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowError, FlowProblem, TractionBc, VectorFn};
 use crate::output::{fluid_grid, write_atomic, History, OutputError};
 use crate::physics::fluid::FluidParams;
-use crate::quantities::{boundary_integral, probe};
+use crate::quantities::{evaluate_all, QuantityError, StepState};
+use crate::time::{solve_unsteady, TimeOptions};
 use crate::solve::linear::FaerLu;
 use fdfsi_fem::generate;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh, GmshError};
@@ -29,6 +30,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("quarter-pipe-3d-stokes", include_str!("../cases/quarter-pipe-3d-stokes.toml")),
     ("cylinder-stokes-gmsh", include_str!("../cases/cylinder-stokes-gmsh.toml")),
     ("schaefer-turek-2d1", include_str!("../cases/schaefer-turek-2d1.toml")),
+    ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
 ];
 
 /// A run failure.
@@ -48,6 +50,22 @@ pub enum RunError {
     Vtk(#[from] VtkError),
     #[error("probe '{name}' at {point:?} lies outside the fluid mesh")]
     ProbeOutside { name: String, point: Vec<f64> },
+    #[error(transparent)]
+    Time(#[from] crate::time::TimeError),
+}
+
+/// Receives what a run reports: log lines and step progress.
+pub trait RunObserver {
+    /// One line of the run's log.
+    fn log(&mut self, line: &str);
+    /// Called after step `step` of `total` completed at time `time`.
+    fn step(&mut self, _step: usize, _total: usize, _time: f64) {}
+}
+
+impl<F: FnMut(&str)> RunObserver for F {
+    fn log(&mut self, line: &str) {
+        self(line)
+    }
 }
 
 /// Where a run reads and writes.
@@ -146,7 +164,7 @@ pub fn build_mesh(case: &Case, case_dir: &Path) -> Result<AnyMesh, RunError> {
 }
 
 /// Runs a case; `log` receives one line per notable event.
-pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn FnMut(&str)) -> Result<RunSummary, RunError> {
+pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
     let t0 = Instant::now();
     case.validate("case")?;
     std::fs::create_dir_all(&options.out_dir)
@@ -166,9 +184,12 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn FnMut(&str)) ->
     Ok(summary)
 }
 
-/// A vector of compiled expressions as a field of position and time.
-fn vector_fn<const D: usize>(exprs: Vec<Expr>) -> VectorFn<D> {
-    Arc::new(move |x: &[f64; D], t: f64| std::array::from_fn(|a| exprs[a].eval(x, t)))
+/// A vector of compiled expressions, times a time function, as a field of position and time.
+fn vector_fn<const D: usize>(exprs: Vec<Expr>, time: TimeFn) -> VectorFn<D> {
+    Arc::new(move |x: &[f64; D], t: f64| {
+        let s = time.eval(t);
+        std::array::from_fn(|a| s * exprs[a].eval(x, t))
+    })
 }
 
 fn compile_all(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, CaseError> {
@@ -178,8 +199,9 @@ fn compile_all(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, CaseError> {
         .collect()
 }
 
-/// The flow problem a case describes on `mesh`.
-pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowProblem<D>, RunError> {
+/// The flow problem a case describes on `mesh`; time-function tables are read relative to
+/// `case_dir`.
+pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path) -> Result<FlowProblem<D>, RunError> {
     let mut dirichlet = Vec::new();
     let mut traction = Vec::new();
     let all: Vec<usize> = (0..D).collect();
@@ -191,9 +213,13 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowP
         mesh.boundary_tag(&b.name).map_err(FlowError::from)?;
         let count = mesh.boundary_facets(&b.name).map_err(FlowError::from)?.len();
         let bc = |components: Vec<usize>, value: VectorFn<D>| DirichletBc { boundary: b.name.clone(), components, value };
+        let time = match &b.time_function {
+            Some(f) => TimeFn::load(f, case_dir)?,
+            None => TimeFn::Constant,
+        };
         match b.kind {
             BoundaryType::Velocity => {
-                dirichlet.push(bc(all.clone(), vector_fn(compile_all(&b.value)?)));
+                dirichlet.push(bc(all.clone(), vector_fn(compile_all(&b.value)?, time)));
                 covered += count;
             }
             BoundaryType::NoSlip => {
@@ -209,7 +235,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowP
                 covered += count;
             }
             BoundaryType::Traction => {
-                let f = vector_fn::<D>(compile_all(&b.value)?);
+                let f = vector_fn::<D>(compile_all(&b.value)?, time);
                 traction.push(TractionBc { boundary: b.name.clone(), traction: Arc::new(move |x, _n, t| f(x, t)) });
                 pressure_fixed = true;
             }
@@ -218,7 +244,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowP
                 traction.push(TractionBc {
                     boundary: b.name.clone(),
                     traction: Arc::new(move |x: &[f64; D], n: &[f64; D], t| {
-                        let pv = p.eval(x, t);
+                        let pv = time.eval(t) * p.eval(x, t);
                         std::array::from_fn(|a| -pv * n[a])
                     }),
                 });
@@ -232,7 +258,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowP
         pressure_fixed = true; // some boundary is traction-free by default
     }
     let body_force = match &case.body_force {
-        Some(f) => Some(vector_fn::<D>(compile_all(f)?)),
+        Some(f) => Some(vector_fn::<D>(compile_all(f)?, TimeFn::Constant)),
         None => None,
     };
     Ok(FlowProblem {
@@ -251,57 +277,92 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>) -> Result<FlowP
     })
 }
 
-fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, log: &mut dyn FnMut(&str)) -> Result<RunSummary, RunError> {
-    let problem = flow_problem(case, &mesh)?;
+fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let problem = flow_problem(case, &mesh, &options.case_dir)?;
     let t = Instant::now();
     let cells = mesh.num_cells();
     let disc = FlowDiscretization::build(mesh, case.physics.formulation)?;
     let discretize = t.elapsed().as_secs_f64();
     let nv = disc.layout.fields[0].num_dofs();
     let np = disc.layout.fields[1].num_dofs();
-    log(&format!(
+    obs.log(&format!(
         "mesh: {cells} cells; dofs: velocity {nv}, pressure {np}, total {} (nnz {}); {:.2} s",
         nv + np,
         disc.pattern.nnz(),
         discretize
     ));
     let mut lu = FaerLu::default();
-    let sol = solve_steady(&disc, &problem, &mut lu, &case.solver.newton)?;
-    let rep = &sol.newton;
-    for (k, r) in rep.residual_norms.iter().enumerate() {
-        let du = rep.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
-        log(&format!("newton {k}: |R| = {r:.3e}{du}"));
-    }
-    let t = Instant::now();
-    let mut quantities = BTreeMap::new();
-    for p in &case.output.probe {
-        let v = probe(&disc, &sol.x, p).ok_or_else(|| RunError::ProbeOutside { name: p.name.clone(), point: p.point.clone() })?;
-        quantities.insert(p.name.clone(), v);
-    }
-    for b in &case.output.boundary_integral {
-        quantities.insert(b.name.clone(), boundary_integral(&disc, &problem, &sol.x, b)?);
-    }
-    for c in &case.output.combination {
-        let v = c.terms.iter().map(|(q, k)| k * quantities.get(q).copied().unwrap_or(f64::NAN)).sum();
-        quantities.insert(c.name.clone(), v);
-    }
-    for (name, v) in &quantities {
-        log(&format!("{name} = {v:.10e}"));
-    }
-    let names: Vec<String> = quantities.keys().cloned().collect();
-    let values: Vec<f64> = quantities.values().copied().collect();
-    let mut history = History::new(&options.out_dir.join("history.csv"), &names);
-    history.push(0, 0.0, rep.iterations, *rep.residual_norms.last().unwrap_or(&0.0), &values)?;
-    let mut series = PvdSeries::new(&options.out_dir, "solution");
-    series.add(0.0, "fluid", &fluid_grid(&disc, &sol.x)?)?;
+    let mut out = Outputs::new(case, options)?;
+    let mut timings = Timings { discretize, ..Default::default() };
+    let mut residual_norms = Vec::new();
+    let mut newton_iterations = 0;
+    let steps;
+    let x = match &case.time {
+        None => {
+            let sol = solve_steady(&disc, &problem, &mut lu, &case.solver.newton)?;
+            let rep = &sol.newton;
+            for (k, r) in rep.residual_norms.iter().enumerate() {
+                let du = rep.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
+                obs.log(&format!("newton {k}: |R| = {r:.3e}{du}"));
+            }
+            timings.add_newton(rep);
+            residual_norms.clone_from(&rep.residual_norms);
+            newton_iterations = rep.iterations;
+            out.record(&disc, &problem, &sol.x, &StepState::default(), 0, rep.iterations, *rep.residual_norms.last().unwrap_or(&0.0), true, obs)?;
+            steps = 1;
+            sol.x
+        }
+        Some(ts) => {
+            let topts = TimeOptions { dt: ts.dt, t_end: ts.end, scheme: ts.scheme, max_cuts: ts.max_cuts };
+            let total = (ts.end / ts.dt - 1e-9).ceil() as usize;
+            let mut x = vec![0.0; disc.num_dofs()];
+            out.record(&disc, &problem, &x, &StepState::default(), 0, 0, 0.0, true, obs)?;
+            let mut failure: Option<RunError> = None;
+            let step_t = Instant::now();
+            let result = solve_unsteady(&disc, &problem, &mut x, &topts, &mut lu, &case.solver.newton, |rep, x| {
+                for n in &rep.newton {
+                    timings.add_newton(n);
+                }
+                newton_iterations += rep.iterations();
+                residual_norms.push(rep.residual());
+                let cut = if rep.cuts > 0 { format!(" ({} cuts, dt = {:.3e})", rep.cuts, rep.dt) } else { String::new() };
+                obs.log(&format!(
+                    "step {}/{total} t = {:.6e}: newton {} |R| = {:.2e}{cut}; {:.2} s elapsed",
+                    rep.step,
+                    rep.time,
+                    rep.iterations(),
+                    rep.residual(),
+                    step_t.elapsed().as_secs_f64()
+                ));
+                let state = StepState { time: rep.time, inv_dt: rep.inv_dt, u_star: Some(&rep.u_star) };
+                let write = rep.step % ts.output_every == 0 || rep.step == total;
+                if let Err(e) = out.record(&disc, &problem, x, &state, rep.step, rep.iterations(), rep.residual(), write, obs) {
+                    let msg = e.to_string();
+                    failure = Some(e);
+                    return Err(msg);
+                }
+                obs.step(rep.step, total, rep.time);
+                Ok(())
+            });
+            if let Some(e) = failure {
+                return Err(e);
+            }
+            result?;
+            steps = total;
+            x
+        }
+    };
     if let Some(disc2) = (&disc as &dyn std::any::Any).downcast_ref::<FlowDiscretization<2>>() {
+        let t = Instant::now();
         let png = options.out_dir.join("speed.png");
-        crate::picture::write_speed_png(disc2, &sol.x, &png, 1600).map_err(|message| OutputError::Io {
-            path: png.display().to_string(),
-            source: std::io::Error::other(message),
-        })?;
+        crate::picture::write_speed_png(disc2, &x, &png, 1600)
+            .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
+        out.seconds += t.elapsed().as_secs_f64();
     }
-    let output = t.elapsed().as_secs_f64();
+    for (name, v) in &out.last {
+        obs.log(&format!("{name} = {v:.10e}"));
+    }
+    timings.output = out.seconds;
     let mut dofs = BTreeMap::new();
     dofs.insert("velocity".to_string(), nv);
     dofs.insert("pressure".to_string(), np);
@@ -312,19 +373,75 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, lo
         dimension: D,
         cells,
         dofs,
-        steps: 1,
-        newton_iterations: rep.iterations,
-        residual_norms: rep.residual_norms.clone(),
+        steps,
+        newton_iterations,
+        residual_norms,
         symbolic_factorizations: crate::solve::linear::LinearSolver::symbolic_factorizations(&lu),
-        quantities,
-        timings: Timings {
-            mesh: 0.0,
-            discretize,
-            assemble: rep.assemble_seconds,
-            factorize: rep.factorize_seconds,
-            solve: rep.solve_seconds,
-            output,
-            total: 0.0,
-        },
+        quantities: out.last.into_iter().collect(),
+        timings,
     })
+}
+
+impl Timings {
+    fn add_newton(&mut self, r: &crate::solve::newton::NewtonReport) {
+        self.assemble += r.assemble_seconds;
+        self.factorize += r.factorize_seconds;
+        self.solve += r.solve_seconds;
+    }
+}
+
+/// The per-step outputs of a run: quantities into `history.csv`, fields into the `.pvd` series.
+struct Outputs {
+    history: Option<History>,
+    series: PvdSeries,
+    out_dir: PathBuf,
+    spec: crate::case::OutputSpec,
+    last: Vec<(String, f64)>,
+    seconds: f64,
+}
+
+impl Outputs {
+    fn new(case: &Case, options: &RunOptions) -> Result<Self, RunError> {
+        Ok(Outputs {
+            history: None,
+            series: PvdSeries::new(&options.out_dir, "solution"),
+            out_dir: options.out_dir.clone(),
+            spec: case.output.clone(),
+            last: Vec::new(),
+            seconds: 0.0,
+        })
+    }
+
+    /// Evaluates the quantities, appends a history row and (when `write_fields`) the fields.
+    #[allow(clippy::too_many_arguments)]
+    fn record<const D: usize>(
+        &mut self,
+        disc: &FlowDiscretization<D>,
+        problem: &FlowProblem<D>,
+        x: &[f64],
+        state: &StepState<'_>,
+        step: usize,
+        iterations: usize,
+        residual: f64,
+        write_fields: bool,
+        _obs: &mut dyn RunObserver,
+    ) -> Result<(), RunError> {
+        let t = Instant::now();
+        let values = evaluate_all(&self.spec, disc, problem, x, state).map_err(|e| match e {
+            QuantityError::ProbeOutside { name, point } => RunError::ProbeOutside { name, point },
+            QuantityError::Flow(f) => RunError::Flow(f),
+        })?;
+        let history = self.history.get_or_insert_with(|| {
+            let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
+            History::new(&self.out_dir.join("history.csv"), &names)
+        });
+        let vals: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
+        history.push(step, state.time, iterations, residual, &vals)?;
+        if write_fields {
+            self.series.add(state.time, "fluid", &fluid_grid(disc, x)?)?;
+        }
+        self.last = values;
+        self.seconds += t.elapsed().as_secs_f64();
+        Ok(())
+    }
 }

@@ -10,7 +10,7 @@ fn run(name: &str) -> (RunSummary, PathBuf) {
     let file = dir.join(format!("{name}.toml"));
     let case = Case::read(&file).unwrap();
     let out = std::env::temp_dir().join(format!("fdfsi-test-{name}-{}", std::process::id()));
-    let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir: dir }, &mut |_| {}).unwrap();
+    let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir: dir }, &mut |_: &str| {}).unwrap();
     (summary, out)
 }
 
@@ -113,4 +113,35 @@ fn schaefer_turek_2d1_matches_the_benchmark() {
     let (a, b) = (r[r.len() - 3], r[r.len() - 2]);
     assert!(b < 1e-2 * a, "{r:?}");
     assert_eq!(s.symbolic_factorizations, 1, "one symbolic factorisation per mesh");
+}
+
+#[test]
+fn womersley_matches_the_bessel_solution_over_a_period() {
+    use fdfsi::verify::womersley::Womersley;
+    let (s, out) = run("womersley-axisymmetric");
+    assert_eq!(s.steps, 1000);
+    let w = Womersley { a: 1.0, rho: 1.0, nu: 1.0, omega: 25.0, radius: 1.0 };
+    let period = 2.0 * std::f64::consts::PI / 25.0;
+    let scale = w.amplitude(0.0).norm();
+    let text = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (ct, c0, c5, c8) = (col("time"), col("u_r0"), col("u_r05"), col("u_r08"));
+    let mut worst: f64 = 0.0;
+    let mut rows = 0;
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let t = v[ct];
+        if t < 4.0 * period - 1e-9 {
+            continue;
+        }
+        rows += 1;
+        for (c, r) in [(c0, 0.0), (c5, 0.5), (c8, 0.8)] {
+            worst = worst.max((v[c] - w.velocity(r, t)).abs() / scale);
+        }
+    }
+    assert!(rows >= 200, "{rows} rows in the last period");
+    println!("Womersley: max error over the last period / centreline amplitude = {worst:.3e}");
+    assert!(worst < 0.01, "{worst}");
 }

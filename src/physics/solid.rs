@@ -252,14 +252,14 @@ impl SolidMaterial for SaintVenantKirchhoff {
             }
         }
         *p = matmul(f, &s);
-        let ffT = matmul(f, &transpose(f));
+        let ff_t = matmul(f, &transpose(f));
         for i in 0..3 {
             for jj in 0..3 {
                 for k in 0..3 {
                     for l in 0..3 {
                         let mut v = self.lambda * f[i][jj] * f[k][l] + self.mu * f[i][l] * f[k][jj];
                         if jj == l {
-                            v += self.mu * ffT[i][k];
+                            v += self.mu * ff_t[i][k];
                         }
                         if i == k {
                             v += s[jj][l];

@@ -16,3 +16,4 @@ pub mod dofs;
 pub mod sparse;
 pub mod locate;
 pub mod vtk;
+pub mod adapt;

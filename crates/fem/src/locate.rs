@@ -33,11 +33,18 @@ pub fn simplex_reference_coords<const D: usize>(v: &[[f64; D]], x: &[f64; D]) ->
 /// A cell containing `x` (within relative tolerance `1e-10`) and the reference coordinates of
 /// `x` in it.
 pub fn locate_point<const D: usize>(mesh: &Mesh<D>, x: &[f64; D]) -> Option<(usize, [f64; D])> {
+    cells_containing(mesh, x).into_iter().next()
+}
+
+/// Every cell containing `x` (several when `x` lies on a facet, edge or vertex), with the
+/// reference coordinates of `x` in each.
+pub fn cells_containing<const D: usize>(mesh: &Mesh<D>, x: &[f64; D]) -> Vec<(usize, [f64; D])> {
     if !matches!(mesh.cell_type, ReferenceCell::Triangle | ReferenceCell::Tetrahedron) {
-        return None;
+        return Vec::new();
     }
     let tol = 1e-10;
     let mut v = [[0.0; D]; 4];
+    let mut out = Vec::new();
     for c in 0..mesh.num_cells() {
         for (k, &n) in mesh.cell_vertices(c).iter().enumerate() {
             v[k] = mesh.points[n];
@@ -45,11 +52,11 @@ pub fn locate_point<const D: usize>(mesh: &Mesh<D>, x: &[f64; D]) -> Option<(usi
         if let Some(xi) = simplex_reference_coords(&v[..=D], x) {
             let l0 = 1.0 - xi.iter().sum::<f64>();
             if l0 >= -tol && xi.iter().all(|&l| l >= -tol) {
-                return Some((c, xi));
+                out.push((c, xi));
             }
         }
     }
-    None
+    out
 }
 
 #[cfg(test)]

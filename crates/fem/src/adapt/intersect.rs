@@ -1,0 +1,192 @@
+//! Step 1 of the adaptation: the fluid edges cut by gamma_s and one intersection point per edge.
+//!
+//! Each surface piece queries the R-tree of the original mesh's edges with its bounding box, so
+//! the work grows with the number of edges near gamma_s, never with all pairs. Each candidate
+//! pair (edge `ab`, piece) is classified with exact orientation predicates (`robust`):
+//!
+//! * **cut**: `a` and `b` lie strictly on opposite sides of the piece's line / plane and the
+//!   segment meets the closed piece; the point is `a + t (b - a)` with `t = o_a / (o_a - o_b)`
+//!   (`o` the signed distances as orientation determinants). A cut at `t <= T_SNAP` (or
+//!   `t >= 1 - T_SNAP`) is within round-off of the end point: it is **snapped**, the end vertex is
+//!   treated as lying on gamma_s and the edge as touching it (counted).
+//! * **touch**: exactly one end point lies on the piece's line / plane; it is on gamma_s when it
+//!   lies in the closed piece. The edge is not cut (paper: an edge only touching gamma_s at an end
+//!   point is not in S^f).
+//! * **in surface**: both end points lie on the line / plane (the edge lies along gamma_s); the
+//!   end points inside the piece are on gamma_s, the edge is not cut (counted).
+//!
+//! An edge cut by several pieces at different points (a folded surface, or two sheets) keeps the
+//! point closest to its first vertex `n1` (its smaller vertex number) and is counted.
+
+use super::background::Background;
+use super::geom::{collinear_point_in_segment, coplanar_point_in_triangle, lerp, orient, pad3};
+use super::surface::Surface;
+use rstar::AABB;
+
+/// Cuts closer than this (as a fraction of the edge) to an end point snap to it.
+pub const T_SNAP: f64 = 1e-12;
+
+/// One cut edge: intersection parameter from the edge's first (smaller-numbered) vertex, and
+/// the point.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Cut<const D: usize> {
+    pub edge: usize,
+    pub t: f64,
+    pub x: [f64; D],
+}
+
+/// The result of step 1.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct CutSet<const D: usize> {
+    /// One cut per cut edge, sorted by edge.
+    pub cuts: Vec<Cut<D>>,
+    /// Original vertices lying on gamma_s (touched or snapped), sorted, unique.
+    pub touched: Vec<usize>,
+    pub multi_cut_edges: usize,
+    pub edges_in_surface: usize,
+    pub snapped: usize,
+}
+
+/// Outcome of one edge-piece test.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Hit {
+    Miss,
+    Cut(f64),
+    /// Whether `a`, `b` lie on the piece (`in_plane` when both lie on its line / plane).
+    Touch { a: bool, b: bool, in_plane: bool },
+}
+
+/// Step 1 (see the module documentation).
+pub(crate) fn find_cuts<const D: usize>(bg: &Background<D>, surface: &Surface<D>) -> CutSet<D> {
+    let mut raw: Vec<(usize, f64, usize)> = Vec::new();
+    let mut touched = Vec::new();
+    let mut in_plane_edges = Vec::new();
+    let mut snapped = 0;
+    for pb in surface.tree().iter() {
+        let env = AABB::from_points(pb.corners.iter());
+        for eb in bg.edge_tree.locate_in_envelope_intersecting(env) {
+            let [ia, ib] = bg.topology.edges[eb.edge];
+            let (a, b) = (bg.mesh.points[ia], bg.mesh.points[ib]);
+            match classify(&a, &b, &pb.corners) {
+                Hit::Miss => {}
+                Hit::Cut(t) if t <= T_SNAP => {
+                    snapped += 1;
+                    touched.push(ia);
+                }
+                Hit::Cut(t) if t >= 1.0 - T_SNAP => {
+                    snapped += 1;
+                    touched.push(ib);
+                }
+                Hit::Cut(t) => raw.push((eb.edge, t, pb.index)),
+                Hit::Touch { a, b, in_plane } => {
+                    if a {
+                        touched.push(ia);
+                    }
+                    if b {
+                        touched.push(ib);
+                    }
+                    if in_plane && (a || b) {
+                        in_plane_edges.push(eb.edge);
+                    }
+                }
+            }
+        }
+    }
+    raw.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.cmp(&y.2)));
+    let mut cuts: Vec<Cut<D>> = Vec::new();
+    let mut multi_cut_edges = 0;
+    let mut i = 0;
+    while i < raw.len() {
+        let (edge, t, _) = raw[i];
+        let mut j = i + 1;
+        let mut multi = false;
+        while j < raw.len() && raw[j].0 == edge {
+            multi |= raw[j].1 - t > 1e-12;
+            j += 1;
+        }
+        multi_cut_edges += multi as usize;
+        let [ia, ib] = bg.topology.edges[edge];
+        cuts.push(Cut { edge, t, x: lerp(&bg.mesh.points[ia], &bg.mesh.points[ib], t) });
+        i = j;
+    }
+    touched.sort_unstable();
+    touched.dedup();
+    in_plane_edges.sort_unstable();
+    in_plane_edges.dedup();
+    CutSet { cuts, touched, multi_cut_edges, edges_in_surface: in_plane_edges.len(), snapped }
+}
+
+/// Exact classification of edge `ab` against a flat piece (see the module documentation).
+fn classify<const D: usize>(a: &[f64; D], b: &[f64; D], c: &[[f64; D]; D]) -> Hit {
+    let with = |x: &[f64; D]| -> [[f64; D]; 4] {
+        let mut p = [[0.0; D]; 4];
+        p[..D].copy_from_slice(c);
+        p[D] = *x;
+        p
+    };
+    let oa = orient(&with(a)[..=D]);
+    let ob = orient(&with(b)[..=D]);
+    let inside = |x: &[f64; D]| -> bool {
+        if D == 2 {
+            collinear_point_in_segment(x, &c[0], &c[1])
+        } else {
+            coplanar_point_in_triangle(&pad3(x), &pad3(&c[0]), &pad3(&c[1]), &pad3(&c[2]))
+        }
+    };
+    if oa == 0.0 || ob == 0.0 {
+        let ta = oa == 0.0 && inside(a);
+        let tb = ob == 0.0 && inside(b);
+        return Hit::Touch { a: ta, b: tb, in_plane: oa == 0.0 && ob == 0.0 };
+    }
+    if (oa > 0.0) == (ob > 0.0) {
+        return Hit::Miss;
+    }
+    // The segment meets the closed piece iff, in 2D, the piece's end points are not strictly on
+    // one side of line ab; in 3D, the orientations of line ab with the three sides of the
+    // triangle do not take both strict signs.
+    if D == 2 {
+        let (s1, s2) = (orient(&[*a, *b, c[0]]), orient(&[*a, *b, c[1]]));
+        if (s1 > 0.0 && s2 > 0.0) || (s1 < 0.0 && s2 < 0.0) {
+            return Hit::Miss;
+        }
+    } else {
+        let s: [f64; 3] = std::array::from_fn(|k| orient(&[*a, *b, c[k], c[(k + 1) % D]]));
+        if s.iter().any(|&v| v > 0.0) && s.iter().any(|&v| v < 0.0) {
+            return Hit::Miss;
+        }
+    }
+    Hit::Cut(oa / (oa - ob))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn classification_2d() {
+        let piece = [[0.0, -1.0], [0.0, 1.0]];
+        assert!(matches!(classify(&[-1.0, 0.0], &[3.0, 0.0], &piece), Hit::Cut(t) if (t - 0.25).abs() < 1e-15));
+        assert_eq!(classify(&[-1.0, 2.0], &[3.0, 2.0], &piece), Hit::Miss);
+        assert_eq!(classify(&[0.0, 0.5], &[3.0, 0.0], &piece), Hit::Touch { a: true, b: false, in_plane: false });
+        assert_eq!(classify(&[0.0, 0.5], &[0.0, 3.0], &piece), Hit::Touch { a: true, b: false, in_plane: true });
+        // The piece ends on the edge: still a cut.
+        assert!(matches!(classify(&[-1.0, 1.0], &[1.0, 1.0], &piece), Hit::Cut(_)));
+    }
+
+    #[test]
+    fn classification_3d() {
+        let piece = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(matches!(classify(&[0.2, 0.2, -1.0], &[0.2, 0.2, 3.0], &piece), Hit::Cut(t) if (t - 0.25).abs() < 1e-15));
+        assert_eq!(classify(&[0.8, 0.8, -1.0], &[0.8, 0.8, 1.0], &piece), Hit::Miss);
+        assert_eq!(
+            classify(&[0.2, 0.2, 0.0], &[0.2, 0.2, 1.0], &piece),
+            Hit::Touch { a: true, b: false, in_plane: false }
+        );
+        assert_eq!(
+            classify(&[0.2, 0.2, 0.0], &[2.0, 0.2, 0.0], &piece),
+            Hit::Touch { a: true, b: false, in_plane: true }
+        );
+        // Through a piece edge (closed piece).
+        assert!(matches!(classify(&[0.5, 0.0, -1.0], &[0.5, 0.0, 1.0], &piece), Hit::Cut(_)));
+    }
+}

@@ -1,0 +1,599 @@
+//! Local adaptation of the fluid mesh to the solid surface (the paper's section 2.2.1,
+//! METHOD.md 3) and transfer of the fluid velocity between adapted meshes (METHOD.md 4).
+//!
+//! Every step starts from the ORIGINAL fluid mesh (prepared once as a [`Background`]) and the
+//! CURRENT gamma_s (a [`Surface`] of flat pieces):
+//!
+//! 1. **Cut edges** ([`intersect`]): the edges crossed by gamma_s, one point per edge (the one
+//!    closest to the edge's first vertex `n1`, its smaller vertex number, if there are several).
+//! 2. **Move or add** ([`adapt_with`]): `eps = |x_i - x_n1| / |x_n2 - x_n1|`;
+//!    `eps < eps_hat` moves `n1` onto `x_i`, `eps > 1 - eps_hat` moves `n2`, otherwise a new node
+//!    is added at `x_i`. Rules for what the paper leaves open are listed below.
+//! 3. **Subdivide** ([`subdivide`]): every cell with split edges is replaced by the children of
+//!    successive bisection; faces are split consistently, so the mesh stays conforming.
+//! 4. **gamma_f**: facets of the adapted mesh whose vertices all lie on gamma_s and which lie in
+//!    gamma_s, with the cells on both sides and each vertex's location on gamma_s.
+//!
+//! # Rules for the cases the paper does not treat (each counted in [`AdaptStats`])
+//!
+//! * **Order.** Cut edges are processed by increasing distance of the cut from the nearer end
+//!   (`min(eps, 1 - eps) |edge|`, ties by edge number), so a node moves to its nearest cut.
+//! * **A node moves at most once.** A second request to move a node that has already moved, or
+//!   that lies on gamma_s already (touched), is dropped: after the first move the edge touches
+//!   gamma_s at that node (`skipped_cuts`).
+//! * **Refused moves** (`refused_moves`) become a new node at `x_i` instead: a boundary vertex may
+//!   only move within the planes (lines) of all its boundary facets (tolerance `1e-12` relative),
+//!   so the domain never changes; and a move is undone when a cell touching the moved node (or one
+//!   of its children) would get a non-positive measure, a quality below
+//!   [`AdaptOptions::min_move_quality`], or all its vertices on gamma_s (a flat cell). Undoing
+//!   re-runs steps 2-3 with that node pinned, until no cell is refused.
+//! * **gamma_s through a vertex / along an edge / in a face**: the vertex (edge's, face's vertices)
+//!   is on gamma_s as it is; the edges touching it there are not cut (`touched_vertices`,
+//!   `edges_in_surface`). A cut within `T_SNAP = 1e-12` (relative) of an end point snaps to it
+//!   (`snapped_cuts`).
+//! * **Several points on one edge** (folded surface, two sheets): the one closest to `n1` is kept
+//!   (`multi_cut_edges`).
+//! * **gamma_f rule**: a facet is on gamma_f when all its vertices are on gamma_s (touched, moved
+//!   or new nodes) and its centroid is within `GAMMA_F_REL_TOL = 0.1` times the facet's diameter
+//!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold);
+//!   rejected ones are counted (`rejected_facets`).
+//! * **Quadratic geometry**: a mesh with 6/10-node cells is adapted through its vertex mesh; its
+//!   curved boundary geometry is not carried into the adapted (linear) mesh.
+//! * **Region interfaces** inside the fluid mesh are not protected against moves (only the
+//!   exterior boundary is).
+
+pub mod background;
+mod geom;
+pub mod intersect;
+pub mod subdivide;
+pub mod surface;
+pub mod transfer;
+pub mod verify;
+
+pub use background::Background;
+pub use surface::{Surface, SurfacePoint};
+pub use transfer::{transfer_p2plus, CellLocator};
+pub use verify::verify_adapted;
+
+use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
+use geom::{dist2, min_angle2, simplex_measure, simplex_quality, sub};
+use intersect::{find_cuts, CutSet};
+use std::collections::{HashMap, HashSet};
+use thiserror::Error;
+
+/// Facets whose centroid is farther than this times their diameter from gamma_s are not on
+/// gamma_f.
+pub const GAMMA_F_REL_TOL: f64 = 0.1;
+
+/// Errors of the adaptation and of the transfer.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum AdaptError {
+    #[error("eps_hat = {0} is outside (0, 0.5]: choose 0 < eps_hat <= 0.5 (the paper uses 0.2)")]
+    EpsHat(f64),
+    #[error("{0}")]
+    NotSimplex(String),
+    #[error("the original mesh is invalid: {0}")]
+    BadMesh(String),
+    #[error("invalid surface: {0}")]
+    Surface(String),
+    #[error("transfer: {0}")]
+    Transfer(String),
+}
+
+/// Knobs of the adaptation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdaptOptions {
+    /// The paper's `eps_hat` in `(0, 0.5]`: cuts closer than `eps_hat |edge|` to an end point move
+    /// that node.
+    pub eps_hat: f64,
+    /// A move is refused if a cell touching the moved node gets a quality (1 = equilateral)
+    /// below this.
+    pub min_move_quality: f64,
+}
+
+impl AdaptOptions {
+    /// Options with the given `eps_hat` and `min_move_quality = 0.01`.
+    pub fn new(eps_hat: f64) -> Self {
+        AdaptOptions { eps_hat, min_move_quality: 0.01 }
+    }
+}
+
+/// Counters of one adaptation (see the module documentation for the rules they count).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AdaptStats {
+    /// Edges cut by gamma_s (after snapping).
+    pub cut_edges: usize,
+    /// Nodes moved onto gamma_s.
+    pub moved_nodes: usize,
+    /// Nodes added on cut edges.
+    pub new_nodes: usize,
+    /// Moves refused (boundary, inversion, quality, flat cell) and replaced by a new node.
+    pub refused_moves: usize,
+    /// Of which refused because the node is on the domain boundary and would leave it.
+    pub refused_boundary: usize,
+    /// Cells added (adapted minus original).
+    pub new_cells: usize,
+    /// Facets on gamma_f (the coupling elements).
+    pub coupling_facets: usize,
+    /// Sum of the degenerate-configuration counters below (all but `skipped_cuts`, which is the
+    /// paper's own rule, and `passes`).
+    pub degenerate_cases: usize,
+    /// Smallest quality (1 = equilateral) of the cells that were split or touch a moved node
+    /// (1 when there are none).
+    pub min_quality: f64,
+    /// Original vertices lying on gamma_s (through a vertex, along an edge, in a face, snapped).
+    pub touched_vertices: usize,
+    /// Cuts snapped to an end point.
+    pub snapped_cuts: usize,
+    /// Edges lying in the line / plane of a piece.
+    pub edges_in_surface: usize,
+    /// Edges cut at several different points.
+    pub multi_cut_edges: usize,
+    /// Second move requests dropped.
+    pub skipped_cuts: usize,
+    /// Cells with all vertices on gamma_s that were kept (no moved node to undo).
+    pub flat_cells: usize,
+    /// Facets with all vertices on gamma_s but not lying in it.
+    pub rejected_facets: usize,
+    /// Passes of steps 2-3 (1 + the number of rounds of undone moves).
+    pub passes: usize,
+}
+
+/// A facet of gamma_f.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GammaFacet<const D: usize> {
+    /// Mesh vertices, ordered so that their right-hand normal (2D: the tangent turned clockwise)
+    /// points like the normal of the gamma_s piece nearest the facet's centroid.
+    pub vertices: [usize; D],
+    /// `(cell, local facet)` on the minus side (the normal points out of it) and on the plus
+    /// side; [`NO_CELL`] where gamma_f lies on the domain boundary.
+    pub sides: [(usize, usize); 2],
+    /// Where each vertex lies on gamma_s.
+    pub location: [SurfacePoint<D>; D],
+}
+
+/// The adapted mesh and its relation to the original and to gamma_s.
+#[derive(Clone, Debug)]
+pub struct Adapted<const D: usize> {
+    /// Linear simplices; the first `nv` points are the original vertices (moved ones at their new
+    /// position), new nodes follow; boundary tags and regions inherited from the parents.
+    pub mesh: Mesh<D>,
+    /// Parent (original) cell of each adapted cell. Cells of untouched parents keep their index;
+    /// a split parent's first child takes its index, the other children are appended.
+    pub new_to_old_cell: Vec<usize>,
+    /// Whether each adapted-mesh vertex lies on gamma_s.
+    pub on_surface: Vec<bool>,
+    /// The coupling facets.
+    pub gamma_f: Vec<GammaFacet<D>>,
+    pub stats: AdaptStats,
+}
+
+impl<const D: usize> Adapted<D> {
+    /// Measure (length, area) of gamma_f.
+    pub fn gamma_f_measure(&self) -> f64 {
+        self.gamma_f.iter().map(|g| surface::piece_measure(&g.vertices.map(|v| self.mesh.points[v]))).sum()
+    }
+}
+
+/// Adapts `original` to `surface` (see the module documentation). Prepares the original mesh
+/// each call: for repeated steps build a [`Background`] once and call [`adapt_with`].
+pub fn adapt<const D: usize>(original: &Mesh<D>, surface: &Surface<D>, eps_hat: f64) -> Result<Adapted<D>, AdaptError> {
+    check_eps_hat(eps_hat)?;
+    let bg = Background::new(original)?;
+    adapt_with(&bg, surface, &AdaptOptions::new(eps_hat))
+}
+
+fn check_eps_hat(eps_hat: f64) -> Result<(), AdaptError> {
+    if !(eps_hat > 0.0 && eps_hat <= 0.5) {
+        return Err(AdaptError::EpsHat(eps_hat));
+    }
+    Ok(())
+}
+
+/// Adapts the prepared original mesh `bg` to `surface`.
+pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts: &AdaptOptions) -> Result<Adapted<D>, AdaptError> {
+    check_eps_hat(opts.eps_hat)?;
+    let cuts = find_cuts(bg, surface);
+    let mut pinned: HashSet<usize> = HashSet::new();
+    let mut passes = 0;
+    let (plan, split) = loop {
+        passes += 1;
+        let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned);
+        let split = subdivide_cells(bg, &plan, &cuts);
+        let bad = refused_by_cells(bg, &plan, &cuts, &split, opts.min_move_quality);
+        if bad.is_empty() {
+            break (plan, split);
+        }
+        pinned.extend(bad);
+    };
+    let mut out = assemble(bg, &plan, &split);
+    let on_surface = on_surface_flags(bg, &plan, &cuts);
+    let (gamma_f, rejected) = build_gamma_f(bg, &out, &plan, &cuts, &on_surface, surface);
+    let stats = &mut out.stats;
+    stats.cut_edges = cuts.cuts.len();
+    stats.moved_nodes = plan.moved.len();
+    stats.new_nodes = plan.new_points.len();
+    stats.refused_moves = plan.refused;
+    stats.refused_boundary = plan.refused_boundary;
+    stats.new_cells = out.mesh.num_cells() - bg.num_cells();
+    stats.coupling_facets = gamma_f.len();
+    stats.touched_vertices = cuts.touched.len();
+    stats.snapped_cuts = cuts.snapped;
+    stats.edges_in_surface = cuts.edges_in_surface;
+    stats.multi_cut_edges = cuts.multi_cut_edges;
+    stats.skipped_cuts = plan.skipped;
+    stats.flat_cells = split.flat_cells;
+    stats.rejected_facets = rejected;
+    stats.min_quality = split.min_quality;
+    stats.passes = passes;
+    stats.degenerate_cases = stats.touched_vertices
+        + stats.snapped_cuts
+        + stats.edges_in_surface
+        + stats.multi_cut_edges
+        + stats.flat_cells
+        + stats.rejected_facets;
+    Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, stats: out.stats })
+}
+
+/// Step 2's decisions: moved nodes and new nodes.
+#[derive(Clone, Debug, Default)]
+struct Plan<const D: usize> {
+    /// Moved vertex -> new position.
+    moved: HashMap<usize, [f64; D]>,
+    /// Cut edge with a new node -> index of the new node (into `new_points`).
+    new_node: HashMap<usize, usize>,
+    new_points: Vec<[f64; D]>,
+    refused: usize,
+    refused_boundary: usize,
+    skipped: usize,
+}
+
+impl<const D: usize> Plan<D> {
+    /// Current position of adapted-mesh vertex `g` (original vertices first, then new nodes).
+    fn pos(&self, bg: &Background<D>, g: usize) -> [f64; D] {
+        let nv = bg.mesh.points.len();
+        if g >= nv {
+            self.new_points[g - nv]
+        } else {
+            self.moved.get(&g).copied().unwrap_or(bg.mesh.points[g])
+        }
+    }
+}
+
+/// Step 2 (see the module documentation for the order and the rules).
+fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64, pinned: &HashSet<usize>) -> Plan<D> {
+    let mut order: Vec<usize> = (0..cuts.cuts.len()).collect();
+    let near = |i: usize| {
+        let c = &cuts.cuts[i];
+        let [a, b] = bg.topology.edges[c.edge];
+        c.t.min(1.0 - c.t) * dist2(&bg.mesh.points[a], &bg.mesh.points[b]).sqrt()
+    };
+    order.sort_by(|&i, &j| near(i).total_cmp(&near(j)).then(cuts.cuts[i].edge.cmp(&cuts.cuts[j].edge)));
+    let mut plan = Plan::default();
+    for i in order {
+        let cut = cuts.cuts[i];
+        let [a, b] = bg.topology.edges[cut.edge];
+        let v = if cut.t < eps_hat {
+            a
+        } else if cut.t > 1.0 - eps_hat {
+            b
+        } else {
+            add_node(&mut plan, cut.edge, cut.x);
+            continue;
+        };
+        if cuts.touched.binary_search(&v).is_ok() || plan.moved.contains_key(&v) {
+            plan.skipped += 1;
+        } else if pinned.contains(&v) || !boundary_move_ok(bg, v, &cut.x) {
+            plan.refused += 1;
+            plan.refused_boundary += !pinned.contains(&v) as usize;
+            add_node(&mut plan, cut.edge, cut.x);
+        } else {
+            plan.moved.insert(v, cut.x);
+        }
+    }
+    plan
+}
+
+fn add_node<const D: usize>(plan: &mut Plan<D>, edge: usize, x: [f64; D]) {
+    plan.new_node.insert(edge, plan.new_points.len());
+    plan.new_points.push(x);
+}
+
+/// May boundary vertex `v` move to `x`? Only if `x` stays in the line / plane of every boundary
+/// facet of `v` (distance at most `1e-12` times the facet's size). Interior vertices always may.
+fn boundary_move_ok<const D: usize>(bg: &Background<D>, v: usize, x: &[f64; D]) -> bool {
+    bg.vertex_boundary.row(v).iter().all(|&i| {
+        let b = bg.mesh.boundary[i];
+        let fv = bg.mesh.cell_type.facet(b.facet);
+        let pts: [[f64; D]; D] = std::array::from_fn(|k| bg.mesh.points[bg.cell(b.cell)[fv[k]]]);
+        let size2 = (1..D).map(|k| dist2(&pts[k], &pts[0])).fold(0.0, f64::max);
+        let n = surface::piece_normal(&pts);
+        let h = geom::dot(&n, &sub(x, &pts[0]));
+        h.is_finite() && h * h <= 1e-24 * size2
+    })
+}
+
+/// `(parent, children as global vertex ids, children as labels)`.
+type SplitCell = (usize, Vec<[usize; 4]>, Vec<[usize; 4]>);
+
+/// Step 3's result: the children of every cell that is split or touches a moved node.
+#[derive(Clone, Debug, Default)]
+struct Split {
+    /// `(parent, children as global vertex ids, children as labels)`; an unsplit cell touching a
+    /// moved node has itself as only child.
+    cells: Vec<SplitCell>,
+    min_quality: f64,
+    flat_cells: usize,
+}
+
+/// Step 3: subdivides the affected cells.
+fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>) -> Split {
+    let mut affected: Vec<usize> = plan.new_node.keys().flat_map(|&e| bg.edge_cells.row(e).iter().copied()).collect();
+    affected.extend(plan.moved.keys().flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
+    affected.sort_unstable();
+    affected.dedup();
+    let nv = bg.mesh.points.len();
+    let ct = bg.mesh.cell_type;
+    let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
+    let mut split = Split { min_quality: 1.0, ..Default::default() };
+    for c in affected {
+        let verts = bg.cell(c);
+        let global = |l: usize| -> usize {
+            if l <= D {
+                verts[l]
+            } else {
+                nv + plan.new_node[&bg.cell_edge(c, l - D - 1)]
+            }
+        };
+        let split_edges: Vec<usize> =
+            (0..ct.edges().len()).filter(|&k| plan.new_node.contains_key(&bg.cell_edge(c, k))).collect();
+        let order = split_order(bg, plan, c, &split_edges, &global);
+        let labels = subdivide::bisect(ct, &order);
+        let ids: Vec<[usize; 4]> =
+            labels.iter().map(|l| std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX })).collect();
+        for kid in &ids {
+            let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
+            split.min_quality = split.min_quality.min(simplex_quality(&v));
+            split.flat_cells += kid[..=D].iter().all(|&g| on_surface(g)) as usize;
+        }
+        split.cells.push((c, ids, labels));
+    }
+    split
+}
+
+/// The order in which the split edges of cell `c` are bisected: in 3D globally consistent
+/// (longest edge first at the current node positions, ties by global edge number); in 2D the
+/// order whose worst child has the largest minimum angle.
+fn split_order<const D: usize>(
+    bg: &Background<D>,
+    plan: &Plan<D>,
+    c: usize,
+    split_edges: &[usize],
+    global: &dyn Fn(usize) -> usize,
+) -> Vec<usize> {
+    let ct = bg.mesh.cell_type;
+    if D == 3 {
+        let key = |k: usize| {
+            let [i, j] = ct.edges()[k];
+            let l2 = dist2(&plan.pos(bg, global(i)), &plan.pos(bg, global(j)));
+            (l2, bg.cell_edge(c, k))
+        };
+        let mut order = split_edges.to_vec();
+        order.sort_by(|&a, &b| {
+            let (la, ea) = key(a);
+            let (lb, eb) = key(b);
+            lb.total_cmp(&la).then(ea.cmp(&eb))
+        });
+        return order;
+    }
+    let mut best = (f64::NEG_INFINITY, split_edges.to_vec());
+    for order in subdivide::permutations(split_edges) {
+        let worst = subdivide::bisect(ct, &order)
+            .iter()
+            .map(|l| {
+                let p: [[f64; 2]; 3] = std::array::from_fn(|k| {
+                    let x = plan.pos(bg, global(l[k]));
+                    [x[0], x[1]]
+                });
+                min_angle2(&p)
+            })
+            .fold(f64::INFINITY, f64::min);
+        if worst > best.0 {
+            best = (worst, order);
+        }
+    }
+    best.1
+}
+
+/// Moved nodes whose move must be undone: those of children that are inverted, of quality
+/// below `min_quality`, or flat (all vertices on gamma_s).
+fn refused_by_cells<const D: usize>(
+    bg: &Background<D>,
+    plan: &Plan<D>,
+    cuts: &CutSet<D>,
+    split: &Split,
+    min_quality: f64,
+) -> Vec<usize> {
+    let nv = bg.mesh.points.len();
+    let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
+    let mut bad = Vec::new();
+    for (_, ids, _) in &split.cells {
+        for kid in ids {
+            let moved: Vec<usize> = kid[..=D].iter().copied().filter(|g| plan.moved.contains_key(g)).collect();
+            if moved.is_empty() {
+                continue;
+            }
+            let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
+            let q = simplex_quality(&v);
+            let flat = kid[..=D].iter().all(|&g| on_surface(g));
+            let measure = simplex_measure(&v);
+            let acceptable = measure > 0.0 && q >= min_quality;
+            if !acceptable || flat {
+                bad.extend(moved);
+            }
+        }
+    }
+    bad.sort_unstable();
+    bad.dedup();
+    bad
+}
+
+/// The adapted mesh without gamma_f.
+struct Assembled<const D: usize> {
+    mesh: Mesh<D>,
+    new_to_old_cell: Vec<usize>,
+    /// Adapted-mesh index of each child in `Split::cells` order.
+    child_index: Vec<Vec<usize>>,
+    stats: AdaptStats,
+}
+
+/// Builds the adapted mesh: moved points, new points, children in place of their parents,
+/// boundary facets of split parents given to the children's facets that lie in them.
+fn assemble<const D: usize>(bg: &Background<D>, plan: &Plan<D>, split: &Split) -> Assembled<D> {
+    let mut mesh = bg.mesh.clone();
+    for (&v, x) in &plan.moved {
+        mesh.points[v] = *x;
+    }
+    mesh.points.extend_from_slice(&plan.new_points);
+    let mut new_to_old_cell: Vec<usize> = (0..bg.num_cells()).collect();
+    let mut child_index = Vec::with_capacity(split.cells.len());
+    let mut split_parent = HashMap::new();
+    for (si, (c, ids, _)) in split.cells.iter().enumerate() {
+        split_parent.insert(*c, si);
+        let mut idx = Vec::with_capacity(ids.len());
+        for (k, kid) in ids.iter().enumerate() {
+            let n = if k == 0 {
+                *c
+            } else {
+                mesh.cell_tags.push(bg.mesh.cell_tags[*c]);
+                mesh.cell_nodes.extend_from_slice(&[0; 4][..=D]);
+                new_to_old_cell.push(*c);
+                new_to_old_cell.len() - 1
+            };
+            mesh.cell_nodes[n * (D + 1)..(n + 1) * (D + 1)].copy_from_slice(&kid[..=D]);
+            idx.push(n);
+        }
+        child_index.push(idx);
+    }
+    let ct = bg.mesh.cell_type;
+    let mut boundary = Vec::with_capacity(bg.mesh.boundary.len());
+    for b in &bg.mesh.boundary {
+        let Some(&si) = split_parent.get(&b.cell) else {
+            boundary.push(*b);
+            continue;
+        };
+        let labels = &split.cells[si].2;
+        for (k, l) in labels.iter().enumerate() {
+            for j in 0..ct.num_facets() {
+                if ct.facet(j).iter().all(|&lv| subdivide::label_on_facet(ct, l[lv], b.facet)) {
+                    boundary.push(BoundaryFacet { cell: child_index[si][k], facet: j, tag: b.tag });
+                }
+            }
+        }
+    }
+    mesh.boundary = boundary;
+    Assembled { mesh, new_to_old_cell, child_index, stats: AdaptStats::default() }
+}
+
+/// On-gamma_s flag of every adapted-mesh vertex.
+fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>) -> Vec<bool> {
+    let nv = bg.mesh.points.len();
+    let mut f = vec![false; nv + plan.new_points.len()];
+    for &v in plan.moved.keys().chain(cuts.touched.iter()) {
+        f[v] = true;
+    }
+    f[nv..].iter_mut().for_each(|x| *x = true);
+    f
+}
+
+/// Step 4: gamma_f (see the module documentation for the rule). Only cells that are children or
+/// touch an on-surface vertex are searched. Returns the facets and the number rejected.
+fn build_gamma_f<const D: usize>(
+    bg: &Background<D>,
+    out: &Assembled<D>,
+    plan: &Plan<D>,
+    cuts: &CutSet<D>,
+    on_surface: &[bool],
+    surface: &Surface<D>,
+) -> (Vec<GammaFacet<D>>, usize) {
+    let mesh = &out.mesh;
+    let ct = mesh.cell_type;
+    let mut cells: Vec<usize> = out.child_index.iter().flatten().copied().collect();
+    cells.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
+    cells.sort_unstable();
+    cells.dedup();
+    let mut facets: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::new();
+    for &c in &cells {
+        let v = mesh.cell(c);
+        for j in 0..ct.num_facets() {
+            let fv = ct.facet(j);
+            if fv.iter().all(|&k| on_surface[v[k]]) {
+                let mut key = [usize::MAX; 3];
+                for (i, &k) in fv.iter().enumerate() {
+                    key[i] = v[k];
+                }
+                key[..D].sort_unstable();
+                facets.entry(key).or_default().push((c, j));
+            }
+        }
+    }
+    let mut keys: Vec<[usize; 3]> = facets.keys().copied().collect();
+    keys.sort_unstable();
+    let mut located: HashMap<usize, SurfacePoint<D>> = HashMap::new();
+    let mut locate = |v: usize| *located.entry(v).or_insert_with(|| surface.project(&mesh.points[v]).expect("non-empty surface"));
+    let mut out_facets = Vec::new();
+    let mut rejected = 0;
+    for key in keys {
+        let sides = &facets[&key];
+        let (c0, j0) = sides[0];
+        let fv = ct.facet(j0);
+        let mut verts: [usize; D] = std::array::from_fn(|k| mesh.cell(c0)[fv[k]]);
+        let pts = verts.map(|v| mesh.points[v]);
+        let centroid: [f64; D] = std::array::from_fn(|d| pts.iter().map(|p| p[d]).sum::<f64>() / D as f64);
+        let diam2 = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| dist2(&pts[i], &pts[j])).fold(0.0, f64::max);
+        let Some(sp) = surface.project(&centroid) else { continue };
+        if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 {
+            rejected += 1;
+            continue;
+        }
+        // Outward normal of facet j0 of c0 against the piece normal.
+        let n_out = surface::piece_normal(&pts);
+        let n_piece = surface.normal(sp.piece);
+        let other = sides.get(1).copied().unwrap_or(NO_CELL);
+        let sides_arr = if geom::dot(&n_out, &n_piece) >= 0.0 {
+            [(c0, j0), other]
+        } else {
+            verts.swap(0, 1);
+            [other, (c0, j0)]
+        };
+        let location = verts.map(&mut locate);
+        out_facets.push(GammaFacet { vertices: verts, sides: sides_arr, location });
+    }
+    (out_facets, rejected)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::generate::{rectangle_triangles, DiagonalPattern};
+
+    #[test]
+    fn rejects_bad_eps_hat_and_cell_type() {
+        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 2, 2, DiagonalPattern::Right);
+        let s = Surface::from_polyline(vec![[0.5, -1.0], [0.5, 2.0]]).unwrap();
+        assert!(matches!(adapt(&m, &s, 0.0), Err(AdaptError::EpsHat(_))));
+        assert!(matches!(adapt(&m, &s, 0.6), Err(AdaptError::EpsHat(_))));
+        let q = crate::generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, crate::mesh::GeometryOrder::Linear);
+        assert!(matches!(adapt(&q, &s, 0.2), Err(AdaptError::NotSimplex(_))));
+    }
+
+    #[test]
+    fn vertical_line_through_unit_square() {
+        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Right);
+        let s = Surface::from_polyline(vec![[0.4, -1.0], [0.4, 2.0]]).unwrap();
+        let a = adapt(&m, &s, 0.2).unwrap();
+        a.mesh.check().unwrap();
+        assert!((a.gamma_f_measure() - 1.0).abs() < 1e-12, "{}", a.gamma_f_measure());
+        verify_adapted(&m, &a, &s).unwrap();
+    }
+}

@@ -1,0 +1,226 @@
+//! 3D adaptation of box tetrahedra to random planes, curved patches (spheres, cylinders),
+//! folded surfaces and degenerate placements: every adapted mesh passes `verify_adapted`
+//! (positive, conforming, volume kept, gamma_f on gamma_s), and a plane crossing the whole box
+//! gives a gamma_f whose area is that of the plane's section of the box.
+//!
+//! Deterministic: a seeded SplitMix64 generator.
+
+use fdfsi_fem::adapt::{adapt, verify_adapted, Adapted, Surface};
+use fdfsi_fem::generate::box_tetrahedra;
+use fdfsi_fem::mesh::Mesh;
+
+struct Rng(u64);
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
+        z ^ (z >> 31)
+    }
+    fn uniform(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+    fn unit(&mut self) -> [f64; 3] {
+        loop {
+            let v = [self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0), self.uniform(-1.0, 1.0)];
+            let l = dot(&v, &v).sqrt();
+            if l > 0.1 && l < 1.0 {
+                return v.map(|x| x / l);
+            }
+        }
+    }
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn random_box(rng: &mut Rng) -> Mesh<3> {
+    let n = [2 + rng.below(5), 2 + rng.below(5), 2 + rng.below(5)];
+    box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n[0], n[1], n[2])
+}
+
+fn run(mesh: &Mesh<3>, s: &Surface<3>, eps_hat: f64, what: &str) -> Adapted<3> {
+    let a = adapt(mesh, s, eps_hat).unwrap_or_else(|e| panic!("{what}: {e}"));
+    if let Err(e) = verify_adapted(mesh, &a, s) {
+        panic!("{what}: {e}\nstats {:?}", a.stats);
+    }
+    a
+}
+
+/// A grid of `n x n` quads (2 triangles each) of the map `(u, v) -> f(u, v)` over `[0, 1]^2`.
+fn patch(n: usize, f: impl Fn(f64, f64) -> [f64; 3]) -> Surface<3> {
+    let mut pts = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            pts.push(f(i as f64 / n as f64, j as f64 / n as f64));
+        }
+    }
+    let id = |i: usize, j: usize| j * (n + 1) + i;
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    Surface::from_pieces(pts, tris).unwrap()
+}
+
+/// The plane through `p` with unit normal `n`, as a large square of 2 triangles.
+fn plane(p: [f64; 3], n: [f64; 3]) -> Surface<3> {
+    let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let t1 = cross(&n, &a);
+    let l = dot(&t1, &t1).sqrt();
+    let t1 = t1.map(|x| x / l);
+    let t2 = cross(&n, &t1);
+    patch(1, |u, v| std::array::from_fn(|d| p[d] + 4.0 * (u - 0.5) * t1[d] + 4.0 * (v - 0.5) * t2[d]))
+}
+
+/// Area of the section of the unit box by the plane `n . x = n . p`.
+fn section_area(p: [f64; 3], n: [f64; 3]) -> f64 {
+    let c = dot(&n, &p);
+    let corner = |k: usize| [(k & 1) as f64, ((k >> 1) & 1) as f64, ((k >> 2) & 1) as f64];
+    let mut pts: Vec<[f64; 3]> = Vec::new();
+    for a in 0..8 {
+        for d in 0..3 {
+            let b = a | (1 << d);
+            if b == a {
+                continue;
+            }
+            let (pa, pb) = (corner(a), corner(b));
+            let (fa, fb) = (dot(&n, &pa) - c, dot(&n, &pb) - c);
+            if (fa < 0.0) != (fb < 0.0) {
+                let t = fa / (fa - fb);
+                pts.push(std::array::from_fn(|k| pa[k] + t * (pb[k] - pa[k])));
+            }
+        }
+    }
+    let m: [f64; 3] = std::array::from_fn(|k| pts.iter().map(|q| q[k]).sum::<f64>() / pts.len() as f64);
+    let a = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let t1 = cross(&n, &a);
+    let t2 = cross(&n, &t1);
+    let ang = |q: &[f64; 3]| {
+        let r = [q[0] - m[0], q[1] - m[1], q[2] - m[2]];
+        dot(&r, &t2).atan2(dot(&r, &t1))
+    };
+    pts.sort_by(|x, y| ang(x).total_cmp(&ang(y)));
+    let mut area = 0.0;
+    for i in 0..pts.len() {
+        let (x, y) = (pts[i], pts[(i + 1) % pts.len()]);
+        let cr = cross(&[x[0] - m[0], x[1] - m[1], x[2] - m[2]], &[y[0] - m[0], y[1] - m[1], y[2] - m[2]]);
+        area += 0.5 * dot(&cr, &cr).sqrt();
+    }
+    area
+}
+
+#[test]
+fn adapt_planes_crossing_the_box() {
+    let mut rng = Rng(11);
+    let mut tot = [0usize; 5];
+    for case in 0..600 {
+        let mesh = random_box(&mut rng);
+        let p = [rng.uniform(0.1, 0.9), rng.uniform(0.1, 0.9), rng.uniform(0.1, 0.9)];
+        let n = rng.unit();
+        let s = plane(p, n);
+        let a = run(&mesh, &s, [0.1, 0.2, 0.3, 0.5][case % 4], &format!("plane case {case}"));
+        let want = section_area(p, n);
+        let got = a.gamma_f_measure();
+        assert!((got - want).abs() <= 1e-12 * want, "plane case {case}: gamma_f {got} vs section {want}, {:?}", a.stats);
+        tot[0] += a.stats.moved_nodes;
+        tot[1] += a.stats.new_nodes;
+        tot[2] += a.stats.refused_moves;
+        tot[3] += a.stats.degenerate_cases;
+        tot[4] += a.stats.refused_boundary;
+    }
+    println!("planes: moved {} new {} refused {} (boundary {}) degenerate {}", tot[0], tot[1], tot[2], tot[4], tot[3]);
+}
+
+#[test]
+fn adapt_curved_patches_spheres_and_cylinders() {
+    let mut rng = Rng(12);
+    for case in 0..400 {
+        let mesh = random_box(&mut rng);
+        let c = [rng.uniform(-0.3, 1.3), rng.uniform(-0.3, 1.3), rng.uniform(-0.3, 1.3)];
+        let r = rng.uniform(0.2, 1.0);
+        let (t0, t1) = (rng.uniform(0.0, 1.5), rng.uniform(1.6, 3.1));
+        let (p0, p1) = (rng.uniform(0.0, 3.0), rng.uniform(3.2, 6.2));
+        let n = 4 + rng.below(12);
+        let s = if case % 2 == 0 {
+            patch(n, |u, v| {
+                let (th, ph) = (t0 + (t1 - t0) * u, p0 + (p1 - p0) * v);
+                [c[0] + r * th.sin() * ph.cos(), c[1] + r * th.sin() * ph.sin(), c[2] + r * th.cos()]
+            })
+        } else {
+            patch(n, |u, v| {
+                let ph = p0 + (p1 - p0) * u;
+                [c[0] + r * ph.cos(), c[1] + r * ph.sin(), -0.5 + 2.0 * v]
+            })
+        };
+        run(&mesh, &s, [0.1, 0.2, 0.35][case % 3], &format!("curved case {case}"));
+    }
+}
+
+#[test]
+fn adapt_folded_height_fields() {
+    let mut rng = Rng(13);
+    for case in 0..200 {
+        let mesh = random_box(&mut rng);
+        let n = 3 + rng.below(8);
+        let z: Vec<f64> = (0..(n + 1) * (n + 1)).map(|_| rng.uniform(0.0, 1.0)).collect();
+        let s = patch(n, |u, v| {
+            let (i, j) = ((u * n as f64).round() as usize, (v * n as f64).round() as usize);
+            [-0.2 + 1.4 * u, -0.2 + 1.4 * v, z[j * (n + 1) + i]]
+        });
+        run(&mesh, &s, 0.2, &format!("folded case {case}"));
+    }
+}
+
+#[test]
+fn adapt_degenerate_placements() {
+    let mut rng = Rng(14);
+    let mut touched = 0;
+    for case in 0..600 {
+        let k = 2 + rng.below(4);
+        let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, k, k, k);
+        let h = 1.0 / k as f64;
+        let (i, j, l) = (rng.below(k + 1) as f64 * h, rng.below(k + 1) as f64 * h, rng.below(k + 1) as f64 * h);
+        let s = match case % 6 {
+            // In grid planes: faces lie in the surface.
+            0 => plane([0.5, 0.5, l], [0.0, 0.0, 1.0]),
+            1 => plane([i, 0.5, 0.5], [1.0, 0.0, 0.0]),
+            // The Kuhn diagonal planes x = y (through edges and faces of every cube).
+            2 => plane([0.5, 0.5, 0.5], [0.5f64.sqrt(), -(0.5f64.sqrt()), 0.0]),
+            // A fan through a grid vertex at random angles: the vertex is a surface corner.
+            3 => {
+                let (u, v) = (rng.unit(), rng.unit());
+                let w = cross(&u, &v);
+                let pts = vec![[i, j, l], [i + u[0], j + u[1], l + u[2]], [i + v[0], j + v[1], l + v[2]], [i + w[0], j + w[1], l + w[2]]];
+                Surface::from_pieces(pts, vec![[0, 1, 2], [0, 2, 3]]).unwrap()
+            }
+            // A small patch ending inside the box, or touching a boundary face.
+            4 => {
+                let z0 = if rng.below(2) == 0 { 0.0 } else { rng.uniform(0.2, 0.8) };
+                patch(3, |u, v| [0.2 + 0.5 * u, 0.3 + 0.4 * v, z0 + 0.3 * u * v])
+            }
+            // A grid plane offset by round-off: cuts within 1e-14 of vertices.
+            _ => plane([0.5, 0.5, l + 1e-15], [1e-14, 0.0, 1.0]),
+        };
+        let a = run(&mesh, &s, [0.2, 0.5][case % 2], &format!("degenerate case {case}"));
+        touched += a.stats.touched_vertices;
+        if case % 6 == 0 && l > 0.0 && l < 1.0 {
+            assert!((a.gamma_f_measure() - 1.0).abs() < 1e-12, "grid plane case {case}: {}", a.gamma_f_measure());
+        }
+        if case % 6 == 2 {
+            assert!((a.gamma_f_measure() - 2f64.sqrt()).abs() < 1e-12, "diagonal plane case {case}: {}", a.gamma_f_measure());
+        }
+    }
+    assert!(touched > 0);
+}

@@ -1,0 +1,828 @@
+//! Hyperelastic solids on one Q2 mesh: problem definition, discretisation, quasi-static load
+//! stepping (total or updated Lagrangian), an implicit-Euler dynamic step, and error norms.
+//!
+//! Data flows one way, as in [`crate::flow`]: a [`SolidProblem`] (material, boundary conditions)
+//! and a reference mesh give a [`SolidDiscretization`] (topology, dof maps, pattern, colouring,
+//! the material coordinates of every quadrature point, facet tabulations; built once, never
+//! patched); [`solve_quasi_static`] ramps a load factor from 0 to 1 with Newton per increment
+//! (kernel [`crate::physics::solid::solid_cell`]) and returns a [`SolidSolution`].
+//!
+//! Unknowns: the displacement (Q2, `D` components per node, field `"displacement"`) and, for
+//! mixed laws, the P1disc pressure (`D + 1` dofs per cell, field `"pressure"`).
+//!
+//! * **Total Lagrangian** ([`Lagrangian::Total`]): the unknown is the displacement from the
+//!   reference configuration; `F = I + Grad u`.
+//! * **Updated Lagrangian** ([`Lagrangian::Updated`]): each increment integrates over the
+//!   configuration of the last converged step `x_n = X + u_n`; the unknown is the increment
+//!   `Delta u` (`= dt u_s` of the paper's velocity form), `F = (I + grad_n Delta u) F_n` with `F_n`
+//!   stored per quadrature point and updated after each converged increment. The two modes solve
+//!   the same discrete equations, so they end in the same state to solver tolerance (tested).
+//!
+//! Boundary conditions, each on a named boundary of the mesh:
+//! * [`DisplacementBc`]: prescribed *total* displacement `u(X, load)` for listed components
+//!   (the increment is derived from it in updated-Lagrangian mode);
+//! * [`DeadTractionBc`]: nominal traction `t_0(X, load)` per unit *reference* area (times `R`
+//!   when axisymmetric), independent of the deformation;
+//! * [`FollowerPressureBc`]: pressure `p(load)` on the *deformed* surface (traction `-p n`), with
+//!   its exact linearisation.
+//!
+//! Load stepping ([`LoadStepping`]): an increment whose Newton solve fails (no convergence,
+//! non-finite residual, singular system, or an inverted element: `det F <= 0` at a quadrature
+//! point, reported with the element, point and step) is retried with half the increment, down to
+//! `min_increment`.
+
+use crate::physics::solid::{
+    area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState,
+    Mat3, SolidCellState, SolidMaterial, IDENTITY,
+};
+use crate::solve::linear::LinearSolver;
+use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use fdfsi_fem::dofs::{BlockLayout, NodeMap};
+use fdfsi_fem::element::{ReferenceCell, ReferenceElement};
+use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
+use fdfsi_fem::quadrature::{self, QuadratureRule};
+use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
+use fdfsi_fem::values::{CellValues, MapError};
+use std::sync::Arc;
+use thiserror::Error;
+
+/// A vector field of material position `X` and load factor.
+pub type LoadFn<const D: usize> = Arc<dyn Fn(&[f64; D], f64) -> [f64; D] + Send + Sync>;
+/// A scalar of the load factor.
+pub type ScalarLoadFn = Arc<dyn Fn(f64) -> f64 + Send + Sync>;
+
+/// Total displacement `u(X, load)` prescribed on a named boundary for the listed components.
+#[derive(Clone)]
+pub struct DisplacementBc<const D: usize> {
+    pub boundary: String,
+    pub components: Vec<usize>,
+    pub value: LoadFn<D>,
+}
+
+/// Dead-load nominal traction `t_0(X, load)` per unit reference area on a named boundary.
+#[derive(Clone)]
+pub struct DeadTractionBc<const D: usize> {
+    pub boundary: String,
+    pub traction: LoadFn<D>,
+}
+
+/// Follower pressure `p(load)` on a named boundary: traction `-p n` on the deformed surface.
+#[derive(Clone)]
+pub struct FollowerPressureBc {
+    pub boundary: String,
+    pub pressure: ScalarLoadFn,
+}
+
+/// A solid problem.
+#[derive(Clone)]
+pub struct SolidProblem<const D: usize> {
+    pub formulation: Formulation,
+    pub material: Arc<dyn SolidMaterial>,
+    pub dirichlet: Vec<DisplacementBc<D>>,
+    pub traction: Vec<DeadTractionBc<D>>,
+    pub pressure: Vec<FollowerPressureBc>,
+    /// Fix the mean-value pressure dof of cell 0 to this value (needed for a mixed law when the
+    /// displacement is prescribed on the whole boundary).
+    pub pin_pressure: Option<f64>,
+    /// Reference density `rho_0` for solid inertia ([`solve_dynamic_step`]); 0 (the default of
+    /// [`SolidProblem::new`]) switches inertia off. Quasi-static solves ignore it.
+    pub density: f64,
+}
+
+impl<const D: usize> SolidProblem<D> {
+    /// A problem without boundary conditions, pressure pin or inertia.
+    pub fn new(formulation: Formulation, material: Arc<dyn SolidMaterial>) -> Self {
+        SolidProblem {
+            formulation,
+            material,
+            dirichlet: Vec::new(),
+            traction: Vec::new(),
+            pressure: Vec::new(),
+            pin_pressure: None,
+            density: 0.0,
+        }
+    }
+    /// Adds a prescribed displacement.
+    pub fn with_displacement(
+        mut self,
+        boundary: &str,
+        components: &[usize],
+        value: impl Fn(&[f64; D], f64) -> [f64; D] + Send + Sync + 'static,
+    ) -> Self {
+        self.dirichlet.push(DisplacementBc { boundary: boundary.into(), components: components.to_vec(), value: Arc::new(value) });
+        self
+    }
+    /// Adds a dead-load traction.
+    pub fn with_traction(mut self, boundary: &str, t: impl Fn(&[f64; D], f64) -> [f64; D] + Send + Sync + 'static) -> Self {
+        self.traction.push(DeadTractionBc { boundary: boundary.into(), traction: Arc::new(t) });
+        self
+    }
+    /// Adds a follower pressure.
+    pub fn with_pressure(mut self, boundary: &str, p: impl Fn(f64) -> f64 + Send + Sync + 'static) -> Self {
+        self.pressure.push(FollowerPressureBc { boundary: boundary.into(), pressure: Arc::new(p) });
+        self
+    }
+}
+
+/// An error inside assembly.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SolidAssemblyError {
+    #[error("element {cell}: {source}")]
+    Map { cell: usize, source: MapError },
+    #[error("element {cell} is inverted: det F = {det:.3e} at quadrature point {point}")]
+    Inverted { cell: usize, point: usize, det: f64 },
+}
+
+/// Errors of a solid solve.
+#[derive(Debug, Error)]
+pub enum SolidError {
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error("the {formulation:?} formulation does not apply to {dim}D meshes")]
+    Formulation { formulation: Formulation, dim: usize },
+    #[error("solid meshes must be quadrilaterals (2D) or hexahedra (3D) for Q2 elements, got {0:?}")]
+    CellType(ReferenceCell),
+    #[error(transparent)]
+    Assembly(#[from] SolidAssemblyError),
+    #[error(transparent)]
+    Newton(#[from] NewtonError<SolidAssemblyError>),
+    #[error("load step {step} to load factor {load:.6} failed with the smallest increment {increment:.3e}: {reason}; lower stepping.min_increment or refine the mesh")]
+    StepFailed { step: usize, load: f64, increment: f64, reason: String },
+}
+
+/// Per local facet of the reference cell: the cell basis and its tangential derivatives at the
+/// facet quadrature points.
+struct FacetTab {
+    values: Vec<f64>,
+    dphi_t: Vec<[f64; 2]>,
+}
+
+/// Everything derived from one solid mesh.
+pub struct SolidDiscretization<const D: usize> {
+    pub mesh: Mesh<D>,
+    pub formulation: Formulation,
+    pub topology: Topology,
+    /// Q2 displacement element; also the geometry of every configuration (isoparametric).
+    pub element: ReferenceElement<D>,
+    /// Fields `"displacement"` and, for mixed laws, `"pressure"`.
+    pub layout: BlockLayout,
+    /// Reference coordinates of the displacement nodes.
+    pub nodes_x0: Vec<[f64; D]>,
+    pub pattern: Pattern,
+    pub colouring: Colouring,
+    pub cell_rule: QuadratureRule<D>,
+    /// Whether a pressure field is present.
+    pub mixed: bool,
+    /// Material coordinates of the quadrature points, `qp_x0[c * nq + q]`.
+    pub qp_x0: Vec<[f64; D]>,
+    /// Reference centroid of each cell.
+    pub centroid_x0: Vec<[f64; D]>,
+    facet_tabs: Vec<FacetTab>,
+    facet_weights: Vec<f64>,
+}
+
+/// Quadrature degree of the cell integrals (3 Gauss points per direction).
+const CELL_DEGREE: usize = 5;
+
+fn q2_element<const D: usize>(cell: ReferenceCell) -> Result<ReferenceElement<D>, SolidError> {
+    use std::any::Any;
+    let e: Box<dyn Any> = match cell {
+        ReferenceCell::Quadrilateral if D == 2 => Box::new(ReferenceElement::<2>::q2_quadrilateral()),
+        ReferenceCell::Hexahedron if D == 3 => Box::new(ReferenceElement::<3>::q2_hexahedron()),
+        other => return Err(SolidError::CellType(other)),
+    };
+    Ok(*e.downcast::<ReferenceElement<D>>().expect("dimension checked"))
+}
+
+impl<const D: usize> SolidDiscretization<D> {
+    /// Builds the discretisation of `mesh` for a material (mixed laws get a pressure field).
+    pub fn build(mesh: Mesh<D>, formulation: Formulation, material: &dyn SolidMaterial) -> Result<Self, SolidError> {
+        if (formulation == Formulation::ThreeD) != (D == 3) {
+            return Err(SolidError::Formulation { formulation, dim: D });
+        }
+        mesh.check()?;
+        let element = q2_element::<D>(mesh.cell_type)?;
+        let topology = Topology::build(&mesh);
+        let vmap = NodeMap::continuous(&mesh, &topology, &element);
+        let nodes_x0 = vmap.coordinates(&mesh, &element);
+        let mixed = material.pressure_compliance().is_some();
+        let mut layout = BlockLayout::default();
+        layout.push("displacement", D, vmap);
+        if mixed {
+            layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
+        }
+        let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
+        let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
+        let cell_rule = crate::flow::rule_for::<D>(mesh.cell_type, CELL_DEGREE);
+        // Facet rule and tabulations.
+        let (facet_points, facet_weights): (Vec<[f64; 2]>, Vec<f64>) = if D == 2 {
+            let q = quadrature::segment(CELL_DEGREE);
+            (q.points.iter().map(|p| [p[0], 0.0]).collect(), q.weights)
+        } else {
+            let q = quadrature::quadrilateral(CELL_DEGREE);
+            (q.points, q.weights)
+        };
+        let cell = mesh.cell_type;
+        let nv = element.num_dofs();
+        let facet_tabs = (0..cell.num_facets())
+            .map(|f| {
+                let pts: Vec<[f64; D]> = facet_points.iter().map(|eta| cell.facet_point(f, eta)).collect();
+                let p0: [f64; D] = cell.facet_point(f, &[0.0, 0.0]);
+                let p1: [f64; D] = cell.facet_point(f, &[1.0, 0.0]);
+                let p2: [f64; D] = cell.facet_point(f, &[0.0, 1.0]);
+                let t1: [f64; D] = std::array::from_fn(|d| p1[d] - p0[d]);
+                let t2: [f64; D] = std::array::from_fn(|d| if D == 3 { p2[d] - p0[d] } else { 0.0 });
+                let tab = element.tabulate(&pts);
+                let dphi_t = tab
+                    .grads
+                    .iter()
+                    .map(|g| [(0..D).map(|d| g[d] * t1[d]).sum(), (0..D).map(|d| g[d] * t2[d]).sum()])
+                    .collect();
+                debug_assert_eq!(tab.values.len(), pts.len() * nv);
+                FacetTab { values: tab.values, dphi_t }
+            })
+            .collect();
+        let mut disc = SolidDiscretization {
+            mesh,
+            formulation,
+            topology,
+            element,
+            layout,
+            nodes_x0,
+            pattern,
+            colouring,
+            cell_rule,
+            mixed,
+            qp_x0: Vec::new(),
+            centroid_x0: Vec::new(),
+            facet_tabs,
+            facet_weights,
+        };
+        let mut cv = disc.cell_values();
+        let mut coords = Vec::new();
+        for c in 0..disc.mesh.num_cells() {
+            disc.cell_positions(c, None, &mut coords);
+            cv.reinit(&coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
+            disc.qp_x0.extend_from_slice(&cv.x);
+            disc.centroid_x0.push(cv.centroid);
+        }
+        Ok(disc)
+    }
+
+    /// Number of unknowns.
+    pub fn num_dofs(&self) -> usize {
+        self.layout.num_dofs()
+    }
+    /// Number of quadrature points per cell.
+    pub fn points_per_cell(&self) -> usize {
+        self.cell_rule.len()
+    }
+    /// Fresh cell values (Q2 function and geometry) at the cell rule.
+    pub fn cell_values(&self) -> CellValues<D> {
+        CellValues::new(self.cell_rule.clone(), &self.element, &self.element)
+    }
+    /// The displacement field.
+    pub fn displacement_field(&self) -> &fdfsi_fem::dofs::Field {
+        &self.layout.fields[0]
+    }
+
+    /// Nodal positions of cell `c` in the configuration `X + base` (`base` a global vector whose
+    /// displacement part is used; `None` = reference).
+    pub fn cell_positions(&self, c: usize, base: Option<&[f64]>, out: &mut Vec<[f64; D]>) {
+        let vf = &self.layout.fields[0];
+        out.clear();
+        out.extend(vf.nodes.cell(c).iter().map(|&node| {
+            let x0 = self.nodes_x0[node];
+            match base {
+                Some(b) => std::array::from_fn(|d| x0[d] + b[vf.dof(node, d)]),
+                None => x0,
+            }
+        }));
+    }
+
+    /// The displacement node closest to `x0` (reference coordinates).
+    pub fn node_near(&self, x0: &[f64; D]) -> usize {
+        let dist = |p: &[f64; D]| (0..D).map(|d| (p[d] - x0[d]).powi(2)).sum::<f64>();
+        (0..self.nodes_x0.len()).min_by(|&a, &b| dist(&self.nodes_x0[a]).total_cmp(&dist(&self.nodes_x0[b]))).expect("mesh has nodes")
+    }
+
+    /// Displacement of node `node` in the global vector `x`.
+    pub fn displacement(&self, x: &[f64], node: usize) -> [f64; D] {
+        let vf = &self.layout.fields[0];
+        std::array::from_fn(|a| x[vf.dof(node, a)])
+    }
+
+    /// Checks that every boundary the problem names exists in the mesh.
+    pub fn check_problem(&self, problem: &SolidProblem<D>) -> Result<(), SolidError> {
+        let names = problem
+            .dirichlet
+            .iter()
+            .map(|b| &b.boundary)
+            .chain(problem.traction.iter().map(|b| &b.boundary))
+            .chain(problem.pressure.iter().map(|b| &b.boundary));
+        for name in names {
+            self.mesh.boundary_tag(name)?;
+        }
+        Ok(())
+    }
+
+    /// Prescribed values (total displacement, or pressure pin) of the constrained dofs at `load`.
+    pub fn dirichlet_values(&self, problem: &SolidProblem<D>, load: f64) -> Result<Vec<(usize, f64)>, SolidError> {
+        let vf = &self.layout.fields[0];
+        let mut out = Vec::new();
+        let mut seen = vec![false; self.num_dofs()];
+        for bc in &problem.dirichlet {
+            for bf in self.mesh.boundary_facets(&bc.boundary)? {
+                let nodes = vf.nodes.cell(bf.cell);
+                for k in self.element.facet_nodes(bf.facet) {
+                    let node = nodes[k];
+                    let value = (bc.value)(&self.nodes_x0[node], load);
+                    for &a in &bc.components {
+                        let dof = vf.dof(node, a);
+                        if !seen[dof] {
+                            seen[dof] = true;
+                            out.push((dof, value[a]));
+                        }
+                    }
+                }
+            }
+        }
+        if let (Some(v), true) = (problem.pin_pressure, self.mixed) {
+            out.push((self.layout.fields[1].dof(0, 0), v));
+        }
+        Ok(out)
+    }
+
+    /// Assembles the Jacobian `k` and `rhs = -R` at load factor `load`.
+    ///
+    /// `x` holds the unknowns: the displacement from the integration configuration `X + base`
+    /// (`base = None`: reference, total Lagrangian) and the pressure. `f_prev[c * nq + q]` is the
+    /// deformation gradient of the integration configuration (`None`: identity). Rows of
+    /// constrained dofs become identity rows with zero right-hand side.
+    #[allow(clippy::too_many_arguments)]
+    pub fn assemble_system(
+        &self,
+        problem: &SolidProblem<D>,
+        load: f64,
+        base: Option<&[f64]>,
+        f_prev: Option<&[Mat3]>,
+        inertia: Option<(f64, &[f64])>,
+        x: &[f64],
+        constrained: &[bool],
+        k: &mut CscMatrix<'_>,
+        rhs: &mut [f64],
+    ) -> Result<(), SolidAssemblyError> {
+        let nv = self.element.num_dofs();
+        let nu = nv * D;
+        let n = self.layout.dofs_per_cell();
+        let nq = self.points_per_cell();
+        let material = problem.material.as_ref();
+        let formulation = self.formulation;
+        assemble(
+            k,
+            rhs,
+            &self.colouring,
+            constrained,
+            || (self.cell_values(), Vec::new(), vec![0.0; n], vec![0.0; nu]),
+            |c, (cv, coords, loc, tgt), local: &mut LocalSystem| {
+                self.cell_positions(c, base, coords);
+                cv.reinit(coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
+                self.layout.cell_dofs_into(c, &mut local.dofs);
+                local.reset(n);
+                for (i, &d) in local.dofs.iter().enumerate() {
+                    loc[i] = x[d];
+                }
+                let inert = inertia.map(|(coef, target)| {
+                    for (i, &d) in local.dofs[..nu].iter().enumerate() {
+                        tgt[i] = target[d];
+                    }
+                    coef
+                });
+                let state = SolidCellState {
+                    u: &loc[..nu],
+                    p: &loc[nu..],
+                    f_prev: f_prev.map(|f| &f[c * nq..(c + 1) * nq]),
+                    x0: &self.qp_x0[c * nq..(c + 1) * nq],
+                    x0_centroid: self.centroid_x0[c],
+                    inertia: inert.map(|coefficient| InertiaState { coefficient, target: &tgt[..] }),
+                };
+                solid_cell(cv, formulation, material, &state, &mut local.ke, &mut local.fe)
+                    .map_err(|e| SolidAssemblyError::Inverted { cell: c, point: e.point, det: e.det })?;
+                local.fe.iter_mut().for_each(|v| *v = -*v);
+                Ok(())
+            },
+        )?;
+        // Boundary terms (few facets: serial).
+        let vf = &self.layout.fields[0];
+        let nf = self.facet_weights.len();
+        let mut x_ref = Vec::new();
+        let mut x_cur: Vec<[f64; D]> = Vec::new();
+        let mut re = vec![0.0; nu];
+        let mut ke = vec![0.0; nu * nu];
+        for bc in &problem.traction {
+            for bf in self.mesh.boundary_facets(&bc.boundary).unwrap_or_default() {
+                self.cell_positions(bf.cell, None, &mut x_ref);
+                let tab = &self.facet_tabs[bf.facet];
+                re.iter_mut().for_each(|v| *v = 0.0);
+                for q in 0..nf {
+                    let pt = FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] };
+                    let nda = area_vector(&x_ref, &pt, 1.0);
+                    let da = nda.iter().map(|v| v * v).sum::<f64>().sqrt();
+                    let mut xq = [0.0; D];
+                    for (kk, xk) in x_ref.iter().enumerate() {
+                        for d in 0..D {
+                            xq[d] += pt.phi[kk] * xk[d];
+                        }
+                    }
+                    let w = pt.weight * da * formulation.weight(&xq);
+                    let t = (bc.traction)(&xq, load);
+                    for i in 0..nv {
+                        for a in 0..D {
+                            re[i * D + a] -= w * t[a] * pt.phi[i];
+                        }
+                    }
+                }
+                for (i, &node) in vf.nodes.cell(bf.cell).iter().enumerate() {
+                    for a in 0..D {
+                        let dof = vf.dof(node, a);
+                        if !constrained[dof] {
+                            rhs[dof] -= re[i * D + a];
+                        }
+                    }
+                }
+            }
+        }
+        for bc in &problem.pressure {
+            let pval = (bc.pressure)(load);
+            for bf in self.mesh.boundary_facets(&bc.boundary).unwrap_or_default() {
+                self.cell_positions(bf.cell, None, &mut x_ref);
+                let tab = &self.facet_tabs[bf.facet];
+                // Orientation from the reference configuration: outward from the cell centre.
+                let pt0 = FacetPoint { phi: &tab.values[..nv], dphi_t: &tab.dphi_t[..nv], weight: 1.0 };
+                let nda = area_vector(&x_ref, &pt0, 1.0);
+                let centre: [f64; D] = self.centroid_x0[bf.cell];
+                let mut out = 0.0;
+                for d in 0..D {
+                    let xq: f64 = (0..nv).map(|kk| pt0.phi[kk] * x_ref[kk][d]).sum();
+                    out += (xq - centre[d]) * nda[d];
+                }
+                let orientation = if out < 0.0 { -1.0 } else { 1.0 };
+                // Current positions: X + base + x.
+                x_cur.clear();
+                for (i, &node) in vf.nodes.cell(bf.cell).iter().enumerate() {
+                    x_cur.push(std::array::from_fn(|d| {
+                        let dof = vf.dof(node, d);
+                        x_ref[i][d] + base.map(|b| b[dof]).unwrap_or(0.0) + x[dof]
+                    }));
+                }
+                re.iter_mut().for_each(|v| *v = 0.0);
+                ke.iter_mut().for_each(|v| *v = 0.0);
+                let pts: Vec<FacetPoint> = (0..nf)
+                    .map(|q| FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] })
+                    .collect();
+                follower_pressure_facet(formulation, &x_cur, &pts, orientation, pval, &mut ke, nu, &mut re);
+                let nodes = vf.nodes.cell(bf.cell);
+                for i in 0..nv {
+                    for a in 0..D {
+                        let row = vf.dof(nodes[i], a);
+                        if constrained[row] {
+                            continue;
+                        }
+                        rhs[row] -= re[i * D + a];
+                        for j in 0..nv {
+                            for b in 0..D {
+                                let col = vf.dof(nodes[j], b);
+                                let pos = self.pattern.find(row, col).expect("cell dofs are in the pattern");
+                                k.values[pos] += ke[(i * D + a) * nu + j * D + b];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for (dof, &c) in constrained.iter().enumerate() {
+            if c {
+                let pos = self.pattern.find(dof, dof).expect("diagonal in pattern");
+                k.values[pos] = 1.0;
+                rhs[dof] = 0.0;
+            }
+        }
+        Ok(())
+    }
+
+    /// Updates the stored deformation gradients after a converged updated-Lagrangian increment:
+    /// `F_n <- (I + grad_n Delta u) F_n`, on the configuration `X + base` before the update.
+    pub fn update_deformation(&self, base: &[f64], increment: &[f64], f_qp: &mut [Mat3]) -> Result<(), SolidAssemblyError> {
+        let nq = self.points_per_cell();
+        let nv = self.element.num_dofs();
+        let vf = &self.layout.fields[0];
+        let mut cv = self.cell_values();
+        let mut coords = Vec::new();
+        let mut u = vec![0.0; nv * D];
+        for c in 0..self.mesh.num_cells() {
+            self.cell_positions(c, Some(base), &mut coords);
+            cv.reinit(&coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
+            for (i, &node) in vf.nodes.cell(c).iter().enumerate() {
+                for a in 0..D {
+                    u[i * D + a] = increment[vf.dof(node, a)];
+                }
+            }
+            for q in 0..nq {
+                let f = deformation_gradient(&cv, self.formulation, &u, &f_qp[c * nq + q], q);
+                f_qp[c * nq + q] = f;
+            }
+        }
+        Ok(())
+    }
+
+    /// Deformation gradient at every quadrature point for the total displacement in `x`.
+    pub fn deformation_gradients(&self, x: &[f64]) -> Result<Vec<Mat3>, SolidAssemblyError> {
+        let mut f = vec![IDENTITY; self.mesh.num_cells() * self.points_per_cell()];
+        let zero = vec![0.0; self.num_dofs()];
+        self.update_deformation(&zero, x, &mut f)?;
+        Ok(f)
+    }
+}
+
+/// Which configuration each increment integrates over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Lagrangian {
+    /// Reference configuration, unknown = total displacement.
+    Total,
+    /// Configuration of the last converged increment, unknown = displacement increment, `F_n`
+    /// stored per quadrature point.
+    Updated,
+}
+
+/// Load-factor ramp from 0 to `final_load`.
+#[derive(Clone, Debug)]
+pub struct LoadStepping {
+    pub mode: Lagrangian,
+    pub final_load: f64,
+    pub initial_increment: f64,
+    pub max_increment: f64,
+    /// Smallest increment tried after cuts before giving up.
+    pub min_increment: f64,
+    /// Factor applied to the increment after a converged step (1 = fixed increments).
+    pub growth: f64,
+    /// Start each increment from the linear extrapolation of the previous converged increment
+    /// (the Dirichlet values are exact either way).
+    pub predictor: bool,
+}
+
+impl Default for LoadStepping {
+    fn default() -> Self {
+        LoadStepping { mode: Lagrangian::Total, final_load: 1.0, initial_increment: 1.0, max_increment: 1.0, min_increment: 1e-4, growth: 2.0, predictor: true }
+    }
+}
+
+impl LoadStepping {
+    /// `n` equal increments, no growth.
+    pub fn uniform(mode: Lagrangian, n: usize) -> Self {
+        let h = 1.0 / n as f64;
+        LoadStepping { mode, final_load: 1.0, initial_increment: h, max_increment: h, min_increment: h / 64.0, growth: 1.0, predictor: true }
+    }
+}
+
+/// One attempted load increment.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct StepRecord {
+    /// Number of the converged step this attempt tried to reach (1-based).
+    pub step: usize,
+    /// Load factor at the end of the increment.
+    pub load: f64,
+    pub increment: f64,
+    /// `None` when converged, otherwise why it failed.
+    pub failure: Option<String>,
+    pub newton: Option<NewtonReport>,
+}
+
+/// A solid solution.
+#[derive(Clone, Debug)]
+pub struct SolidSolution {
+    /// Total displacement from the reference configuration and the pressure, in the layout's
+    /// numbering.
+    pub x: Vec<f64>,
+    /// Load factor reached.
+    pub load: f64,
+    /// Every attempted increment, including the cut ones.
+    pub steps: Vec<StepRecord>,
+    /// Deformation gradient per quadrature point (updated-Lagrangian mode only).
+    pub f_qp: Option<Vec<Mat3>>,
+}
+
+impl SolidSolution {
+    /// Newton residual norms of all converged increments, in order.
+    pub fn residual_history(&self) -> Vec<Vec<f64>> {
+        self.steps.iter().filter_map(|s| s.newton.as_ref().map(|n| n.residual_norms.clone())).collect()
+    }
+}
+
+/// Quasi-static load stepping with Newton per increment and increment cutting on failure.
+pub fn solve_quasi_static<const D: usize>(
+    disc: &SolidDiscretization<D>,
+    problem: &SolidProblem<D>,
+    stepping: &LoadStepping,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+) -> Result<SolidSolution, SolidError> {
+    disc.check_problem(problem)?;
+    let n = disc.num_dofs();
+    let nu_global = disc.layout.fields[0].num_dofs();
+    let mut state = vec![0.0; n];
+    let updated = stepping.mode == Lagrangian::Updated;
+    let mut f_qp = if updated { Some(vec![IDENTITY; disc.mesh.num_cells() * disc.points_per_cell()]) } else { None };
+    let mut constrained = vec![false; n];
+    for (d, _) in disc.dirichlet_values(problem, 0.0)? {
+        constrained[d] = true;
+    }
+    let mut load = 0.0;
+    let mut inc = stepping.initial_increment.min(stepping.final_load);
+    let mut steps = Vec::new();
+    let mut step = 1;
+    let mut last_change: Option<(Vec<f64>, f64)> = None;
+    while load < stepping.final_load - 1e-14 * stepping.final_load.abs().max(1.0) {
+        let target = (load + inc).min(stepping.final_load);
+        let bcs = disc.dirichlet_values(problem, target)?;
+        let mut trial = state.clone();
+        if updated {
+            trial[..nu_global].iter_mut().for_each(|v| *v = 0.0);
+        }
+        // Predictor: extrapolate the displacement change of the last converged increment.
+        if let Some((delta, h)) = &last_change {
+            let s = (target - load) / h;
+            for i in 0..nu_global {
+                trial[i] += s * delta[i];
+            }
+        }
+        for &(d, v) in &bcs {
+            // Pressure pins are absolute; displacements are increments in updated mode.
+            trial[d] = if updated && d < nu_global { v - state[d] } else { v };
+        }
+        let base = if updated { Some(state.as_slice()) } else { None };
+        let result = newton::solve(&mut trial, &disc.pattern, solver, options, |x, k, rhs| {
+            disc.assemble_system(problem, target, base, f_qp.as_deref(), None, x, &constrained, k, rhs)
+        });
+        match result {
+            Ok(report) => {
+                let delta: Vec<f64> =
+                    if updated { trial[..nu_global].to_vec() } else { (0..nu_global).map(|i| trial[i] - state[i]).collect() };
+                last_change = if stepping.predictor { Some((delta, target - load)) } else { None };
+                if updated {
+                    let f = f_qp.as_mut().expect("updated mode stores F");
+                    disc.update_deformation(&state, &trial, f)?;
+                    for i in 0..nu_global {
+                        state[i] += trial[i];
+                    }
+                    state[nu_global..].copy_from_slice(&trial[nu_global..]);
+                } else {
+                    state = trial;
+                }
+                steps.push(StepRecord { step, load: target, increment: target - load, failure: None, newton: Some(report) });
+                load = target;
+                step += 1;
+                inc = (inc * stepping.growth).min(stepping.max_increment);
+            }
+            Err(e) => {
+                let reason = match &e {
+                    NewtonError::Assembly(SolidAssemblyError::Inverted { cell, point, det }) => {
+                        format!("element {cell} inverted (det F = {det:.3e} at quadrature point {point}) in step {step}")
+                    }
+                    other => format!("{other} (step {step})"),
+                };
+                let increment = target - load;
+                steps.push(StepRecord { step, load: target, increment, failure: Some(reason.clone()), newton: None });
+                if increment * 0.5 < stepping.min_increment {
+                    return Err(SolidError::StepFailed { step, load: target, increment, reason });
+                }
+                inc = increment * 0.5;
+            }
+        }
+    }
+    Ok(SolidSolution { x: state, load, steps, f_qp })
+}
+
+/// One implicit-Euler step of the solid with inertia (total Lagrangian):
+/// `rho_0 (v_{n+1} - v_n)/dt + div-terms = loads`, `v_{n+1} = (u_{n+1} - u_n)/dt`, i.e. the
+/// inertia term `rho_0/dt^2 (u - u_n - dt v_n)`. `x_n` holds `u_n` (and the last pressure, the
+/// initial guess), `v_n` the nodal velocity in the same layout. Returns `(x_{n+1}, v_{n+1})`.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_dynamic_step<const D: usize>(
+    disc: &SolidDiscretization<D>,
+    problem: &SolidProblem<D>,
+    x_n: &[f64],
+    v_n: &[f64],
+    dt: f64,
+    load: f64,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+) -> Result<(Vec<f64>, Vec<f64>, NewtonReport), SolidError> {
+    disc.check_problem(problem)?;
+    let n = disc.num_dofs();
+    let nu_global = disc.layout.fields[0].num_dofs();
+    let mut x = x_n.to_vec();
+    let mut constrained = vec![false; n];
+    for (d, v) in disc.dirichlet_values(problem, load)? {
+        constrained[d] = true;
+        x[d] = v;
+    }
+    let target: Vec<f64> = (0..n).map(|i| if i < nu_global { x_n[i] + dt * v_n[i] } else { 0.0 }).collect();
+    let coef = problem.density / (dt * dt);
+    let inertia = if problem.density > 0.0 { Some((coef, target.as_slice())) } else { None };
+    let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| {
+        disc.assemble_system(problem, load, None, None, inertia, xx, &constrained, k, rhs)
+    })?;
+    let v: Vec<f64> = (0..n).map(|i| if i < nu_global { (x[i] - x_n[i]) / dt } else { 0.0 }).collect();
+    Ok((x, v, report))
+}
+
+/// Errors of a discrete solution against an exact one, in the reference configuration (weighted
+/// by `R` when axisymmetric).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct SolidErrors {
+    pub displacement_l2: f64,
+    /// `|Grad (u - u_ex)|` in L2 (plus the hoop term `(u_R - u_R,ex)/R` when axisymmetric).
+    pub displacement_h1: f64,
+    /// Pressure L2 error (0 when no exact pressure or no pressure field).
+    pub pressure_l2: f64,
+}
+
+/// Exact fields for [`solid_errors`]: displacement `u(X)` and gradient `Grad u`, and optionally
+/// the pressure `p(X)` in the kernel's convention.
+pub struct ExactSolid<'a, const D: usize> {
+    pub displacement: &'a dyn Fn(&[f64; D]) -> [f64; D],
+    pub gradient: &'a dyn Fn(&[f64; D]) -> [[f64; D]; D],
+    pub pressure: Option<&'a dyn Fn(&[f64; D]) -> f64>,
+}
+
+/// Computes [`SolidErrors`] with a tensor Gauss rule of degree `degree`.
+pub fn solid_errors<const D: usize>(
+    disc: &SolidDiscretization<D>,
+    x: &[f64],
+    exact: &ExactSolid<'_, D>,
+    degree: usize,
+) -> Result<SolidErrors, SolidError> {
+    let mut cv = CellValues::new(crate::flow::rule_for(disc.mesh.cell_type, degree), &disc.element, &disc.element);
+    let vf = &disc.layout.fields[0];
+    let axi = disc.formulation == Formulation::Axisymmetric;
+    let mut coords = Vec::new();
+    let mut e = SolidErrors::default();
+    for c in 0..disc.mesh.num_cells() {
+        disc.cell_positions(c, None, &mut coords);
+        cv.reinit(&coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
+        let nodes = vf.nodes.cell(c);
+        for q in 0..cv.num_points() {
+            let xq = cv.x[q];
+            let r = disc.formulation.weight(&xq);
+            let w = cv.jxw[q] * r;
+            let (phi, dphi) = (cv.phi(q), cv.grad_phi(q));
+            let mut u = [0.0; D];
+            let mut g = [[0.0; D]; D];
+            for (i, &node) in nodes.iter().enumerate() {
+                for a in 0..D {
+                    let ua = x[vf.dof(node, a)];
+                    u[a] += ua * phi[i];
+                    for b in 0..D {
+                        g[a][b] += ua * dphi[i][b];
+                    }
+                }
+            }
+            let ue = (exact.displacement)(&xq);
+            let ge = (exact.gradient)(&xq);
+            for a in 0..D {
+                e.displacement_l2 += w * (u[a] - ue[a]).powi(2);
+                for b in 0..D {
+                    e.displacement_h1 += w * (g[a][b] - ge[a][b]).powi(2);
+                }
+            }
+            if axi {
+                e.displacement_h1 += w * ((u[1] - ue[1]) / r).powi(2);
+            }
+            if let (Some(pe), true) = (exact.pressure, disc.mixed) {
+                let pf = &disc.layout.fields[1];
+                let xc = disc.centroid_x0[c];
+                let mut p = x[pf.dof(c * (D + 1), 0)];
+                for d in 0..D {
+                    p += x[pf.dof(c * (D + 1) + 1 + d, 0)] * (xq[d] - xc[d]);
+                }
+                e.pressure_l2 += w * (p - pe(&xq)).powi(2);
+            }
+        }
+    }
+    e.displacement_l2 = e.displacement_l2.sqrt();
+    e.displacement_h1 = e.displacement_h1.sqrt();
+    e.pressure_l2 = e.pressure_l2.sqrt();
+    Ok(e)
+}
+
+/// Pressure of a mixed solution at material point `x0` of cell `c`.
+pub fn pressure_at<const D: usize>(disc: &SolidDiscretization<D>, x: &[f64], c: usize, x0: &[f64; D]) -> f64 {
+    let pf = &disc.layout.fields[1];
+    let xc = disc.centroid_x0[c];
+    let mut p = x[pf.dof(c * (D + 1), 0)];
+    for d in 0..D {
+        p += x[pf.dof(c * (D + 1) + 1 + d, 0)] * (x0[d] - xc[d]);
+    }
+    p
+}
