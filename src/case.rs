@@ -70,6 +70,9 @@ pub struct Case {
     /// Body force per unit volume, per component (numbers or expressions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_force: Option<Vec<Scalar>>,
+    /// A solid immersed in the fluid: its mesh, placement and coupled surface gamma_s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solid: Option<SolidSpec>,
     /// Time stepping; without it the problem is steady.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time: Option<TimeSpec>,
@@ -77,6 +80,60 @@ pub struct Case {
     pub solver: SolverSpec,
     #[serde(default)]
     pub output: OutputSpec,
+}
+
+/// The immersed solid.
+///
+/// Every run (and `fdfsi adapt`) adapts the fluid mesh to the solid's surface `surface`
+/// (gamma_s), as in the paper's section 2.2.1, and names the fluid facets on it `gamma_f`, so
+/// boundary conditions can be given there.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolidSpec {
+    /// The solid mesh (9-node quadrilaterals / 27-node hexahedra).
+    pub mesh: SolidMeshSpec,
+    /// The solid boundary coupled to the fluid (gamma_s).
+    pub surface: String,
+    /// `fixed`: the solid does not move, and the fluid sees it only through the conditions given
+    /// on the boundary `gamma_f` (e.g. no-slip: the paper's pure-fluid twin of model problem 2).
+    #[serde(default)]
+    pub model: SolidModel,
+    /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
+    #[serde(default = "default_eps_hat")]
+    pub eps_hat: f64,
+    /// Placement (2D): rotation in degrees (counter-clockwise) about `pivot`, then `translate`.
+    #[serde(default)]
+    pub rotate_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pivot: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<Vec<f64>>,
+}
+
+fn default_eps_hat() -> f64 {
+    0.2
+}
+
+/// How the solid behaves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolidModel {
+    /// Rigid and at rest.
+    #[default]
+    Fixed,
+}
+
+/// Solid meshes: quadratic quadrilaterals (2D) or hexahedra (3D).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum SolidMeshSpec {
+    /// `[x0, x1] x [y0, y1]` in `n[0] x n[1]` 9-node quadrilaterals; boundaries `left`, `right`,
+    /// `bottom`, `top`.
+    Rectangle { x: [f64; 2], y: [f64; 2], n: [usize; 2] },
+    /// Box in `n` 27-node hexahedra; boundaries `xmin` ... `zmax`.
+    Box { x: [f64; 2], y: [f64; 2], z: [f64; 2], n: [usize; 3] },
+    /// A Gmsh file of 9-node quadrilaterals or 27-node hexahedra.
+    Gmsh { file: PathBuf },
 }
 
 /// Time stepping of an unsteady run.
@@ -463,6 +520,27 @@ impl Case {
                 }
             }
             known.insert(&c.name);
+        }
+        if let Some(solid) = &self.solid {
+            if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {
+                problems.push(format!("solid.eps_hat must lie in (0, 0.5], got {}", solid.eps_hat));
+            }
+            let sd = match solid.mesh {
+                SolidMeshSpec::Rectangle { .. } => Some(2),
+                SolidMeshSpec::Box { .. } => Some(3),
+                SolidMeshSpec::Gmsh { .. } => None,
+            };
+            if sd.is_some_and(|sd| sd != d) {
+                problems.push(format!("solid.mesh makes a {}D mesh but the fluid is {d}D", sd.unwrap_or(0)));
+            }
+            if d == 3 && solid.rotate_deg != 0.0 {
+                problems.push("solid.rotate_deg applies to 2D runs only".into());
+            }
+            for (what, v) in [("pivot", &solid.pivot), ("translate", &solid.translate)] {
+                if v.as_ref().is_some_and(|v| v.len() != d) {
+                    problems.push(format!("solid.{what} needs {d} coordinates"));
+                }
+            }
         }
         if let Some(t) = &self.time {
             positive(t.dt, "time.dt", &mut problems);

@@ -19,3 +19,4 @@ pub mod quantities;
 pub mod run;
 pub mod picture;
 pub mod time;
+pub mod adaptation;

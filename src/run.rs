@@ -31,6 +31,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("cylinder-stokes-gmsh", include_str!("../cases/cylinder-stokes-gmsh.toml")),
     ("schaefer-turek-2d1", include_str!("../cases/schaefer-turek-2d1.toml")),
     ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
+    ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
 ];
 
 /// A run failure.
@@ -52,6 +53,8 @@ pub enum RunError {
     ProbeOutside { name: String, point: Vec<f64> },
     #[error(transparent)]
     Time(#[from] crate::time::TimeError),
+    #[error(transparent)]
+    Adaptation(#[from] crate::adaptation::AdaptationError),
 }
 
 /// Receives what a run reports: log lines and step progress.
@@ -109,7 +112,7 @@ pub struct RunSummary {
 /// the case uses; returns a one-paragraph description of the problem (`fdfsi check`).
 pub fn check_case(case: &Case, file: &str, case_dir: &Path) -> Result<String, RunError> {
     case.validate(file)?;
-    match build_mesh(case, case_dir)? {
+    match fluid_mesh(case, case_dir, &mut |_: &str| {})? {
         AnyMesh::D2(m) => describe::<2>(case, m),
         AnyMesh::D3(m) => describe::<3>(case, m),
     }
@@ -163,6 +166,38 @@ pub fn build_mesh(case: &Case, case_dir: &Path) -> Result<AnyMesh, RunError> {
     })
 }
 
+/// The fluid mesh of a case: built, and adapted to the solid's surface when the case has one
+/// (the facets on gamma_s then form the boundary `gamma_f`).
+pub fn fluid_mesh(case: &Case, case_dir: &Path, obs: &mut dyn RunObserver) -> Result<AnyMesh, RunError> {
+    let mesh = build_mesh(case, case_dir)?;
+    if case.solid.is_none() {
+        return Ok(mesh);
+    }
+    fn adapt<const D: usize>(case: &Case, m: Mesh<D>, dir: &Path, obs: &mut dyn RunObserver) -> Result<Mesh<D>, RunError> {
+        let a = crate::adaptation::adapt_fluid(case, m, dir)?;
+        let st = &a.adapted.stats;
+        obs.log(&format!(
+            "adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} coupling facets, min quality {:.3}",
+            st.cut_edges, st.moved_nodes, st.new_nodes, st.new_cells, st.coupling_facets, st.min_quality
+        ));
+        Ok(a.adapted.mesh)
+    }
+    Ok(match mesh {
+        AnyMesh::D2(m) => AnyMesh::D2(adapt(case, m, case_dir, obs)?),
+        AnyMesh::D3(m) => AnyMesh::D3(adapt(case, m, case_dir, obs)?),
+    })
+}
+
+/// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the mesh files and
+/// counts into `out_dir` (see [`crate::adaptation`]).
+pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<crate::adaptation::AdaptSummary, RunError> {
+    use crate::adaptation::{adapt_fluid, write_adapt_report};
+    Ok(match build_mesh(case, case_dir)? {
+        AnyMesh::D2(m) => write_adapt_report(&adapt_fluid(case, m, case_dir)?, out_dir)?,
+        AnyMesh::D3(m) => write_adapt_report(&adapt_fluid(case, m, case_dir)?, out_dir)?,
+    })
+}
+
 /// Runs a case; `log` receives one line per notable event.
 pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
     let t0 = Instant::now();
@@ -171,7 +206,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
     let t = Instant::now();
-    let mesh = build_mesh(case, &options.case_dir)?;
+    let mesh = fluid_mesh(case, &options.case_dir, log)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
     let mut summary = match mesh {
         AnyMesh::D2(m) => run_flow::<2>(case, m, options, log)?,

@@ -99,7 +99,7 @@ impl AdaptOptions {
 }
 
 /// Counters of one adaptation (see the module documentation for the rules they count).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct AdaptStats {
     /// Edges cut by gamma_s (after snapping).
     pub cut_edges: usize,
