@@ -32,6 +32,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("schaefer-turek-2d1", include_str!("../cases/schaefer-turek-2d1.toml")),
     ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
+    ("cylinder-re100", include_str!("../cases/cylinder-re100.toml")),
 ];
 
 /// A run failure.
