@@ -169,10 +169,10 @@ fn main() -> Result<()> {
         Command::Verify { json, full } => {
             let effort = if full { Effort::Full } else { Effort::Quick };
             let (report, runs) = verify::run_all(effort, |name| log(&format!("running {name} ...")))?;
-            println!("{:24} {:12} {:>10} {:>10}   errors (h = 1/n)", "study", "quantity", "expected", "observed");
+            println!("{:28} {:16} {:>9} {:>9}   errors (h = mesh size or time step)", "study", "quantity", "expected", "observed");
             for s in &report.studies {
                 let errs: Vec<String> = s.errors.iter().map(|e| format!("{e:.3e}")).collect();
-                println!("{:24} {:12} {:>10.2} {:>10.3}   {}", s.name, s.quantity, s.expected_rate, s.observed_rate, errs.join(" "));
+                println!("{:28} {:16} {:>9.2} {:>9.3}   {}", s.name, s.quantity, s.expected_rate, s.observed_rate, errs.join(" "));
             }
             for r in &runs {
                 println!("{}: max |int_K div u_h| = {:.2e}, dofs {:?}", r.studies[0].name, r.max_cell_divergence, r.dofs);

@@ -206,8 +206,21 @@ pub fn stokes_3d(effort: Effort) -> Result<StokesRun, FlowError> {
     )
 }
 
-/// All studies of `fdfsi verify`.
-pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(VerifyReport, Vec<StokesRun>), FlowError> {
+/// A failure of a verification study.
+#[derive(Debug, thiserror::Error)]
+pub enum VerifyError {
+    #[error(transparent)]
+    Flow(#[from] FlowError),
+    #[error(transparent)]
+    Time(#[from] crate::time::TimeError),
+    #[error(transparent)]
+    Solid(#[from] crate::solid::SolidError),
+}
+
+/// All studies of `fdfsi verify`: Stokes (plane, axisymmetric, 3D), time convergence (Euler,
+/// BDF2) and the neo-Hookean solid (Rivlin bending, cylinder inflation in plane strain and
+/// axisymmetric; see [`solid_exact`]).
+pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(VerifyReport, Vec<StokesRun>), VerifyError> {
     let mut runs = Vec::new();
     progress("stokes-plane");
     runs.push(stokes_plane(effort)?);
@@ -215,7 +228,14 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
     runs.push(stokes_axisymmetric(effort)?);
     progress("stokes-3d");
     runs.push(stokes_3d(effort)?);
-    let studies = runs.iter().flat_map(|r| r.studies.clone()).collect();
+    let mut studies: Vec<Study> = runs.iter().flat_map(|r| r.studies.clone()).collect();
+    progress("time-euler, time-bdf2");
+    studies.push(time_convergence(crate::time::TimeScheme::Euler)?);
+    studies.push(time_convergence(crate::time::TimeScheme::Bdf2)?);
+    progress("solid: rivlin-bending, cylinder-inflation");
+    for run in solid_exact::solid_studies(effort)? {
+        studies.extend(run.studies);
+    }
     Ok((VerifyReport { studies }, runs))
 }
 
