@@ -47,6 +47,17 @@ pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<
         SolidMeshSpec::Rectangle { x, y, n } => {
             AnyMesh::D2(generate::rectangle_quads(x[0], x[1], y[0], y[1], n[0], n[1], GeometryOrder::Quadratic))
         }
+        SolidMeshSpec::Quadrilateral { corners: c, n } => {
+            // Bilinear image of the unit square: x(s, t) = sum of corners times (1-s)(1-t), s(1-t), st, (1-s)t.
+            let mut m = generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, n[0], n[1], GeometryOrder::Quadratic);
+            for p in m.points.iter_mut() {
+                let (s, t) = (p[0], p[1]);
+                let w = [(1.0 - s) * (1.0 - t), s * (1.0 - t), s * t, (1.0 - s) * t];
+                *p = std::array::from_fn(|d| (0..4).map(|k| w[k] * c[k][d]).sum());
+            }
+            m.check().map_err(|e| AdaptationError::Solid(format!("solid.mesh corners: {e} (give them counter-clockwise)")))?;
+            AnyMesh::D2(m)
+        }
         SolidMeshSpec::Box { x, y, z, n } => {
             AnyMesh::D3(generate::box_hexahedra(x[0], x[1], y[0], y[1], z[0], z[1], n[0], n[1], n[2], GeometryOrder::Quadratic))
         }
@@ -94,7 +105,8 @@ pub struct AdaptedFluid<const D: usize> {
 pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path) -> Result<AdaptedFluid<D>, AdaptationError> {
     let spec = case.solid.as_ref().ok_or_else(|| AdaptationError::Solid("the case has no [solid] table".into()))?;
     let solid = solid_mesh::<D>(spec, case_dir)?;
-    let surface = Surface::from_mesh_boundary(&solid, &spec.surface)?;
+    let name = spec.surface.as_deref().ok_or_else(|| AdaptationError::Solid("solid.surface is not set".into()))?;
+    let surface = Surface::from_mesh_boundary(&solid, name)?;
     let background = Background::new(&fluid)?;
     let mut adapted = adapt_with(&background, &surface, &AdaptOptions::new(spec.eps_hat))?;
     let tag = adapted.mesh.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;

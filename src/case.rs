@@ -61,9 +61,13 @@ pub struct Case {
     /// Longer description: what the case shows, where its values come from.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
-    pub mesh: MeshSpec,
+    /// The fluid mesh; absent in a solid-only case.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshSpec>,
     pub physics: PhysicsSpec,
-    pub fluid: FluidSpec,
+    /// The fluid material; required with a fluid mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fluid: Option<FluidSpec>,
     /// Boundary conditions, one table per named boundary.
     #[serde(default)]
     pub boundary: Vec<BoundarySpec>,
@@ -92,12 +96,28 @@ pub struct Case {
 pub struct SolidSpec {
     /// The solid mesh (9-node quadrilaterals / 27-node hexahedra).
     pub mesh: SolidMeshSpec,
-    /// The solid boundary coupled to the fluid (gamma_s).
-    pub surface: String,
+    /// The solid boundary coupled to the fluid (gamma_s); required when there is a fluid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<String>,
     /// `fixed`: the solid does not move, and the fluid sees it only through the conditions given
     /// on the boundary `gamma_f` (e.g. no-slip: the paper's pure-fluid twin of model problem 2).
+    /// The material laws are solved in solid-only cases (no fluid mesh).
     #[serde(default)]
     pub model: SolidModel,
+    /// Shear modulus G (material laws).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shear_modulus: Option<f64>,
+    /// Bulk modulus K: omitted for the incompressible neo-Hookean law (det F = 1); required by
+    /// the compressible laws.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bulk_modulus: Option<f64>,
+    /// Boundary conditions of the solid.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub boundary: Vec<SolidBoundarySpec>,
+    /// Quasi-static load stepping: boundary values are multiplied by a load factor ramped from 0
+    /// to 1.
+    #[serde(default)]
+    pub loading: LoadingSpec,
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
@@ -121,6 +141,63 @@ pub enum SolidModel {
     /// Rigid and at rest.
     #[default]
     Fixed,
+    /// The paper's law `sigma = G (F F^T - I) - p I`, mixed Q2/P1disc; incompressible
+    /// (`det F = 1`) without `bulk_modulus`, nearly incompressible with it.
+    NeoHookean,
+    /// Compressible neo-Hookean (displacement only; needs `bulk_modulus`).
+    NeoHookeanCompressible,
+    /// Saint Venant-Kirchhoff (displacement only; needs `bulk_modulus`).
+    SaintVenantKirchhoff,
+}
+
+/// A boundary condition of the solid; values are multiplied by the load factor.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolidBoundarySpec {
+    pub name: String,
+    #[serde(rename = "type")]
+    pub kind: SolidBoundaryType,
+    /// Displacement or traction components (numbers or expressions of the reference position
+    /// x, y, z), or the pressure (one entry).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub value: Vec<Scalar>,
+    /// For `displacement`: the components prescribed (default: all).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub components: Option<Vec<usize>>,
+}
+
+/// Kinds of solid boundary condition.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SolidBoundaryType {
+    /// Prescribed total displacement.
+    Displacement,
+    /// Dead-load nominal traction (per unit reference area).
+    Traction,
+    /// Follower pressure on the deformed surface.
+    Pressure,
+}
+
+/// Load stepping of a quasi-static solid run.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadingSpec {
+    /// Number of equal load increments (each is halved on failure, down to 1/64 of it).
+    #[serde(default = "one_usize")]
+    pub steps: usize,
+    /// `total` or `updated` (the paper's updated-Lagrangian form).
+    #[serde(default = "updated")]
+    pub mode: crate::solid::Lagrangian,
+}
+
+fn updated() -> crate::solid::Lagrangian {
+    crate::solid::Lagrangian::Updated
+}
+
+impl Default for LoadingSpec {
+    fn default() -> Self {
+        LoadingSpec { steps: 1, mode: updated() }
+    }
 }
 
 /// Solid meshes: quadratic quadrilaterals (2D) or hexahedra (3D).
@@ -130,6 +207,10 @@ pub enum SolidMeshSpec {
     /// `[x0, x1] x [y0, y1]` in `n[0] x n[1]` 9-node quadrilaterals; boundaries `left`, `right`,
     /// `bottom`, `top`.
     Rectangle { x: [f64; 2], y: [f64; 2], n: [usize; 2] },
+    /// The bilinear image of the unit square with corners `corners` (counter-clockwise) in
+    /// `n[0] x n[1]` 9-node quadrilaterals (e.g. Cook's membrane); boundaries `bottom` (corners
+    /// 0-1), `right` (1-2), `top` (2-3), `left` (3-0).
+    Quadrilateral { corners: [[f64; 2]; 4], n: [usize; 2] },
     /// Box in `n` 27-node hexahedra; boundaries `xmin` ... `zmax`.
     Box { x: [f64; 2], y: [f64; 2], z: [f64; 2], n: [usize; 3] },
     /// A Gmsh file of 9-node quadrilaterals or 27-node hexahedra.
@@ -335,6 +416,8 @@ pub struct ProbeSpec {
 pub enum ProbeField {
     Velocity,
     Pressure,
+    /// Solid-only runs: the displacement at a node of the solid mesh (reference position).
+    Displacement,
 }
 
 /// A boundary integral quantity.
@@ -403,9 +486,16 @@ impl Case {
                 problems.push(format!("{what} must be a positive number, got {v}"));
             }
         };
-        positive(self.fluid.density, "fluid.density", &mut problems);
-        positive(self.fluid.viscosity, "fluid.viscosity", &mut problems);
-        let mesh_dim = match &self.mesh {
+        match (&self.mesh, &self.fluid, &self.solid) {
+            (Some(_), Some(f), _) => {
+                positive(f.density, "fluid.density", &mut problems);
+                positive(f.viscosity, "fluid.viscosity", &mut problems);
+            }
+            (Some(_), None, _) => problems.push("a fluid mesh needs a [fluid] table (density, viscosity)".into()),
+            (None, _, Some(s)) if s.model != SolidModel::Fixed => {}
+            (None, _, _) => problems.push("give a fluid [mesh], or a [solid] with a material model for a solid-only run".into()),
+        }
+        let mesh_dim = match self.mesh.as_ref().unwrap_or(&MeshSpec::Gmsh { file: PathBuf::new() }) {
             MeshSpec::Rectangle { x, y, n } => {
                 if !(x[1] > x[0] && y[1] > y[0]) {
                     problems.push("mesh: x and y must be increasing intervals [lo, hi]".into());
@@ -502,7 +592,10 @@ impl Case {
             if p.point.len() != d {
                 problems.push(format!("probe '{}': point needs {d} coordinates", p.name));
             }
-            if p.field == ProbeField::Velocity && p.component >= d {
+            if p.field == ProbeField::Displacement && self.mesh.is_some() {
+                problems.push(format!("probe '{}': displacement probes apply to solid-only runs", p.name));
+            }
+            if matches!(p.field, ProbeField::Velocity | ProbeField::Displacement) && p.component >= d {
                 problems.push(format!("probe '{}': component must be < {d}", p.name));
             }
         }
@@ -522,11 +615,37 @@ impl Case {
             known.insert(&c.name);
         }
         if let Some(solid) = &self.solid {
+            if self.mesh.is_some() && solid.surface.is_none() {
+                problems.push("solid.surface (the solid boundary coupled to the fluid) is required with a fluid".into());
+            }
+            if solid.model != SolidModel::Fixed {
+                match solid.shear_modulus {
+                    Some(g) => positive(g, "solid.shear_modulus", &mut problems),
+                    None => problems.push(format!("solid.model = {:?} needs shear_modulus", solid.model)),
+                }
+                if let Some(k) = solid.bulk_modulus {
+                    positive(k, "solid.bulk_modulus", &mut problems);
+                } else if solid.model != SolidModel::NeoHookean {
+                    problems.push(format!("solid.model = {:?} needs bulk_modulus", solid.model));
+                }
+                if solid.loading.steps == 0 {
+                    problems.push("solid.loading.steps must be >= 1".into());
+                }
+                for b in &solid.boundary {
+                    let k = if b.kind == SolidBoundaryType::Pressure { 1 } else { d };
+                    if b.value.len() != k {
+                        problems.push(format!("solid boundary '{}': `value` needs {k} entries, got {}", b.name, b.value.len()));
+                    }
+                    if b.components.as_ref().is_some_and(|c| c.iter().any(|&a| a >= d)) {
+                        problems.push(format!("solid boundary '{}': components must be < {d}", b.name));
+                    }
+                }
+            }
             if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {
                 problems.push(format!("solid.eps_hat must lie in (0, 0.5], got {}", solid.eps_hat));
             }
             let sd = match solid.mesh {
-                SolidMeshSpec::Rectangle { .. } => Some(2),
+                SolidMeshSpec::Rectangle { .. } | SolidMeshSpec::Quadrilateral { .. } => Some(2),
                 SolidMeshSpec::Box { .. } => Some(3),
                 SolidMeshSpec::Gmsh { .. } => None,
             };

@@ -14,7 +14,8 @@ use fdfsi_fem::element::MAX_DOFS;
 use fdfsi_fem::locate::{cells_containing, locate_point};
 use fdfsi_fem::values::p1disc_basis;
 
-/// Evaluates a probe; `None` when the point lies outside the mesh.
+/// Evaluates a probe of the fluid; `None` when the point lies outside the mesh (or the field is
+/// not a fluid field).
 pub fn probe<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &ProbeSpec) -> Option<f64> {
     let xp: [f64; D] = std::array::from_fn(|d| spec.point.get(d).copied().unwrap_or(0.0));
     match spec.field {
@@ -27,6 +28,7 @@ pub fn probe<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &Pro
             disc.velocity_element.eval_into(&xi, &mut vals[..n], &mut grads[..n]);
             Some(vf.nodes.cell(c).iter().zip(&vals[..n]).map(|(&node, v)| v * x[vf.dof(node, spec.component)]).sum())
         }
+        ProbeField::Displacement => None,
         ProbeField::Pressure => {
             let pf = &disc.layout.fields[1];
             let cells = cells_containing(&disc.mesh, &xp);

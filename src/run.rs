@@ -33,6 +33,8 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
     ("cylinder-re100", include_str!("../cases/cylinder-re100.toml")),
+    ("cook-membrane", include_str!("../cases/cook-membrane.toml")),
+    ("cylinder-inflation-axisymmetric", include_str!("../cases/cylinder-inflation-axisymmetric.toml")),
 ];
 
 /// A run failure.
@@ -56,6 +58,8 @@ pub enum RunError {
     Time(#[from] crate::time::TimeError),
     #[error(transparent)]
     Adaptation(#[from] crate::adaptation::AdaptationError),
+    #[error(transparent)]
+    Solid(#[from] crate::solid::SolidError),
 }
 
 /// Receives what a run reports: log lines and step progress.
@@ -113,6 +117,9 @@ pub struct RunSummary {
 /// the case uses; returns a one-paragraph description of the problem (`fdfsi check`).
 pub fn check_case(case: &Case, file: &str, case_dir: &Path) -> Result<String, RunError> {
     case.validate(file)?;
+    if case.mesh.is_none() {
+        return Ok(crate::solid_run::describe(case, case_dir)?);
+    }
     match fluid_mesh(case, case_dir, &mut |_: &str| {})? {
         AnyMesh::D2(m) => describe::<2>(case, m),
         AnyMesh::D3(m) => describe::<3>(case, m),
@@ -137,9 +144,10 @@ fn describe<const D: usize>(case: &Case, mesh: Mesh<D>) -> Result<String, RunErr
     ))
 }
 
-/// Builds the case's mesh.
+/// Builds the case's fluid mesh.
 pub fn build_mesh(case: &Case, case_dir: &Path) -> Result<AnyMesh, RunError> {
-    Ok(match &case.mesh {
+    let spec = case.mesh.as_ref().ok_or_else(|| CaseError::Invalid { file: "case".into(), message: "the case has no fluid [mesh]".into() })?;
+    Ok(match spec {
         MeshSpec::Rectangle { x, y, n } => {
             AnyMesh::D2(generate::rectangle_triangles(x[0], x[1], y[0], y[1], n[0], n[1], generate::DiagonalPattern::Alternating))
         }
@@ -206,6 +214,13 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     std::fs::create_dir_all(&options.out_dir)
         .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
+    if case.mesh.is_none() {
+        let mut summary = crate::solid_run::run_solid(case, options, log)?;
+        summary.timings.total = t0.elapsed().as_secs_f64();
+        let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
+        write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
+        return Ok(summary);
+    }
     let t = Instant::now();
     let mesh = fluid_mesh(case, &options.case_dir, log)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
@@ -297,14 +312,15 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
         Some(f) => Some(vector_fn::<D>(compile_all(f)?, TimeFn::Constant)),
         None => None,
     };
+    let fluid = case.fluid.as_ref().ok_or_else(|| CaseError::Invalid { file: "case".into(), message: "the case has no [fluid] table".into() })?;
     Ok(FlowProblem {
         formulation: case.physics.formulation,
         params: FluidParams {
-            viscosity: case.fluid.viscosity,
-            density: case.fluid.density,
+            viscosity: fluid.viscosity,
+            density: fluid.density,
             inv_dt: 0.0,
             convection: case.physics.model == FlowModel::NavierStokes,
-            viscous_form: case.fluid.viscous_form,
+            viscous_form: fluid.viscous_form,
         },
         body_force,
         dirichlet,
