@@ -33,6 +33,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
     ("cylinder-re100", include_str!("../cases/cylinder-re100.toml")),
+    ("slab-3d-poiseuille", include_str!("../cases/slab-3d-poiseuille.toml")),
     ("cook-membrane", include_str!("../cases/cook-membrane.toml")),
     ("cylinder-inflation-axisymmetric", include_str!("../cases/cylinder-inflation-axisymmetric.toml")),
 ];

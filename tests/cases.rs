@@ -218,3 +218,30 @@ fn axisymmetric_cylinder_inflates_to_the_exact_radius() {
     let s_rr_inner = sigma[4]; // cell 0 (at the inner face), component (r, r) = index 1*3+1
     assert!(s_rr_inner < 0.0 && s_rr_inner > -0.22, "{s_rr_inner}");
 }
+
+#[test]
+fn slab_3d_poiseuille_is_exact_to_round_off() {
+    let (s, _) = run("slab-3d-poiseuille");
+    assert!((q(&s, "centre_velocity") - 1.5).abs() < 1e-10, "{}", q(&s, "centre_velocity"));
+    let dp = q(&s, "pressure_at_x05") - q(&s, "pressure_at_x15");
+    assert!((dp - 12.0).abs() < 1e-9, "{dp}");
+    assert!((q(&s, "outlet_flux") - 0.5).abs() < 1e-12);
+}
+
+#[test]
+fn quarter_pipe_converges_to_hagen_poiseuille_under_refinement() {
+    // Straight-sided tetrahedra make the wall a polygon; as it refines, the axis velocity tends
+    // to the Hagen-Poiseuille value 2 at about second order (the polygon's area error is O(h^2)).
+    let mut errors = Vec::new();
+    for (nr, na) in [(2, 4), (4, 8)] {
+        let (s, _) = run_with("quarter-pipe-3d-stokes", |c| {
+            if let Some(fdfsi::case::MeshSpec::Pipe { n_radial, n_axial, .. }) = c.mesh.as_mut() {
+                *n_radial = nr;
+                *n_axial = na;
+            }
+        });
+        errors.push((q(&s, "axis_velocity") - 2.0).abs());
+    }
+    println!("quarter pipe: axis velocity errors {errors:?}");
+    assert!(errors[1] < errors[0] / 3.0, "{errors:?}");
+}

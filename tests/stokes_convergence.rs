@@ -30,3 +30,13 @@ fn stokes_axisymmetric_converges_at_optimal_rates() {
 fn stokes_3d_converges_at_optimal_rates() {
     check(&verify::stokes_3d(Effort::Quick).unwrap());
 }
+
+#[test]
+fn kovasznay_navier_stokes_converges_at_optimal_rates() {
+    let studies = verify::kovasznay(Effort::Quick).unwrap();
+    for s in &studies {
+        let min = if s.quantity == "velocity_l2" { 2.8 } else { 1.8 };
+        println!("{} {}: errors {:?} rate {:.3}", s.name, s.quantity, s.errors, s.observed_rate);
+        assert!(s.observed_rate >= min, "{} {}: rate {:.3}", s.name, s.quantity, s.observed_rate);
+    }
+}

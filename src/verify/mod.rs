@@ -229,6 +229,8 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
     progress("stokes-3d");
     runs.push(stokes_3d(effort)?);
     let mut studies: Vec<Study> = runs.iter().flat_map(|r| r.studies.clone()).collect();
+    progress("kovasznay");
+    studies.extend(kovasznay(effort)?);
     progress("time-euler, time-bdf2");
     studies.push(time_convergence(crate::time::TimeScheme::Euler)?);
     studies.push(time_convergence(crate::time::TimeScheme::Bdf2)?);
@@ -237,6 +239,53 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
         studies.extend(run.studies);
     }
     Ok((VerifyReport { studies }, runs))
+}
+
+/// Kovasznay flow (steady Navier-Stokes, Re = 40) on `[-0.5, 1] x [-0.5, 1.5]` with the exact
+/// velocity on the whole boundary (pressure fixed to zero mean); EXACT-SOLUTIONS.md 2.4:
+/// `u = 1 - e^{l x} cos(2 pi y)`, `v = l/(2 pi) e^{l x} sin(2 pi y)`, `p = (1 - e^{2 l x}) / 2`
+/// (+ const), `l = Re/2 - sqrt(Re^2/4 + 4 pi^2)`. Expected rates 3 (velocity L2), 2 (H1, p).
+pub fn kovasznay(effort: Effort) -> Result<Vec<Study>, FlowError> {
+    use std::f64::consts::PI;
+    let re = 40.0;
+    let l = re / 2.0 - (re * re / 4.0 + 4.0 * PI * PI).sqrt();
+    let vel = move |x: &[f64; 2]| {
+        let e = (l * x[0]).exp();
+        [1.0 - e * (2.0 * PI * x[1]).cos(), l / (2.0 * PI) * e * (2.0 * PI * x[1]).sin()]
+    };
+    let grad = move |x: &[f64; 2]| {
+        let e = (l * x[0]).exp();
+        let (s, c) = ((2.0 * PI * x[1]).sin(), (2.0 * PI * x[1]).cos());
+        [[-l * e * c, 2.0 * PI * e * s], [l * l / (2.0 * PI) * e * s, l * e * c]]
+    };
+    let levels: &[usize] = if effort == Effort::Quick { &[4, 8, 16] } else { &[4, 8, 16, 32] };
+    let mut errs = Vec::new();
+    for &n in levels {
+        let mesh = rectangle_triangles(-0.5, 1.0, -0.5, 1.5, 3 * n / 2, 2 * n, DiagonalPattern::Alternating);
+        let disc = FlowDiscretization::build(mesh, Formulation::Plane)?;
+        let bc = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(move |x: &[f64; 2], _| vel(x)) };
+        let problem = FlowProblem {
+            formulation: Formulation::Plane,
+            params: FluidParams { viscosity: 1.0 / re, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+            body_force: None,
+            dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
+            traction: vec![],
+            pin_pressure: true,
+        };
+        let sol = solve_steady(&disc, &problem, &mut FaerLu::default(), &NewtonOptions::default())?;
+        // The discrete pressure has zero mean; compare with the exact pressure shifted likewise.
+        let mean = exact_mean_pressure(l);
+        let p = move |x: &[f64; 2]| 0.5 * (1.0 - (2.0 * l * x[0]).exp()) - mean;
+        errs.push(flow_errors(&disc, Formulation::Plane, &sol.x, &ExactFlow { velocity: &vel, gradient: &grad, pressure: &p }, 8)?);
+    }
+    let h: Vec<f64> = levels.iter().map(|&n| 1.0 / n as f64).collect();
+    Ok(three_studies("kovasznay", &h, &errs))
+}
+
+/// Mean of `(1 - e^{2 l x}) / 2` over `[-0.5, 1] x [-0.5, 1.5]`.
+fn exact_mean_pressure(l: f64) -> f64 {
+    let int_x = 1.5 - ((2.0 * l).exp() - (-l).exp()) / (2.0 * l);
+    0.5 * int_x / 1.5
 }
 
 /// Time convergence of implicit Euler or BDF2 on a manufactured Navier-Stokes solution
