@@ -3,7 +3,9 @@
 //! Per step (and for `fdfsi adapt`): the solid mesh at its current position gives gamma_s
 //! ([`fdfsi_fem::adapt::Surface`]); the ORIGINAL fluid mesh is adapted to it
 //! ([`fdfsi_fem::adapt::adapt`]); the fluid facets on gamma_s become the boundary `gamma_f` of
-//! the adapted mesh, so boundary conditions and quantities can name it.
+//! the adapted mesh, so boundary conditions and quantities can name it; `gamma_f_minus` and
+//! `gamma_f_plus` are the same facets seen from the fluid cells on either side (for one-sided
+//! quantities such as the wall shear stress on both faces of a thin plate).
 //!
 //! `fdfsi adapt CASE --out DIR` writes `original.vtu` and `adapted.vtu` (the fluid mesh before and
 //! after, as linear cells), `gamma_s.vtu`, `gamma_f.vtu` and `summary.json` (the counts of
@@ -23,6 +25,11 @@ use thiserror::Error;
 
 /// Name of the boundary the adapted fluid mesh gives the facets on gamma_s.
 pub const GAMMA_F: &str = "gamma_f";
+/// The facets of gamma_f seen from the fluid cells on the minus side of gamma_s (opposite to the
+/// normal of the solid surface `surface`, i.e. inside the solid for a closed body).
+pub const GAMMA_F_MINUS: &str = "gamma_f_minus";
+/// ... and from the plus side (the side the solid surface's outward normal points to).
+pub const GAMMA_F_PLUS: &str = "gamma_f_plus";
 
 /// A failure while building the solid surface or adapting.
 #[derive(Debug, Error)]
@@ -110,13 +117,23 @@ pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path)
     let background = Background::new(&fluid)?;
     let mut adapted = adapt_with(&background, &surface, &AdaptOptions::new(spec.eps_hat))?;
     let tag = adapted.mesh.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
+    let mut tagged = Vec::new();
     for g in &adapted.gamma_f {
         // One side suffices to name the facet's nodes; take the first side that exists.
         if let Some(&(cell, facet)) = g.sides.iter().find(|s| s.0 != usize::MAX) {
-            adapted.mesh.boundary.push(BoundaryFacet { cell, facet, tag });
+            tagged.push(BoundaryFacet { cell, facet, tag });
+        }
+        // Each side separately (for one-sided quantities such as wall shear stress).
+        for (k, &(cell, facet)) in g.sides.iter().enumerate() {
+            if cell != usize::MAX {
+                tagged.push(BoundaryFacet { cell, facet, tag: tag + 1 + k as u32 });
+            }
         }
     }
+    adapted.mesh.boundary.extend(tagged);
     adapted.mesh.add_boundary_name(GAMMA_F, tag);
+    adapted.mesh.add_boundary_name(GAMMA_F_MINUS, tag + 1);
+    adapted.mesh.add_boundary_name(GAMMA_F_PLUS, tag + 2);
     Ok(AdaptedFluid { original: fluid, solid, surface, adapted })
 }
 

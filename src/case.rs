@@ -385,9 +385,33 @@ pub struct OutputSpec {
     /// Integrals over a boundary: `flux`, `mean-pressure`, `force`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary_integral: Vec<BoundaryIntegralSpec>,
+    /// Profiles along a boundary, written at the end of the run to `profiles/NAME.csv`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub profile: Vec<ProfileSpec>,
     /// Linear combinations of other quantities (evaluated after them, in file order).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub combination: Vec<CombinationSpec>,
+}
+
+/// A profile along a boundary: one row `s,x,y[,z],value` per facet quadrature point.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileSpec {
+    pub name: String,
+    pub boundary: String,
+    pub kind: ProfileKind,
+}
+
+/// Kinds of profile.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ProfileKind {
+    /// Tangential part of the viscous traction `eta (grad u + grad u^T) n` of the fluid on the
+    /// wall (`n` out of the fluid). 2D: its component along the direction of increasing `s`;
+    /// 3D: its magnitude.
+    WallShearStress,
+    /// The pressure (from the cell on the boundary's side).
+    Pressure,
 }
 
 /// `name = sum_k coefficient_k * quantity_k`, e.g. a pressure difference of two probes.

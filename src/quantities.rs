@@ -202,3 +202,150 @@ pub enum QuantityError {
     #[error(transparent)]
     Flow(#[from] FlowError),
 }
+
+/// One point of a profile.
+#[derive(Clone, Copy, Debug)]
+pub struct ProfilePoint<const D: usize> {
+    /// Arc length along the boundary (2D: along the chain of facets, increasing counter-clockwise
+    /// around the fluid; disconnected pieces follow each other; 3D: the coordinate along the
+    /// largest extent of the boundary).
+    pub s: f64,
+    pub x: [f64; D],
+    pub value: f64,
+}
+
+/// Facets of a 2D boundary in walking order, each with a flag saying whether it is walked
+/// against its vertex order. Disconnected pieces follow each other.
+fn chain_facets<const D: usize>(disc: &FlowDiscretization<D>, facets: &[fdfsi_fem::mesh::BoundaryFacet]) -> Vec<(usize, bool)> {
+    use std::collections::HashMap;
+    let ends = |k: usize| -> [usize; 2] {
+        let bf = facets[k];
+        let v = disc.mesh.cell_vertices(bf.cell);
+        let fv = disc.mesh.cell_type.facet(bf.facet);
+        [v[fv[0]], v[fv[1]]]
+    };
+    let mut at: HashMap<usize, Vec<usize>> = HashMap::new();
+    for k in 0..facets.len() {
+        for v in ends(k) {
+            at.entry(v).or_default().push(k);
+        }
+    }
+    let mut used = vec![false; facets.len()];
+    let mut order = Vec::with_capacity(facets.len());
+    // Facets are oriented counter-clockwise around the fluid (outward normal on the right of the
+    // walking direction); an open piece is walked from the facet whose first vertex is free.
+    while let Some(start) = (0..facets.len())
+        .filter(|&k| !used[k])
+        .min_by_key(|&k| usize::from(at[&ends(k)[0]].len() != 1))
+    {
+        let mut from = ends(start)[0];
+        let mut k = start;
+        loop {
+            used[k] = true;
+            let e = ends(k);
+            let reversed = e[0] != from;
+            order.push((k, reversed));
+            let to = if reversed { e[0] } else { e[1] };
+            match at[&to].iter().copied().find(|&j| !used[j]) {
+                Some(j) => {
+                    from = to;
+                    k = j;
+                }
+                None => break,
+            }
+        }
+    }
+    order
+}
+
+/// The profile of `spec` along its boundary.
+pub fn profile<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    x: &[f64],
+    spec: &crate::case::ProfileSpec,
+) -> Result<Vec<ProfilePoint<D>>, FlowError> {
+    use crate::case::ProfileKind;
+    let facets = disc.mesh.boundary_facets(&spec.boundary)?;
+    let order: Vec<(usize, bool)> = if D == 2 { chain_facets(disc, &facets) } else { (0..facets.len()).map(|k| (k, false)).collect() };
+    let mut fv = disc.facet_values();
+    let vf = &disc.layout.fields[0];
+    let pf = &disc.layout.fields[1];
+    let eta = problem.params.viscosity;
+    let mut coords = Vec::new();
+    let mut pts: Vec<ProfilePoint<D>> = Vec::new();
+    let mut psi = [0.0; 4];
+    for (k, reversed) in order {
+        let bf = facets[k];
+        disc.mesh.cell_coords_into(bf.cell, &mut coords);
+        fv.reinit(&coords, bf.facet).map_err(|source| FlowError::Map { cell: bf.cell, source })?;
+        let nodes = vf.nodes.cell(bf.cell);
+        let centroid = cell_centroid(disc, bf.cell);
+        let nq = fv.num_points();
+        let qs: Vec<usize> = if reversed { (0..nq).rev().collect() } else { (0..nq).collect() };
+        // Walking direction along this facet (2D): from its first to its last point.
+        let (first, last) = (fv.x[qs[0]], fv.x[qs[nq - 1]]);
+        let mut dir: [f64; D] = std::array::from_fn(|d| last[d] - first[d]);
+        let len = dir.iter().map(|v| v * v).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+        dir.iter_mut().for_each(|v| *v /= len);
+        for &q in &qs {
+            let n = fv.normal[q];
+            let value = match spec.kind {
+                ProfileKind::Pressure => {
+                    p1disc_basis(&fv.x[q], &centroid, &mut psi);
+                    (0..=D).map(|k| x[pf.dof(bf.cell * (D + 1) + k, 0)] * psi[k]).sum()
+                }
+                ProfileKind::WallShearStress => {
+                    let mut g = [[0.0; D]; D];
+                    for (i, &node) in nodes.iter().enumerate() {
+                        for a in 0..D {
+                            for b in 0..D {
+                                g[a][b] += x[vf.dof(node, a)] * fv.grad_phi(q)[i][b];
+                            }
+                        }
+                    }
+                    // Traction of the fluid on the wall: minus the stress on the fluid's outward normal.
+                    let tau: [f64; D] = std::array::from_fn(|a| -eta * (0..D).map(|b| (g[a][b] + g[b][a]) * n[b]).sum::<f64>());
+                    let tn: f64 = (0..D).map(|a| tau[a] * n[a]).sum();
+                    let tt: [f64; D] = std::array::from_fn(|a| tau[a] - tn * n[a]);
+                    if D == 2 {
+                        (0..D).map(|a| tt[a] * dir[a]).sum()
+                    } else {
+                        tt.iter().map(|v| v * v).sum::<f64>().sqrt()
+                    }
+                }
+            };
+            pts.push(ProfilePoint { s: 0.0, x: fv.x[q], value });
+        }
+    }
+    if D == 2 {
+        for i in 1..pts.len() {
+            let d: f64 = (0..D).map(|a| (pts[i].x[a] - pts[i - 1].x[a]).powi(2)).sum::<f64>().sqrt();
+            pts[i].s = pts[i - 1].s + d;
+        }
+    } else if !pts.is_empty() {
+        let axis = (0..D)
+            .max_by(|&a, &b| {
+                let ext = |a: usize| pts.iter().map(|p| p.x[a]).fold(f64::MIN, f64::max) - pts.iter().map(|p| p.x[a]).fold(f64::MAX, f64::min);
+                ext(a).total_cmp(&ext(b))
+            })
+            .unwrap_or(0);
+        let lo = pts.iter().map(|p| p.x[axis]).fold(f64::MAX, f64::min);
+        pts.iter_mut().for_each(|p| p.s = p.x[axis] - lo);
+        pts.sort_by(|a, b| a.s.total_cmp(&b.s));
+    }
+    Ok(pts)
+}
+
+/// Writes a profile as CSV with columns `s,x,y[,z],value`.
+pub fn profile_csv<const D: usize>(pts: &[ProfilePoint<D>]) -> String {
+    let mut out = String::from(if D == 2 { "s,x,y,value\n" } else { "s,x,y,z,value\n" });
+    for p in pts {
+        out.push_str(&format!("{:.12e}", p.s));
+        for d in 0..D {
+            out.push_str(&format!(",{:.12e}", p.x[d]));
+        }
+        out.push_str(&format!(",{:.12e}\n", p.value));
+    }
+    out
+}

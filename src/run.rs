@@ -415,6 +415,15 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
     for (name, v) in &out.last {
         obs.log(&format!("{name} = {v:.10e}"));
     }
+    if !case.output.profile.is_empty() {
+        let dir = options.out_dir.join("profiles");
+        std::fs::create_dir_all(&dir).map_err(|source| OutputError::Io { path: dir.display().to_string(), source })?;
+        for spec in &case.output.profile {
+            let pts = crate::quantities::profile(&disc, &problem, &x, spec)?;
+            write_atomic(&dir.join(format!("{}.csv", spec.name)), crate::quantities::profile_csv(&pts).as_bytes())?;
+            obs.log(&format!("profile {}: {} points along '{}'", spec.name, pts.len(), spec.boundary));
+        }
+    }
     timings.output = out.seconds;
     let mut dofs = BTreeMap::new();
     dofs.insert("velocity".to_string(), nv);

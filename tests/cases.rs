@@ -76,6 +76,18 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert!(summary["quantities"]["centre_velocity"].as_f64().is_some());
     assert!(out.join("case.toml").exists());
+    // Wall shear stress on the bottom wall: eta du/dy = 6 eta U / H = 6 in the fully developed
+    // part, pointing downstream (+x, the direction of increasing s on the bottom wall).
+    let wss = std::fs::read_to_string(out.join("profiles/wss_bottom.csv")).unwrap();
+    let mut lines = wss.lines();
+    assert_eq!(lines.next(), Some("s,x,y,value"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert!(rows.windows(2).all(|w| w[1][0] > w[0][0]), "s increases");
+    let mid: Vec<&Vec<f64>> = rows.iter().filter(|r| (r[1] - 10.0).abs() < 3.0).collect();
+    assert!(mid.len() > 10);
+    for r in mid {
+        assert!((r[3] - 6.0).abs() < 1e-8, "wss at x = {}: {}", r[1], r[3]);
+    }
 }
 
 #[test]
@@ -154,7 +166,17 @@ fn womersley_matches_the_bessel_solution_over_a_period() {
 
 #[test]
 fn skewed_plate_dirichlet_twin_adapts_and_conserves_mass() {
-    let (s, _) = run("skewed-plate-dirichlet");
+    let (s, run_out) = run("skewed-plate-dirichlet");
+    // Shear-stress profiles on both faces, with the same points (the two sides of gamma_f).
+    let read = |name: &str| -> Vec<Vec<f64>> {
+        let text = std::fs::read_to_string(run_out.join(format!("profiles/{name}.csv"))).unwrap();
+        text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect()
+    };
+    let (up, down) = (read("wss_upstream_side"), read("wss_downstream_side"));
+    assert_eq!(up.len(), down.len());
+    assert!(up.len() >= 10 && up.iter().chain(&down).all(|r| r[3].is_finite()));
+    let length = up.last().unwrap()[0] - up[0][0];
+    assert!(length > 0.3 && length < 0.4, "{length}");
     assert!((q(&s, "inlet_flux") + 1.0).abs() < 1e-12);
     assert!((q(&s, "inlet_flux") + q(&s, "outlet_flux")).abs() < 1e-12);
     // The flow pushes the plate downstream.
