@@ -59,6 +59,32 @@ pub fn det_inv<const D: usize>(j: &[[f64; D]; D]) -> (f64, [[f64; D]; D]) {
     }
 }
 
+/// Physical point `x(xi_q) = sum_k x_k N_k(xi_q)` and Jacobian `J[a][b] = dx_a / dxi_b` of the
+/// geometry map at tabulated point `q`.
+#[inline]
+fn map_point<const D: usize>(geo: &Tabulation<D>, coords: &[[f64; D]], q: usize) -> ([f64; D], [[f64; D]; D]) {
+    let ng = geo.num_dofs;
+    let mut x = [0.0; D];
+    let mut jac = [[0.0; D]; D];
+    for (k, xk) in coords.iter().enumerate() {
+        let nk = geo.values[q * ng + k];
+        let gk = geo.grads[q * ng + k];
+        for a in 0..D {
+            x[a] += nk * xk[a];
+            for b in 0..D {
+                jac[a][b] += xk[a] * gk[b];
+            }
+        }
+    }
+    (x, jac)
+}
+
+/// Physical gradient `J^{-T} g` of a reference gradient `g`, given `inv = J^{-1}`.
+#[inline]
+fn push_forward<const D: usize>(inv: &[[f64; D]; D], g: &[f64; D]) -> [f64; D] {
+    std::array::from_fn(|a| (0..D).map(|b| inv[b][a] * g[b]).sum())
+}
+
 /// The P1-discontinuous pressure basis `{1, x_1 - c_1, ..., x_D - c_D}` at physical point `x`,
 /// with `c` the cell's centroid: the dofs are the pressure at the centroid and its gradient.
 /// Written into `out[..D + 1]`.
@@ -147,18 +173,7 @@ impl<const D: usize> CellValues<D> {
         }
         self.centroid = c;
         for q in 0..self.qr.len() {
-            let mut x = [0.0; D];
-            let mut jac = [[0.0; D]; D];
-            for (k, xk) in coords.iter().enumerate() {
-                let nk = self.geo.values[q * ng + k];
-                let gk = self.geo.grads[q * ng + k];
-                for a in 0..D {
-                    x[a] += nk * xk[a];
-                    for b in 0..D {
-                        jac[a][b] += xk[a] * gk[b];
-                    }
-                }
-            }
+            let (x, jac) = map_point(&self.geo, coords, q);
             let (det, inv) = det_inv(&jac);
             if !(det > 0.0) {
                 return Err(MapError::NonPositiveJacobian { point: q, det });
@@ -167,14 +182,7 @@ impl<const D: usize> CellValues<D> {
             self.jxw[q] = det * self.qr.weights[q];
             // grad phi = J^{-T} grad_xi phi:  (grad phi)_a = sum_b inv[b][a] (grad_xi phi)_b
             for i in 0..n {
-                let g = self.fun.grads[q * n + i];
-                let mut out = [0.0; D];
-                for a in 0..D {
-                    for b in 0..D {
-                        out[a] += inv[b][a] * g[b];
-                    }
-                }
-                self.dphi[q * n + i] = out;
+                self.dphi[q * n + i] = push_forward(&inv, &self.fun.grads[q * n + i]);
             }
         }
         Ok(())
@@ -258,22 +266,10 @@ impl<const D: usize> FacetValues<D> {
     pub fn reinit(&mut self, coords: &[[f64; D]], facet: usize) -> Result<(), MapError> {
         self.current = facet;
         let (geo, fun) = &self.per_facet[facet];
-        let ng = geo.num_dofs;
         let n = fun.num_dofs;
         let [t1, t2] = self.tangents[facet];
         for q in 0..self.weights.len() {
-            let mut x = [0.0; D];
-            let mut jac = [[0.0; D]; D];
-            for (k, xk) in coords.iter().enumerate() {
-                let nk = geo.values[q * ng + k];
-                let gk = geo.grads[q * ng + k];
-                for a in 0..D {
-                    x[a] += nk * xk[a];
-                    for b in 0..D {
-                        jac[a][b] += xk[a] * gk[b];
-                    }
-                }
-            }
+            let (x, jac) = map_point(geo, coords, q);
             let (det, inv) = det_inv(&jac);
             if !(det > 0.0) {
                 return Err(MapError::NonPositiveJacobian { point: q, det });
@@ -325,14 +321,7 @@ impl<const D: usize> FacetValues<D> {
             self.jxw[q] = measure * self.weights[q];
             self.normal[q] = nrm;
             for i in 0..n {
-                let g = fun.grads[q * n + i];
-                let mut out = [0.0; D];
-                for a in 0..D {
-                    for b in 0..D {
-                        out[a] += inv[b][a] * g[b];
-                    }
-                }
-                self.dphi[q * n + i] = out;
+                self.dphi[q * n + i] = push_forward(&inv, &fun.grads[q * n + i]);
             }
         }
         Ok(())
