@@ -20,3 +20,5 @@ pub mod run;
 pub mod picture;
 pub mod time;
 pub mod adaptation;
+pub mod solid_run;
+pub mod fsi;

@@ -1,0 +1,755 @@
+//! The monolithic fluid-structure discretisation and one implicit-Euler FSI step (paper sections
+//! 2.1-2.2, METHOD.md sections 2-4).
+//!
+//! Per step, data flows one way:
+//!
+//! 1. the solid at `t_n` (positions `X + u_n`) gives gamma_s ([`FsiModel::gamma_s`]);
+//! 2. the ORIGINAL fluid mesh (prepared once as a [`Background`]) is adapted to it
+//!    ([`adapt_with`]); the facets on gamma_s (gamma_f) are tagged as the boundary `gamma_f`;
+//! 3. [`FsiDiscretization::build`]: the fluid discretisation of the adapted mesh, the coupling
+//!    elements (one per gamma_f facet, with their quadrature points located in a fluid cell and on
+//!    the solid), the global numbering `[fluid (u, p) | solid (Delta u, p) | multiplier]` and one
+//!    sparse [`Pattern`] with the coupling blocks;
+//! 4. the previous fluid velocity is transferred to the new velocity nodes
+//!    ([`transfer_p2plus`]);
+//! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
+//!    discretisations ([`FlowDiscretization::assemble_system`],
+//!    [`SolidDiscretization::assemble_system`], updated Lagrangian) into block matrices and
+//!    scattered into the global one through position maps precomputed with the pattern; the
+//!    coupling kernel ([`crate::physics::coupling`]) is assembled directly;
+//! 6. the solid is updated: `x_{n+1} = x_n + Delta u`, `F_{n+1} = (I + grad_n Delta u) F_n`.
+//!
+//! Implicit Euler throughout: the fluid inertia `rho/dt (u - u_old)`, the solid velocity
+//! `u_s = Delta u / dt` in the coupling constraint, optional solid inertia
+//! `rho_0/dt^2 (Delta u - dt v_n)` ([`SolidProblem::density`]). The geometry of a step (gamma_s,
+//! the adapted mesh, gamma_f) is that of `t_n`, as in the paper (adapt, then solve).
+//!
+//! The solid's boundary-condition functions receive the time `t_{n+1}` as their "load" argument.
+//!
+//! Multiplier convention: `lambda` is the traction of the fluid on the solid (see
+//! [`crate::physics::coupling`]); [`FsiDiscretization::multiplier_force`] is the force of the
+//! fluid on the body.
+
+use crate::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
+use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
+use crate::physics::solid::{Mat3, IDENTITY};
+use crate::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
+use crate::solve::linear::LinearSolver;
+use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use fdfsi_fem::adapt::{
+    adapt_with, transfer_p2plus, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, Surface, GAMMA_F_REL_TOL,
+};
+use fdfsi_fem::dofs::NodeMap;
+use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
+use fdfsi_fem::locate::simplex_reference_coords;
+use fdfsi_fem::mesh::{BoundaryFacet, Mesh, MeshError, NO_CELL};
+use fdfsi_fem::quadrature;
+use fdfsi_fem::sparse::{CscMatrix, Pattern};
+use fdfsi_fem::values::det_inv;
+use std::time::Instant;
+use thiserror::Error;
+
+/// Quadrature degree on the coupling elements: P1 multiplier times the P2 fluid trace is degree
+/// 3; the solid basis along a gamma_f facet is piecewise (the facet may straddle several gamma_s
+/// pieces), so a few more points.
+const COUPLING_DEGREE: usize = 7;
+
+/// An error inside the monolithic assembly (reported through Newton).
+#[derive(Debug, Error)]
+pub enum FsiAssemblyError {
+    #[error("fluid: {0}")]
+    Fluid(#[from] AssemblyError),
+    #[error("solid: {0}")]
+    Solid(#[from] SolidAssemblyError),
+}
+
+/// Errors of an FSI step.
+#[derive(Debug, Error)]
+pub enum FsiError {
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error("adaptation: {0}")]
+    Adapt(#[from] AdaptError),
+    #[error(transparent)]
+    Flow(#[from] FlowError),
+    #[error(transparent)]
+    Solid(#[from] SolidError),
+    #[error("gamma_f is empty: gamma_s (solid boundary '{0}') cuts no fluid cell; check the solid's placement and the surface name")]
+    EmptyGammaF(String),
+    #[error("coupling point {point} of gamma_f facet {facet} at {x:?}: {reason}")]
+    Unlocated { facet: usize, point: usize, x: Vec<f64>, reason: String },
+    #[error(transparent)]
+    Newton(#[from] NewtonError<FsiAssemblyError>),
+}
+
+/// The coupled problem: fluid and solid problems, the solid boundary that is gamma_s, and the
+/// adaptation knobs.
+#[derive(Clone)]
+pub struct FsiProblem<const D: usize> {
+    /// Fluid physics and boundary conditions on the original fluid boundaries (`params.inv_dt`
+    /// is set by the step).
+    pub fluid: FlowProblem<D>,
+    /// Solid material and boundary conditions (their load argument is the time).
+    pub solid: SolidProblem<D>,
+    /// Name of the solid boundary forming gamma_s.
+    pub surface: String,
+    pub adapt: AdaptOptions,
+}
+
+/// Everything built once for a coupled run: the problem, the prepared original fluid mesh and the
+/// solid discretisation (reference configuration).
+pub struct FsiModel<const D: usize> {
+    pub problem: FsiProblem<D>,
+    pub background: Background<D>,
+    pub solid: SolidDiscretization<D>,
+}
+
+impl<const D: usize> FsiModel<D> {
+    /// Prepares the original fluid mesh and discretises the solid mesh (reference configuration).
+    pub fn new(problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
+        let background = Background::new(fluid_mesh)?;
+        let solid = SolidDiscretization::build(solid_mesh, problem.solid.formulation, problem.solid.material.as_ref())?;
+        solid.check_problem(&problem.solid)?;
+        solid.mesh.boundary_tag(&problem.surface)?;
+        Ok(FsiModel { problem, background, solid })
+    }
+
+    /// The solid mesh at the total displacement in `solid_x` (solid numbering): every geometry
+    /// node is placed by interpolating the Q2 displacement of its cell.
+    pub fn current_solid_mesh(&self, solid_x: &[f64]) -> Mesh<D> {
+        let s = &self.solid;
+        let mut mesh = s.mesh.clone();
+        let geo = s.mesh.geometry_element();
+        let tab = s.element.tabulate(geo.nodes());
+        let vf = s.displacement_field();
+        let nv = s.element.num_dofs();
+        for c in 0..mesh.num_cells() {
+            let dnodes = vf.nodes.cell(c);
+            for (k, &p) in s.mesh.cell(c).iter().enumerate() {
+                let mut x = [0.0; D];
+                for (i, &node) in dnodes.iter().enumerate() {
+                    let phi = tab.values[k * nv + i];
+                    if phi != 0.0 {
+                        for d in 0..D {
+                            x[d] += phi * (s.nodes_x0[node][d] + solid_x[vf.dof(node, d)]);
+                        }
+                    }
+                }
+                mesh.points[p] = x;
+            }
+        }
+        mesh
+    }
+
+    /// gamma_s at the total displacement `solid_x`.
+    pub fn gamma_s(&self, solid_x: &[f64]) -> Result<Surface<D>, FsiError> {
+        Ok(Surface::from_mesh_boundary(&self.current_solid_mesh(solid_x), &self.problem.surface)?)
+    }
+}
+
+/// The fluid velocity of the last step on its adapted mesh (what the next step transfers).
+#[derive(Clone, Debug)]
+pub struct FluidSnapshot<const D: usize> {
+    pub mesh: Mesh<D>,
+    /// P2+ velocity node map of `mesh`.
+    pub nodes: NodeMap,
+    /// `velocity[node * D + a]`.
+    pub velocity: Vec<f64>,
+}
+
+/// The state at `t_n`.
+#[derive(Clone, Debug)]
+pub struct FsiState<const D: usize> {
+    pub time: f64,
+    /// Solid total displacement from the reference configuration and pressure (solid numbering).
+    pub solid_x: Vec<f64>,
+    /// Deformation gradient per solid quadrature point.
+    pub solid_f: Vec<Mat3>,
+    /// Solid velocity of the last step (solid numbering, zero pressure part).
+    pub solid_v: Vec<f64>,
+    /// `None`: fluid at rest.
+    pub fluid: Option<FluidSnapshot<D>>,
+}
+
+impl<const D: usize> FsiState<D> {
+    /// Everything at rest in the reference configuration at `t = 0`.
+    pub fn at_rest(model: &FsiModel<D>) -> Self {
+        let n = model.solid.num_dofs();
+        FsiState {
+            time: 0.0,
+            solid_x: vec![0.0; n],
+            solid_f: vec![IDENTITY; model.solid.mesh.num_cells() * model.solid.points_per_cell()],
+            solid_v: vec![0.0; n],
+            fluid: None,
+        }
+    }
+}
+
+/// The coupling elements (one per gamma_f facet) and their quadrature points, point-major flat
+/// arrays.
+#[derive(Clone, Debug, Default)]
+pub struct CouplingElements<const D: usize> {
+    /// Fluid cell the velocity trace of each element is taken from.
+    pub fluid_cell: Vec<usize>,
+    /// Points of element `e`: `point_start[e]..point_start[e + 1]`.
+    pub point_start: Vec<usize>,
+    pub x: Vec<[f64; D]>,
+    /// `ds` (times `r` when axisymmetric) times the rule weight.
+    pub weight: Vec<f64>,
+    /// Solid cell each point lies in.
+    pub solid_cell: Vec<usize>,
+    /// Multiplier basis (`D` per point), fluid P2+ basis (`nf`), solid Q2 basis (`ns`).
+    pub mu: Vec<f64>,
+    pub phi_f: Vec<f64>,
+    pub phi_s: Vec<f64>,
+    pub nf: usize,
+    pub ns: usize,
+    /// Largest distance of a coupling point from gamma_s.
+    pub max_distance: f64,
+}
+
+impl<const D: usize> CouplingElements<D> {
+    pub fn num_elements(&self) -> usize {
+        self.fluid_cell.len()
+    }
+    pub fn num_points(&self) -> usize {
+        self.weight.len()
+    }
+}
+
+/// The multiplier's reference rule on a coupling element: P1 basis values (point-major, `D` per
+/// point, node `k` at the facet's vertex `k`), weights, and the reference measure.
+fn multiplier_rule<const D: usize>() -> (Vec<f64>, Vec<f64>, f64) {
+    if D == 2 {
+        let q = quadrature::segment(COUPLING_DEGREE);
+        (ReferenceElement::<1>::p1_segment().tabulate(&q.points).values, q.weights, 1.0)
+    } else {
+        let q = quadrature::triangle(COUPLING_DEGREE);
+        (ReferenceElement::<2>::p1_triangle().tabulate(&q.points).values, q.weights, 0.5)
+    }
+}
+
+fn measure<const D: usize>(p: &[[f64; D]; D]) -> f64 {
+    let e = |k: usize, d: usize| p[k][d] - p[0][d];
+    if D == 2 {
+        (e(1, 0).powi(2) + e(1, 1).powi(2)).sqrt()
+    } else {
+        let c = [e(1, 1) * e(2, 2) - e(1, 2) * e(2, 1), e(1, 2) * e(2, 0) - e(1, 0) * e(2, 2), e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0)];
+        0.5 * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+    }
+}
+
+/// The adapted mesh with the gamma_f facets tagged as the boundary
+/// [`crate::adaptation::GAMMA_F`] (one side per facet).
+pub fn tag_gamma_f<const D: usize>(adapted: &Adapted<D>) -> Mesh<D> {
+    let mut mesh = adapted.mesh.clone();
+    let tag = mesh.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
+    for g in &adapted.gamma_f {
+        if let Some(&(cell, facet)) = g.sides.iter().find(|s| s.0 != usize::MAX) {
+            mesh.boundary.push(BoundaryFacet { cell, facet, tag });
+        }
+    }
+    mesh.add_boundary_name(crate::adaptation::GAMMA_F, tag);
+    mesh
+}
+
+/// What one step's assembly needs besides the unknowns.
+pub struct StepInput<'a, const D: usize> {
+    /// The fluid problem with `params.inv_dt = 1/dt`.
+    pub fluid: &'a FlowProblem<D>,
+    /// `t_{n+1}`.
+    pub time: f64,
+    pub dt: f64,
+    /// The transferred fluid velocity (fluid numbering).
+    pub u_old: &'a [f64],
+    /// Solid total state at `t_n` (solid numbering) and `F_n` per quadrature point.
+    pub solid_base: &'a [f64],
+    pub solid_f: &'a [Mat3],
+    /// `dt v_n` (solid numbering) when the solid has inertia.
+    pub solid_target: Option<&'a [f64]>,
+}
+
+/// Everything derived from one adapted fluid mesh and one solid position: built once per step,
+/// never patched.
+pub struct FsiDiscretization<const D: usize> {
+    pub surface: Surface<D>,
+    pub adapted: Adapted<D>,
+    /// Fluid discretisation of the adapted mesh (boundary `gamma_f` tagged).
+    pub flow: FlowDiscretization<D>,
+    pub coupling: CouplingElements<D>,
+    pub fluid_dofs: usize,
+    pub solid_dofs: usize,
+    pub multiplier_dofs: usize,
+    pub pattern: Pattern,
+    flow_map: Vec<usize>,
+    solid_map: Vec<usize>,
+}
+
+/// Positions in `global` of the entries of `local` shifted by `offset` on both indices.
+fn position_map(local: &Pattern, global: &Pattern, offset: usize) -> Vec<usize> {
+    let mut out = Vec::with_capacity(local.nnz());
+    for j in 0..local.n {
+        for k in local.col_ptr[j]..local.col_ptr[j + 1] {
+            out.push(global.find(local.row_idx[k] + offset, j + offset).expect("block entries are in the global pattern"));
+        }
+    }
+    out
+}
+
+impl<const D: usize> FsiDiscretization<D> {
+    /// Adapts the original fluid mesh of `model` to gamma_s at the solid displacement `solid_x`
+    /// and builds the monolithic discretisation.
+    pub fn build(model: &FsiModel<D>, solid_x: &[f64]) -> Result<Self, FsiError> {
+        let surface = model.gamma_s(solid_x)?;
+        let adapted = adapt_with(&model.background, &surface, &model.problem.adapt)?;
+        if adapted.gamma_f.is_empty() {
+            return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
+        }
+        let flow = FlowDiscretization::build(tag_gamma_f(&adapted), model.problem.fluid.formulation)?;
+        let coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
+        let fluid_dofs = flow.num_dofs();
+        let solid_dofs = model.solid.num_dofs();
+        let ne = coupling.num_elements();
+        let multiplier_dofs = ne * D * D;
+        let (os, ol) = (fluid_dofs, fluid_dofs + solid_dofs);
+        let n = ol + multiplier_dofs;
+        // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
+        // displacement of every solid cell its points land in.
+        let vel = &flow.layout.fields[0];
+        let sf = model.solid.displacement_field();
+        let coupling_dofs: Vec<Vec<usize>> = (0..ne)
+            .map(|e| {
+                let mut d: Vec<usize> = (0..D * D).map(|k| ol + e * D * D + k).collect();
+                for &node in vel.nodes.cell(coupling.fluid_cell[e]) {
+                    d.extend((0..D).map(|a| vel.dof(node, a)));
+                }
+                let mut cells: Vec<usize> = coupling.solid_cell[coupling.point_start[e]..coupling.point_start[e + 1]].to_vec();
+                cells.sort_unstable();
+                cells.dedup();
+                for sc in cells {
+                    for &node in sf.nodes.cell(sc) {
+                        d.extend((0..D).map(|a| os + sf.dof(node, a)));
+                    }
+                }
+                d.sort_unstable();
+                d.dedup();
+                d
+            })
+            .collect();
+        let (nfc, nsc) = (flow.mesh.num_cells(), model.solid.mesh.num_cells());
+        let pattern = Pattern::from_cells(n, nfc + nsc + ne, |c, buf| {
+            if c < nfc {
+                flow.layout.cell_dofs_into(c, buf);
+            } else if c < nfc + nsc {
+                model.solid.layout.cell_dofs_into(c - nfc, buf);
+                buf.iter_mut().for_each(|d| *d += os);
+            } else {
+                buf.clear();
+                buf.extend_from_slice(&coupling_dofs[c - nfc - nsc]);
+            }
+        });
+        let flow_map = position_map(&flow.pattern, &pattern, 0);
+        let solid_map = position_map(&model.solid.pattern, &pattern, os);
+        Ok(FsiDiscretization { surface, adapted, flow, coupling, fluid_dofs, solid_dofs, multiplier_dofs, pattern, flow_map, solid_map })
+    }
+
+    /// Locates the quadrature points of every gamma_f facet in its fluid cell (the minus side,
+    /// or the plus side where gamma_f lies on the domain boundary) and on the solid.
+    fn coupling_elements(
+        model: &FsiModel<D>,
+        surface: &Surface<D>,
+        gamma_f: &[GammaFacet<D>],
+        flow: &FlowDiscretization<D>,
+    ) -> Result<CouplingElements<D>, FsiError> {
+        let (mu_tab, weights, ref_measure) = multiplier_rule::<D>();
+        let nq = weights.len();
+        let nf = flow.velocity_element.num_dofs();
+        let ns = model.solid.element.num_dofs();
+        let mut out = CouplingElements { nf, ns, point_start: vec![0], ..Default::default() };
+        let mut vals = [0.0; MAX_DOFS];
+        let mut grads = [[0.0; D]; MAX_DOFS];
+        let formulation = model.problem.fluid.formulation;
+        for (e, g) in gamma_f.iter().enumerate() {
+            let side = if g.sides[0] != NO_CELL { g.sides[0] } else { g.sides[1] };
+            let fc = side.0;
+            let cell_vertices: Vec<[f64; D]> = flow.mesh.cell_vertices(fc).iter().map(|&v| flow.mesh.points[v]).collect();
+            let corners: [[f64; D]; D] = g.vertices.map(|v| flow.mesh.points[v]);
+            let m = measure(&corners);
+            let diam = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| {
+                (0..D).map(|d| (corners[i][d] - corners[j][d]).powi(2)).sum::<f64>().sqrt()
+            });
+            let diam = diam.fold(0.0, f64::max);
+            out.fluid_cell.push(fc);
+            for q in 0..nq {
+                let mu = &mu_tab[q * D..(q + 1) * D];
+                let x: [f64; D] = std::array::from_fn(|d| (0..D).map(|k| mu[k] * corners[k][d]).sum());
+                let fail = |reason: String| FsiError::Unlocated { facet: e, point: q, x: x.to_vec(), reason };
+                let xi_f = simplex_reference_coords(&cell_vertices, &x).ok_or_else(|| fail(format!("degenerate fluid cell {fc}")))?;
+                flow.velocity_element.eval_into(&xi_f, &mut vals[..nf], &mut grads[..nf]);
+                out.phi_f.extend_from_slice(&vals[..nf]);
+                let sp = surface.project(&x).ok_or_else(|| fail("gamma_s is empty".into()))?;
+                if sp.distance > GAMMA_F_REL_TOL * diam {
+                    return Err(fail(format!(
+                        "{:.3e} from gamma_s, more than {GAMMA_F_REL_TOL} times the facet size {diam:.3e}: gamma_f and gamma_s disagree; refine the solid or the fluid mesh",
+                        sp.distance
+                    )));
+                }
+                out.max_distance = out.max_distance.max(sp.distance);
+                let (sc, xi_s) = surface.solid_point(&sp);
+                model.solid.element.eval_into(&xi_s, &mut vals[..ns], &mut grads[..ns]);
+                out.phi_s.extend_from_slice(&vals[..ns]);
+                out.mu.extend_from_slice(mu);
+                out.x.push(x);
+                out.weight.push(weights[q] * m / ref_measure * formulation.weight(&x));
+                out.solid_cell.push(sc);
+            }
+            out.point_start.push(out.weight.len());
+        }
+        Ok(out)
+    }
+
+    /// Number of unknowns.
+    pub fn num_dofs(&self) -> usize {
+        self.fluid_dofs + self.solid_dofs + self.multiplier_dofs
+    }
+    /// First solid dof.
+    pub fn solid_offset(&self) -> usize {
+        self.fluid_dofs
+    }
+    /// First multiplier dof.
+    pub fn multiplier_offset(&self) -> usize {
+        self.fluid_dofs + self.solid_dofs
+    }
+    /// Global dof of multiplier component `a` at node `k` of coupling element `e`.
+    pub fn multiplier_dof(&self, e: usize, k: usize, a: usize) -> usize {
+        self.multiplier_offset() + (e * D + k) * D + a
+    }
+
+    /// Assembles the Jacobian `k` and `rhs = -R(x)` of the coupled problem; rows of constrained
+    /// dofs become identity rows with zero right-hand side.
+    pub fn assemble(
+        &self,
+        model: &FsiModel<D>,
+        input: &StepInput<'_, D>,
+        x: &[f64],
+        constrained: &[bool],
+        k: &mut CscMatrix<'_>,
+        rhs: &mut [f64],
+    ) -> Result<(), FsiAssemblyError> {
+        let (os, ol) = (self.solid_offset(), self.multiplier_offset());
+        // Fluid block.
+        let mut kb = CscMatrix::zeros(&self.flow.pattern);
+        self.flow.assemble_system(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], &mut kb, &mut rhs[..os])?;
+        for (v, &pos) in kb.values.iter().zip(&self.flow_map) {
+            k.values[pos] += v;
+        }
+        // Solid block (updated Lagrangian: increment from X + u_n, F_n per point).
+        let mut kb = CscMatrix::zeros(&model.solid.pattern);
+        let inertia = input
+            .solid_target
+            .filter(|_| model.problem.solid.density > 0.0)
+            .map(|t| (model.problem.solid.density / (input.dt * input.dt), t));
+        model.solid.assemble_system(
+            &model.problem.solid,
+            input.time,
+            Some(input.solid_base),
+            Some(input.solid_f),
+            inertia,
+            &x[os..ol],
+            &constrained[os..ol],
+            &mut kb,
+            &mut rhs[os..ol],
+        )?;
+        for (v, &pos) in kb.values.iter().zip(&self.solid_map) {
+            k.values[pos] += v;
+        }
+        // Coupling.
+        let c = &self.coupling;
+        let (nm, nf, ns) = (D, c.nf, c.ns);
+        let nloc = (nm + nf + ns) * D;
+        let mut ke = vec![0.0; nloc * nloc];
+        let mut re = vec![0.0; nloc];
+        let mut dofs = vec![0usize; nloc];
+        let mut loc = vec![0.0; nloc];
+        let vel = &self.flow.layout.fields[0];
+        let sf = model.solid.displacement_field();
+        let inv_dt = 1.0 / input.dt;
+        for e in 0..c.num_elements() {
+            for kk in 0..nm {
+                for a in 0..D {
+                    dofs[kk * D + a] = self.multiplier_dof(e, kk, a);
+                }
+            }
+            for (i, &node) in vel.nodes.cell(c.fluid_cell[e]).iter().enumerate() {
+                for a in 0..D {
+                    dofs[(nm + i) * D + a] = vel.dof(node, a);
+                }
+            }
+            for q in c.point_start[e]..c.point_start[e + 1] {
+                for (i, &node) in sf.nodes.cell(c.solid_cell[q]).iter().enumerate() {
+                    for a in 0..D {
+                        dofs[(nm + nf + i) * D + a] = os + sf.dof(node, a);
+                    }
+                }
+                for i in 0..nloc {
+                    loc[i] = x[dofs[i]];
+                }
+                ke.iter_mut().for_each(|v| *v = 0.0);
+                re.iter_mut().for_each(|v| *v = 0.0);
+                let pt = CouplingPoint {
+                    weight: c.weight[q],
+                    mu: &c.mu[q * nm..(q + 1) * nm],
+                    phi_f: &c.phi_f[q * nf..(q + 1) * nf],
+                    phi_s: &c.phi_s[q * ns..(q + 1) * ns],
+                };
+                let state = CouplingState { lambda: &loc[..nm * D], u_f: &loc[nm * D..(nm + nf) * D], du_s: &loc[(nm + nf) * D..] };
+                coupling_point::<D>(&pt, inv_dt, &state, &mut ke, &mut re);
+                for i in 0..nloc {
+                    let row = dofs[i];
+                    if constrained[row] {
+                        continue;
+                    }
+                    rhs[row] -= re[i];
+                    for j in 0..nloc {
+                        let v = ke[i * nloc + j];
+                        if v != 0.0 {
+                            k.values[self.pattern.find(row, dofs[j]).expect("coupling dofs are in the pattern")] += v;
+                        }
+                    }
+                }
+            }
+        }
+        for (dof, &cn) in constrained.iter().enumerate().skip(ol) {
+            if cn {
+                k.values[self.pattern.find(dof, dof).expect("diagonal")] = 1.0;
+                rhs[dof] = 0.0;
+            }
+        }
+        Ok(())
+    }
+
+    /// The residual `R(x)` with no row constrained.
+    pub fn residual(&self, model: &FsiModel<D>, input: &StepInput<'_, D>, x: &[f64]) -> Result<Vec<f64>, FsiAssemblyError> {
+        let mut k = CscMatrix::zeros(&self.pattern);
+        let mut rhs = vec![0.0; self.num_dofs()];
+        self.assemble(model, input, x, &vec![false; self.num_dofs()], &mut k, &mut rhs)?;
+        rhs.iter_mut().for_each(|v| *v = -*v);
+        Ok(rhs)
+    }
+
+    /// `lambda` at coupling point `q` (of element `e`).
+    pub fn multiplier_at(&self, x: &[f64], e: usize, q: usize) -> [f64; D] {
+        let mu = &self.coupling.mu[q * D..(q + 1) * D];
+        std::array::from_fn(|a| (0..D).map(|k| mu[k] * x[self.multiplier_dof(e, k, a)]).sum())
+    }
+
+    /// Force of the fluid on the body, `int_gamma_f lambda ds` (axisymmetric: times `2 pi`).
+    pub fn multiplier_force(&self, x: &[f64], formulation: crate::physics::fluid::Formulation) -> [f64; D] {
+        let c = &self.coupling;
+        let mut f = [0.0; D];
+        for e in 0..c.num_elements() {
+            for q in c.point_start[e]..c.point_start[e + 1] {
+                let l = self.multiplier_at(x, e, q);
+                for a in 0..D {
+                    f[a] += c.weight[q] * l[a];
+                }
+            }
+        }
+        if formulation == crate::physics::fluid::Formulation::Axisymmetric {
+            f.iter_mut().for_each(|v| *v *= 2.0 * std::f64::consts::PI);
+        }
+        f
+    }
+}
+
+/// Wall-clock seconds of the phases of a step.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct StepTimings {
+    /// gamma_s, adaptation, fluid discretisation, coupling elements, pattern.
+    pub build: f64,
+    pub transfer: f64,
+    pub newton: f64,
+    pub update: f64,
+}
+
+/// What one FSI step did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FsiStepReport {
+    pub time: f64,
+    pub dt: f64,
+    pub newton: NewtonReport,
+    pub adapt: AdaptStats,
+    pub fluid_dofs: usize,
+    pub solid_dofs: usize,
+    pub multiplier_dofs: usize,
+    pub coupling_elements: usize,
+    pub coupling_points: usize,
+    pub pattern_nnz: usize,
+    /// Largest distance of a coupling point from gamma_s.
+    pub max_coupling_distance: f64,
+    /// `int_gamma_f lambda ds`: the force of the fluid on the body.
+    pub multiplier_force: Vec<f64>,
+    /// Largest nodal displacement increment of the solid.
+    pub max_solid_increment: f64,
+    pub seconds: StepTimings,
+}
+
+/// A completed step: its discretisation, the converged global vector and the transferred fluid
+/// velocity (the history of the step, for consistent residual forces), with the report.
+pub struct FsiStep<const D: usize> {
+    pub disc: FsiDiscretization<D>,
+    pub x: Vec<f64>,
+    pub u_old: Vec<f64>,
+    /// The fluid problem of the step (`inv_dt = 1/dt`).
+    pub fluid_problem: FlowProblem<D>,
+    pub report: FsiStepReport,
+}
+
+/// One implicit-Euler FSI step from `state` (at `t_n`) to `t_n + dt` (see the module
+/// documentation); returns the new state and the step.
+pub fn step<const D: usize>(
+    model: &FsiModel<D>,
+    state: &FsiState<D>,
+    dt: f64,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
+    let clock = Instant::now();
+    let disc = FsiDiscretization::build(model, &state.solid_x)?;
+    let mut seconds = StepTimings { build: clock.elapsed().as_secs_f64(), ..Default::default() };
+    let t_new = state.time + dt;
+    let mut fluid = model.problem.fluid.clone();
+    fluid.params.inv_dt = 1.0 / dt;
+    // Transfer the previous velocity to the new velocity nodes.
+    let clock = Instant::now();
+    let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
+    let mut u_old = vec![0.0; disc.fluid_dofs];
+    if let Some(prev) = &state.fluid {
+        let v = transfer_p2plus(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes)?;
+        u_old[disc.flow.layout.fields[0].range()].copy_from_slice(&v);
+    }
+    seconds.transfer = clock.elapsed().as_secs_f64();
+    // Initial iterate and constraints.
+    let mut x = vec![0.0; n];
+    x[..disc.fluid_dofs].copy_from_slice(&u_old);
+    let mut constrained = vec![false; n];
+    for (d, v) in disc.flow.dirichlet_dofs(&fluid, t_new)? {
+        constrained[d] = true;
+        x[d] = v;
+    }
+    let nus = model.solid.displacement_field().num_dofs();
+    x[os + nus..ol].copy_from_slice(&state.solid_x[nus..]);
+    for (d, v) in model.solid.dirichlet_values(&model.problem.solid, t_new)? {
+        constrained[os + d] = true;
+        x[os + d] = if d < nus { v - state.solid_x[d] } else { v };
+    }
+    let target: Option<Vec<f64>> = (model.problem.solid.density > 0.0).then(|| state.solid_v.iter().map(|v| v * dt).collect());
+    let input = StepInput {
+        fluid: &fluid,
+        time: t_new,
+        dt,
+        u_old: &u_old,
+        solid_base: &state.solid_x,
+        solid_f: &state.solid_f,
+        solid_target: target.as_deref(),
+    };
+    let clock = Instant::now();
+    let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs))?;
+    seconds.newton = clock.elapsed().as_secs_f64();
+    // Update the solid (updated Lagrangian) and keep the fluid for the next transfer.
+    let clock = Instant::now();
+    let inc = &x[os..ol];
+    let mut solid_f = state.solid_f.clone();
+    model.solid.update_deformation(&state.solid_x, inc, &mut solid_f).map_err(SolidError::from)?;
+    let mut solid_x = state.solid_x.clone();
+    for i in 0..nus {
+        solid_x[i] += inc[i];
+    }
+    solid_x[nus..].copy_from_slice(&inc[nus..]);
+    let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { inc[i] / dt } else { 0.0 }).collect();
+    let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let vel = &disc.flow.layout.fields[0];
+    let snapshot = FluidSnapshot { mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec() };
+    seconds.update = clock.elapsed().as_secs_f64();
+    let report = FsiStepReport {
+        time: t_new,
+        dt,
+        newton: report,
+        adapt: disc.adapted.stats.clone(),
+        fluid_dofs: disc.fluid_dofs,
+        solid_dofs: disc.solid_dofs,
+        multiplier_dofs: disc.multiplier_dofs,
+        coupling_elements: disc.coupling.num_elements(),
+        coupling_points: disc.coupling.num_points(),
+        pattern_nnz: disc.pattern.nnz(),
+        max_coupling_distance: disc.coupling.max_distance,
+        multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
+        max_solid_increment,
+        seconds,
+    };
+    let new_state = FsiState { time: t_new, solid_x, solid_f, solid_v, fluid: Some(snapshot) };
+    Ok((new_state, FsiStep { disc, x, u_old, fluid_problem: fluid, report }))
+}
+
+/// Wall shear stress at one point of one side of gamma_f (2D).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct WallShear {
+    /// 0: the minus side (the facet normal points out of it), 1: the plus side.
+    pub side: usize,
+    pub facet: usize,
+    pub x: [f64; 2],
+    /// Quadrature weight (`ds` times the rule weight).
+    pub weight: f64,
+    /// `t . (2 eta D(u)) n`, `t` the facet tangent (vertex 0 to vertex 1), `n` the unit normal
+    /// pointing into the fluid of that side.
+    pub tau: f64,
+}
+
+/// Wall shear stress on both sides of every gamma_f facet (2D), from the velocity gradient of the
+/// cell on each side, at a Gauss rule of `degree` on each facet. `x` is the fluid vector.
+pub fn wall_shear_stress(flow: &FlowDiscretization<2>, x: &[f64], gamma_f: &[GammaFacet<2>], viscosity: f64, degree: usize) -> Vec<WallShear> {
+    let rule = quadrature::segment(degree);
+    let vel = &flow.layout.fields[0];
+    let nf = flow.velocity_element.num_dofs();
+    let mut vals = [0.0; MAX_DOFS];
+    let mut grads = [[0.0; 2]; MAX_DOFS];
+    let mut out = Vec::new();
+    for (e, g) in gamma_f.iter().enumerate() {
+        let [p0, p1] = g.vertices.map(|v| flow.mesh.points[v]);
+        let len = ((p1[0] - p0[0]).powi(2) + (p1[1] - p0[1]).powi(2)).sqrt();
+        let t = [(p1[0] - p0[0]) / len, (p1[1] - p0[1]) / len];
+        let n_plus = [t[1], -t[0]];
+        for (side, &(c, _)) in g.sides.iter().enumerate() {
+            if c == usize::MAX {
+                continue;
+            }
+            let v: Vec<[f64; 2]> = flow.mesh.cell_vertices(c).iter().map(|&k| flow.mesh.points[k]).collect();
+            let jac = [[v[1][0] - v[0][0], v[2][0] - v[0][0]], [v[1][1] - v[0][1], v[2][1] - v[0][1]]];
+            let (_, inv) = det_inv(&jac);
+            let n_in = if side == 0 { [-n_plus[0], -n_plus[1]] } else { n_plus };
+            for (q, s) in rule.points.iter().enumerate() {
+                let xq = [p0[0] + s[0] * (p1[0] - p0[0]), p0[1] + s[0] * (p1[1] - p0[1])];
+                let Some(xi) = simplex_reference_coords(&v, &xq) else { continue };
+                flow.velocity_element.eval_into(&xi, &mut vals[..nf], &mut grads[..nf]);
+                let mut gu = [[0.0; 2]; 2];
+                for (i, &node) in vel.nodes.cell(c).iter().enumerate() {
+                    let gx = [grads[i][0] * inv[0][0] + grads[i][1] * inv[1][0], grads[i][0] * inv[0][1] + grads[i][1] * inv[1][1]];
+                    for a in 0..2 {
+                        let ua = x[vel.dof(node, a)];
+                        for b in 0..2 {
+                            gu[a][b] += ua * gx[b];
+                        }
+                    }
+                }
+                let mut tau = 0.0;
+                for a in 0..2 {
+                    for b in 0..2 {
+                        tau += t[a] * viscosity * (gu[a][b] + gu[b][a]) * n_in[b];
+                    }
+                }
+                out.push(WallShear { side, facet: e, x: xq, weight: rule.weights[q] * len, tau });
+            }
+        }
+    }
+    out
+}

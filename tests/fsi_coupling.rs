@@ -1,0 +1,148 @@
+//! The monolithic FSI discretisation on a tiny problem: the coupling operator reproduces
+//! constants, and the assembled Jacobian equals a finite difference of the assembled residual
+//! (fluid, updated-Lagrangian solid and coupling blocks together).
+//!
+//! `CARGO_TARGET_DIR=/tmp/target-fsi cargo test --release --test fsi_coupling -- --nocapture`
+
+use fdfsi::fem::adapt::AdaptOptions;
+use fdfsi::fem::generate::{rectangle_quads, rectangle_triangles, DiagonalPattern};
+use fdfsi::fem::mesh::{GeometryOrder, Mesh};
+use fdfsi::fem::sparse::CscMatrix;
+use fdfsi::flow::FlowProblem;
+use fdfsi::fsi::{FsiDiscretization, FsiModel, FsiProblem, StepInput};
+use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
+use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
+use fdfsi::solid::SolidProblem;
+use std::sync::Arc;
+
+fn rotated(mut m: Mesh<2>, deg: f64, pivot: [f64; 2]) -> Mesh<2> {
+    let (s, c) = deg.to_radians().sin_cos();
+    for p in m.points.iter_mut() {
+        let (dx, dy) = (p[0] - pivot[0], p[1] - pivot[1]);
+        *p = [pivot[0] + c * dx - s * dy, pivot[1] + s * dx + c * dy];
+    }
+    m
+}
+
+fn tiny_model() -> FsiModel<2> {
+    let fluid = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Alternating);
+    let solid = rotated(rectangle_quads(0.3, 0.7, 0.47, 0.53, 2, 1, GeometryOrder::Quadratic), 20.0, [0.5, 0.5]);
+    let params = FluidParams { viscosity: 0.1, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
+    let flow = FlowProblem { formulation: Formulation::Plane, params, body_force: None, dirichlet: vec![], traction: vec![], pin_pressure: false };
+    let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));
+    let solid_problem = SolidProblem::new(Formulation::Plane, mat).with_displacement("bottom", &[0, 1], |_: &[f64; 2], _| [0.0; 2]);
+    let problem = FsiProblem { fluid: flow, solid: solid_problem, surface: "top".into(), adapt: AdaptOptions::new(0.2) };
+    FsiModel::new(problem, &fluid, solid).unwrap()
+}
+
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+}
+
+#[test]
+fn coupling_operator_reproduces_constants() {
+    let model = tiny_model();
+    let base = vec![0.0; model.solid.num_dofs()];
+    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let mut fluid = model.problem.fluid.clone();
+    let dt = 0.25;
+    fluid.params.inv_dt = 1.0 / dt;
+    let f = model.solid.deformation_gradients(&base).unwrap();
+    let u_old = vec![0.0; disc.fluid_dofs];
+    let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_target: None };
+    let (os, ol) = (disc.solid_offset(), disc.multiplier_offset());
+    let c = [0.8, -1.3];
+    let vel = disc.flow.layout.fields[0].clone();
+    let sf = model.solid.displacement_field().clone();
+    let mut x = vec![0.0; disc.num_dofs()];
+    for node in 0..vel.nodes.num_nodes {
+        for a in 0..2 {
+            x[vel.dof(node, a)] = c[a];
+        }
+    }
+    // Fluid moving, solid at rest: sum_k R_lambda(e, k, a) = c_a |gamma_f| (the P1 functions sum to 1).
+    let r = disc.residual(&model, &input, &x).unwrap();
+    let gamma_f = disc.adapted.gamma_f_measure();
+    for a in 0..2 {
+        let s: f64 = (0..disc.coupling.num_elements()).flat_map(|e| (0..2).map(move |k| (e, k))).map(|(e, k)| r[disc.multiplier_dof(e, k, a)]).sum();
+        println!("component {a}: sum of constraint rows {s:.15} vs c |gamma_f| = {:.15}", c[a] * gamma_f);
+        assert!((s - c[a] * gamma_f).abs() < 1e-12);
+    }
+    // u_f = u_s = c: every constraint row vanishes.
+    for node in 0..sf.nodes.num_nodes {
+        for a in 0..2 {
+            x[os + sf.dof(node, a)] = c[a] * dt;
+        }
+    }
+    let r = disc.residual(&model, &input, &x).unwrap();
+    let worst = r[ol..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    println!("{} coupling elements, {} points: max |R_lambda| = {worst:.2e}", disc.coupling.num_elements(), disc.coupling.num_points());
+    assert!(worst < 1e-14, "{worst:e}");
+}
+
+#[test]
+fn monolithic_jacobian_matches_finite_differences_of_residual() {
+    let model = tiny_model();
+    let mut rng = Rng(17);
+    // A deformed solid at t_n (base displacement and its F), then random unknowns.
+    let nus = model.solid.displacement_field().num_dofs();
+    let mut base = vec![0.0; model.solid.num_dofs()];
+    for v in base[..nus].iter_mut() {
+        *v = 2e-3 * rng.next();
+    }
+    let f = model.solid.deformation_gradients(&base).unwrap();
+    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let mut fluid = model.problem.fluid.clone();
+    let dt = 0.1;
+    fluid.params.inv_dt = 1.0 / dt;
+    let u_old: Vec<f64> = (0..disc.fluid_dofs).map(|_| rng.next()).collect();
+    let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_target: None };
+    let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
+    let mut x: Vec<f64> = (0..n).map(|_| rng.next()).collect();
+    for v in x[os..os + nus].iter_mut() {
+        *v *= 2e-3;
+    }
+    println!(
+        "dofs: fluid {}, solid {}, multiplier {} ({} coupling elements); nnz {}",
+        disc.fluid_dofs,
+        disc.solid_dofs,
+        disc.multiplier_dofs,
+        disc.coupling.num_elements(),
+        disc.pattern.nnz()
+    );
+    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut rhs = vec![0.0; n];
+    disc.assemble(&model, &input, &x, &vec![false; n], &mut k, &mut rhs).unwrap();
+    let scale = k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut worst = (0.0f64, 0, 0);
+    let mut coupling_checked = 0;
+    for j in 0..n {
+        let h = 1e-6 * (1.0 + x[j].abs()) * if (os..ol).contains(&j) && j < os + nus { 1e-2 } else { 1.0 };
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[j] += h;
+        xm[j] -= h;
+        let rp = disc.residual(&model, &input, &xp).unwrap();
+        let rm = disc.residual(&model, &input, &xm).unwrap();
+        for i in 0..n {
+            let fd = (rp[i] - rm[i]) / (2.0 * h);
+            let kij = k.get(i, j);
+            if fd != 0.0 && disc.pattern.find(i, j).is_none() {
+                panic!("R[{i}] depends on x[{j}] (d = {fd:e}) but ({i}, {j}) is not in the pattern");
+            }
+            if (i >= ol) != (j >= ol) && kij != 0.0 {
+                coupling_checked += 1;
+            }
+            let err = (fd - kij).abs() / (1.0 + kij.abs());
+            if err > worst.0 {
+                worst = (err, i, j);
+            }
+        }
+    }
+    println!("max |K - FD| / (1 + |K|) = {:.2e} at ({}, {}); max |K| = {scale:.2e}; {coupling_checked} nonzero coupling entries checked", worst.0, worst.1, worst.2);
+    assert!(coupling_checked > 0);
+    assert!(worst.0 < 1e-5, "Jacobian mismatch {:.3e} at ({}, {})", worst.0, worst.1, worst.2);
+}
