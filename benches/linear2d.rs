@@ -1,0 +1,164 @@
+//! Benchmark of one Newton iteration of the steady Navier-Stokes solve (P2+/P1disc): assembly,
+//! numeric LU (symbolic cached) and solve, through [`FaerLu`] as `solve_steady` uses it.
+//!
+//! Systems:
+//!
+//! * `st2d1-coarse`: Schaefer-Turek 2D-1 on `meshes/dfg2d-coarse.msh` (36 596 dofs);
+//! * `st2d1-medium`: the same on `meshes/dfg2d-medium.msh` (145 157 dofs; skipped with
+//!   `FDFSI_BENCH_SKIP_MEDIUM=1`);
+//! * `stokes3d-box5`: the 3D Stokes verification problem on the unit cube, 5 cells per side.
+//!
+//! The 2D Jacobians are taken at the state after one Newton step from the Dirichlet data (a
+//! nonzero velocity, so the convective terms are present). Per system criterion measures
+//! `assembly`, `lu_numeric` (`FaerLu::factorize` with the symbolic factorisation cached) and
+//! `lu_solve` (one `solve_in_place`, residual check and refinement included), and the sum of the
+//! three as `newton_iteration`. Outside the timing it prints dofs, nnz, the factorisation in use
+//! and its fill, and the first (symbolic + numeric) factorisation time.
+//!
+//! Run: `CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench linear2d`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use fdfsi::case::Case;
+use fdfsi::flow::{DirichletBc, FlowDiscretization, FlowProblem, TractionBc};
+use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
+use fdfsi::solve::linear::{FaerLu, LinearSolver};
+use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
+use fdfsi_fem::generate::box_tetrahedra;
+use fdfsi_fem::gmsh::{read_msh, AnyMesh};
+use fdfsi_fem::sparse::CscMatrix;
+use std::hint::black_box;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// One benchmarked system: discretisation, problem, state and reusable buffers.
+struct System<const D: usize> {
+    disc: FlowDiscretization<D>,
+    problem: FlowProblem<D>,
+    x: Vec<f64>,
+    x_old: Vec<f64>,
+    constrained: Vec<bool>,
+}
+
+impl<const D: usize> System<D> {
+    fn new(disc: FlowDiscretization<D>, problem: FlowProblem<D>, newton_steps: usize) -> Self {
+        let n = disc.num_dofs();
+        let mut x = vec![0.0; n];
+        let mut constrained = vec![false; n];
+        for (d, v) in disc.dirichlet_dofs(&problem, 0.0).expect("dirichlet dofs") {
+            constrained[d] = true;
+            x[d] = v;
+        }
+        let mut s = System { disc, problem, x, x_old: vec![0.0; n], constrained };
+        let mut k = CscMatrix::zeros(&s.disc.pattern);
+        let mut rhs = vec![0.0; n];
+        let mut lu = FaerLu::default();
+        for _ in 0..newton_steps {
+            s.assemble(&mut k, &mut rhs);
+            lu.factorize(&k).expect("factorisation");
+            lu.solve_in_place(&k, &mut rhs).expect("solve");
+            s.x.iter_mut().zip(&rhs).for_each(|(a, b)| *a += b);
+        }
+        s
+    }
+
+    fn assemble(&self, k: &mut CscMatrix<'_>, rhs: &mut [f64]) {
+        k.values.iter_mut().for_each(|v| *v = 0.0);
+        rhs.iter_mut().for_each(|v| *v = 0.0);
+        self.disc.assemble_system(&self.problem, &self.x, &self.x_old, 0.0, &self.constrained, k, rhs).expect("assembly");
+    }
+
+    fn bench(&self, c: &mut Criterion, name: &str) {
+        let n = self.disc.num_dofs();
+        let mut k = CscMatrix::zeros(&self.disc.pattern);
+        let mut rhs = vec![0.0; n];
+        self.assemble(&mut k, &mut rhs);
+        let mut lu = FaerLu::default();
+        let t = Instant::now();
+        lu.factorize(&k).expect("first factorisation");
+        let first = t.elapsed();
+        let mut buf = rhs.clone();
+        let stats = lu.solve_in_place(&k, &mut buf).expect("solve");
+        eprintln!(
+            "[linear2d] {name}: dofs={n} nnz={} first_factorize(symbolic+numeric)={:.3}s residual={:.2e} refinements={} ; {}",
+            self.disc.pattern.nnz(),
+            first.as_secs_f64(),
+            stats.residual,
+            stats.refinements,
+            lu.describe()
+        );
+
+        let mut group = c.benchmark_group(name);
+        group.sample_size(10);
+        group.warm_up_time(Duration::from_millis(500));
+        group.measurement_time(Duration::from_secs(5));
+        group.bench_function("assembly", |b| b.iter(|| self.assemble(&mut k, &mut rhs)));
+        group.bench_function("lu_numeric", |b| b.iter(|| lu.factorize(black_box(&k)).expect("factorisation")));
+        group.bench_function("lu_solve", |b| {
+            b.iter(|| {
+                buf.copy_from_slice(&rhs);
+                black_box(lu.solve_in_place(&k, &mut buf).expect("solve"));
+            })
+        });
+        group.bench_function("newton_iteration", |b| {
+            b.iter(|| {
+                self.assemble(&mut k, &mut rhs);
+                lu.factorize(&k).expect("factorisation");
+                buf.copy_from_slice(&rhs);
+                black_box(lu.solve_in_place(&k, &mut buf).expect("solve"));
+            })
+        });
+        group.finish();
+        assert_eq!(lu.symbolic_factorizations(), 1, "the symbolic factorisation must be reused");
+    }
+}
+
+fn schaefer_turek(mesh_file: &str) -> System<2> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).expect("case");
+    let mesh = match read_msh(&root.join(mesh_file)).expect("mesh") {
+        AnyMesh::D2(m) => m,
+        AnyMesh::D3(_) => panic!("{mesh_file}: expected a 2D mesh"),
+    };
+    let problem = fdfsi::run::flow_problem(&case, &mesh, &root.join("cases")).expect("problem");
+    let disc = FlowDiscretization::build(mesh, Formulation::Plane).expect("discretisation");
+    System::new(disc, problem, 1)
+}
+
+/// The `stokes-3d` verification problem (manufactured solution, velocity on five faces, traction
+/// on `xmax`) on the unit cube with `n` cells per side.
+fn stokes3d(n: usize) -> System<3> {
+    let exact = Arc::new(Stokes3d { eta: 1.0 });
+    let ex = exact.clone();
+    let problem = FlowProblem {
+        formulation: Formulation::ThreeD,
+        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: ViscousForm::Stress },
+        body_force: Some(Arc::new(move |x: &[f64; 3], _t| ex.body_force(x))),
+        dirichlet: ["xmin", "ymin", "ymax", "zmin", "zmax"]
+            .iter()
+            .map(|name| {
+                let ex = exact.clone();
+                DirichletBc { boundary: name.to_string(), components: vec![0, 1, 2], value: Arc::new(move |x: &[f64; 3], _t| ex.velocity(x)) }
+            })
+            .collect(),
+        traction: vec![{
+            let ex = exact.clone();
+            TractionBc { boundary: "xmax".to_string(), traction: Arc::new(move |x: &[f64; 3], nrm: &[f64; 3], _t| ex.traction(x, nrm)) }
+        }],
+        pin_pressure: false,
+    };
+    let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n);
+    let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).expect("discretisation");
+    System::new(disc, problem, 0)
+}
+
+fn linear2d(c: &mut Criterion) {
+    schaefer_turek("meshes/dfg2d-coarse.msh").bench(c, "st2d1-coarse");
+    if std::env::var("FDFSI_BENCH_SKIP_MEDIUM").is_err() {
+        schaefer_turek("meshes/dfg2d-medium.msh").bench(c, "st2d1-medium");
+    }
+    stokes3d(5).bench(c, "stokes3d-box5");
+}
+
+criterion_group!(benches, linear2d);
+criterion_main!(benches);
