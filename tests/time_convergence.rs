@@ -17,3 +17,46 @@ fn bdf2_is_second_order() {
     println!("{:?} rate {}", s.errors, s.observed_rate);
     assert!(s.observed_rate >= 1.8, "{s:?}");
 }
+
+/// A step whose Newton solve fails is halved until it converges, and the run goes on; with no
+/// cuts allowed the same step is an error naming the step.
+#[test]
+fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
+    use fdfsi::fem::generate::{rectangle_triangles, DiagonalPattern};
+    use fdfsi::flow::{DirichletBc, FlowDiscretization, FlowProblem};
+    use fdfsi::physics::fluid::{FluidParams, Formulation};
+    use fdfsi::solve::linear::FaerLu;
+    use fdfsi::solve::newton::NewtonOptions;
+    use fdfsi::time::{solve_unsteady, TimeError, TimeOptions};
+    use std::sync::Arc;
+    // Lid-driven cavity at Re = 1000 started impulsively: one step of dt = 1 needs many Newton
+    // iterations, a small step few.
+    let disc = FlowDiscretization::build(rectangle_triangles(0.0, 1.0, 0.0, 1.0, 8, 8, DiagonalPattern::Alternating), Formulation::Plane).unwrap();
+    let wall = |name: &str, u: f64| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(move |_: &[f64; 2], _| [u, 0.0]) };
+    let problem = FlowProblem {
+        formulation: Formulation::Plane,
+        params: FluidParams { viscosity: 1e-3, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+        body_force: None,
+        dirichlet: vec![wall("top", 1.0), wall("bottom", 0.0), wall("left", 0.0), wall("right", 0.0)],
+        traction: vec![],
+        pin_pressure: true,
+    };
+    let newton = NewtonOptions { max_iterations: 3, ..Default::default() };
+    let mut cuts = Vec::new();
+    let mut x = vec![0.0; disc.num_dofs()];
+    let opts = TimeOptions { dt: 1.0, t_end: 2.0, scheme: fdfsi::time::TimeScheme::Euler, max_cuts: 8 };
+    solve_unsteady(&disc, &problem, &mut x, &opts, &mut FaerLu::default(), &newton, |r, _| {
+        cuts.push(r.cuts);
+        Ok(())
+    })
+    .unwrap();
+    println!("cuts per step: {cuts:?}");
+    assert_eq!(cuts.len(), 2);
+    assert!(cuts[0] > 0, "the impulsive first step needs cutting: {cuts:?}");
+    // No cuts allowed: the first step fails, and the error names it.
+    let mut x = vec![0.0; disc.num_dofs()];
+    let opts = TimeOptions { max_cuts: 0, ..opts };
+    let err = solve_unsteady(&disc, &problem, &mut x, &opts, &mut FaerLu::default(), &newton, |_, _| Ok(())).unwrap_err();
+    assert!(matches!(err, TimeError::StepFailed { step: 1, .. }), "{err}");
+    assert!(err.to_string().contains("step 1"), "{err}");
+}
