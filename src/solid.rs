@@ -627,6 +627,19 @@ pub fn solve_quasi_static<const D: usize>(
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
 ) -> Result<SolidSolution, SolidError> {
+    solve_quasi_static_with(disc, problem, stepping, solver, options, |_, _| Ok(()))
+}
+
+/// [`solve_quasi_static`], calling `on_step(record, x)` after every converged increment with the
+/// total displacement and pressure `x` (layout numbering); an `Err(message)` stops the stepping.
+pub fn solve_quasi_static_with<const D: usize>(
+    disc: &SolidDiscretization<D>,
+    problem: &SolidProblem<D>,
+    stepping: &LoadStepping,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+    mut on_step: impl FnMut(&StepRecord, &[f64]) -> Result<(), String>,
+) -> Result<SolidSolution, SolidError> {
     disc.check_problem(problem)?;
     let n = disc.num_dofs();
     let nu_global = disc.layout.fields[0].num_dofs();
@@ -680,6 +693,9 @@ pub fn solve_quasi_static<const D: usize>(
                     state = trial;
                 }
                 steps.push(StepRecord { step, load: target, increment: target - load, failure: None, newton: Some(report) });
+                if let Err(reason) = on_step(steps.last().expect("pushed"), &state) {
+                    return Err(SolidError::StepFailed { step, load: target, increment: target - load, reason });
+                }
                 load = target;
                 step += 1;
                 inc = (inc * stepping.growth).min(stepping.max_increment);

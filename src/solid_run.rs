@@ -8,8 +8,7 @@
 //!   pressure at the cell centre) and `cauchy_stress` (the cell mean of
 //!   `sigma = P F^T / J - p I` over its quadrature points, 9 components);
 //! - `history.csv`: one row per converged load increment (`time` is the load factor) with the
-//!   Newton iterations and the final residual; the `displacement` probes are evaluated on the
-//!   final state and filled in on the last row;
+//!   Newton iterations, the final residual and the `displacement` probes;
 //! - `summary.json` as for every run.
 
 use crate::adaptation::solid_mesh;
@@ -19,7 +18,7 @@ use crate::physics::solid::{
     det3, matmul, transpose, NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial,
 };
 use crate::run::{RunError, RunObserver, RunOptions, RunSummary, Timings};
-use crate::solid::{pressure_at, solve_quasi_static, LoadStepping, SolidDiscretization, SolidProblem};
+use crate::solid::{pressure_at, solve_quasi_static_with, LoadStepping, SolidDiscretization, SolidProblem};
 use crate::solve::linear::{FaerLu, LinearSolver};
 use fdfsi_fem::vtk::{PvdSeries, UnstructuredGrid, VtkCellType};
 use std::collections::BTreeMap;
@@ -122,8 +121,30 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     let mut timings = Timings { mesh: t.elapsed().as_secs_f64(), ..Default::default() };
     obs.log(&format!("solid: {} on {cells} cells, {} dofs; {} load steps", problem.material.name(), disc.num_dofs(), spec.loading.steps));
     let stepping = LoadStepping::uniform(spec.loading.mode, spec.loading.steps);
+    // Probes read the displacement at a node of the solid mesh.
+    let mut probe_nodes = Vec::new();
+    for p in &case.output.probe {
+        if p.field != ProbeField::Displacement {
+            return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
+        }
+        let x0: [f64; D] = std::array::from_fn(|d| p.point.get(d).copied().unwrap_or(0.0));
+        let node = disc.node_near(&x0);
+        let dist: f64 = (0..D).map(|d| (disc.nodes_x0[node][d] - x0[d]).powi(2)).sum::<f64>().sqrt();
+        if dist > 1e-9 * (1.0 + x0.iter().map(|v| v.abs()).fold(0.0, f64::max)) {
+            return Err(invalid(format!("probe '{}': {:?} is not a node of the solid mesh (nearest is {dist:.3e} away)", p.name, p.point)));
+        }
+        probe_nodes.push((p.name.clone(), node, p.component));
+    }
+    let names: Vec<String> = probe_nodes.iter().map(|(n, _, _)| n.clone()).collect();
+    let mut history = History::new(&options.out_dir.join("history.csv"), &names);
+    let mut converged = 0usize;
     let mut lu = FaerLu::default();
-    let sol = solve_quasi_static(&disc, &problem, &stepping, &mut lu, &case.solver.newton)?;
+    let sol = solve_quasi_static_with(&disc, &problem, &stepping, &mut lu, &case.solver.newton, |rec, x| {
+        converged += 1;
+        let r = rec.newton.as_ref().expect("a converged increment has its Newton report");
+        let values: Vec<f64> = probe_nodes.iter().map(|&(_, node, a)| disc.displacement(x, node)[a]).collect();
+        history.push(converged, rec.load, r.iterations, *r.residual_norms.last().unwrap_or(&0.0), &values).map_err(|e| e.to_string())
+    })?;
     let converged: Vec<_> = sol.steps.iter().filter(|s| s.failure.is_none() && s.newton.is_some()).collect();
     for s in &sol.steps {
         let n = s.newton.as_ref();
@@ -144,27 +165,8 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         }
     }
     let t = Instant::now();
-    let mut quantities = BTreeMap::new();
-    for p in &case.output.probe {
-        if p.field != ProbeField::Displacement {
-            return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
-        }
-        let x0: [f64; D] = std::array::from_fn(|d| p.point.get(d).copied().unwrap_or(0.0));
-        let node = disc.node_near(&x0);
-        let dist: f64 = (0..D).map(|d| (disc.nodes_x0[node][d] - x0[d]).powi(2)).sum::<f64>().sqrt();
-        if dist > 1e-9 * (1.0 + x0.iter().map(|v| v.abs()).fold(0.0, f64::max)) {
-            return Err(invalid(format!("probe '{}': {:?} is not a node of the solid mesh (nearest is {dist:.3e} away)", p.name, p.point)));
-        }
-        quantities.insert(p.name.clone(), disc.displacement(&sol.x, node)[p.component]);
-    }
-    let names: Vec<String> = quantities.keys().cloned().collect();
-    let mut history = History::new(&options.out_dir.join("history.csv"), &names);
-    for (k, s) in converged.iter().enumerate() {
-        let r = s.newton.as_ref().expect("filtered");
-        let last = k + 1 == converged.len();
-        let values: Vec<f64> = if last { quantities.values().copied().collect() } else { vec![f64::NAN; names.len()] };
-        history.push(k + 1, s.load, r.iterations, *r.residual_norms.last().unwrap_or(&0.0), &values)?;
-    }
+    let quantities: BTreeMap<String, f64> =
+        probe_nodes.iter().map(|(name, node, a)| (name.clone(), disc.displacement(&sol.x, *node)[*a])).collect();
     let mut series = PvdSeries::new(&options.out_dir, "solution");
     series.add(sol.load, "solid", &solid_grid(&disc, problem.material.as_ref(), &sol.x)?)?;
     timings.output = t.elapsed().as_secs_f64();

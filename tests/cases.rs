@@ -231,6 +231,12 @@ fn axisymmetric_cylinder_inflates_to_the_exact_radius() {
     // EXACT-SOLUTIONS.md 1.4: P_i = 0.21541965495917 G inflates A = 1 to a = 1.3.
     let u = q(&s, "inner_radial_displacement");
     assert!((u - 0.3).abs() < 1e-5, "{u}");
+    // One history row per load increment, the probe growing with the load.
+    let history = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = history.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 4);
+    assert!(rows.windows(2).all(|w| w[1][4] > w[0][4] && w[1][1] > w[0][1]), "{rows:?}");
+    assert!((rows[3][4] - u).abs() < 1e-14);
     // Quadratic Newton in every load step: the last two residuals of each step fall fast.
     assert!(s.residual_norms.iter().all(|r| *r < 1e-10), "{:?}", s.residual_norms);
     // The inner face carries the pressure: the radial Cauchy stress of the innermost cells is
