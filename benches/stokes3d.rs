@@ -11,21 +11,26 @@
 //!   residual check and iterative refinement the solver does).
 //!
 //! Outside criterion's timing, once per size, it prints to stderr: dofs, nnz of the pattern, the
-//! symbolic factorisation time (faer's `SymbolicLu::try_new` on the same pattern), the time of the
-//! first `factorize` (symbolic + numeric), the discretisation setup time, the solution error
-//! against the manufactured solution (a sanity check that the benchmarked system is the right
-//! one) and the peak resident memory `VmHWM` from `/proc/self/status`. `VmHWM` is process-wide and
-//! monotone, so the sizes run in increasing order and the growth per size is reported.
+//! factorisation in use and its fill (`FaerLu::describe`), the time of the first `factorize` of a
+//! fresh solver (symbolic + numeric) and of the second (numeric only), whose difference is the
+//! symbolic factorisation time, the discretisation setup time, the solution error against the
+//! manufactured solution (a sanity check that the benchmarked system is the right one) and the
+//! peak resident memory `VmHWM` from `/proc/self/status`. `VmHWM` is process-wide and monotone,
+//! so the sizes run in increasing order and the growth per size is reported.
+//!
+//! The LU method is `FaerLu`'s default (`LuMethod::Auto`); `FDFSI_BENCH_LU=pivoting` selects
+//! faer's partial-pivoting LU (`LuMethod::Pivoting`, criterion group `stokes3d-pivoting`), for
+//! which faer's `factorize_symbolic_lu` is also timed on its own.
 //!
 //! Run: `CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench stokes3d`.
 //! Sizes can be overridden with `FDFSI_BENCH_SIZES=4,6,8` (always in increasing order).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
-use faer::sparse::linalg::solvers::SymbolicLu;
+use faer::sparse::linalg::lu::factorize_symbolic_lu;
 use faer::sparse::SymbolicSparseColMatRef;
 use fdfsi::flow::{flow_errors, DirichletBc, ExactFlow, FlowDiscretization, FlowProblem, TractionBc};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
-use fdfsi::solve::linear::{FaerLu, LinearSolver};
+use fdfsi::solve::linear::{FaerLu, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
@@ -33,10 +38,17 @@ use std::hint::black_box;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Default mesh sizes (cells per side of the unit cube). `n = 8` (55 827 dofs) took 43-49 s per
-/// LU factorisation and 5.1 GiB on the 2-core reference machine (see BENCHMARKS.md), too long for
-/// ten criterion samples, so the sizes are 3, 5, 7 rather than 4, 6, 8.
-const SIZES: [usize; 3] = [3, 5, 7];
+/// Default mesh sizes (cells per side of the unit cube).
+const SIZES: [usize; 3] = [4, 6, 8];
+
+/// The LU method from `FDFSI_BENCH_LU` (`auto`, the default, or `pivoting`).
+fn lu_method() -> LuMethod {
+    match std::env::var("FDFSI_BENCH_LU").as_deref() {
+        Ok("pivoting") => LuMethod::Pivoting,
+        Ok("auto") | Err(_) => LuMethod::Auto,
+        Ok(other) => panic!("FDFSI_BENCH_LU: expected auto or pivoting, got {other}"),
+    }
+}
 
 fn sizes() -> Vec<usize> {
     match std::env::var("FDFSI_BENCH_SIZES") {
@@ -87,13 +99,14 @@ fn problem(exact: Arc<Stokes3d>) -> FlowProblem<3> {
     }
 }
 
-/// faer's symbolic LU of `pattern`, built exactly as `FaerLu` builds it; returns the time.
-fn time_symbolic(pattern: &Pattern) -> Duration {
+/// faer's partial-pivoting symbolic LU of `pattern`, as `FaerLu` builds it for
+/// `LuMethod::Pivoting`; returns the time.
+fn time_faer_symbolic(pattern: &Pattern) -> Duration {
     // SAFETY: `Pattern` keeps sorted, in-range row indices and monotone column pointers (the same
     // view `FaerLu` hands to faer).
     let sym = unsafe { SymbolicSparseColMatRef::new_unchecked(pattern.n, pattern.n, &pattern.col_ptr, None, &pattern.row_idx) };
     let t = Instant::now();
-    let s = SymbolicLu::try_new(sym).expect("symbolic LU");
+    let s = factorize_symbolic_lu(sym, Default::default()).expect("symbolic LU");
     let dt = t.elapsed();
     drop(black_box(s));
     dt
@@ -102,13 +115,14 @@ fn time_symbolic(pattern: &Pattern) -> Duration {
 fn stokes3d(c: &mut Criterion) {
     let exact = Arc::new(Stokes3d { eta: 1.0 });
     let problem = problem(exact.clone());
-    let mut group = c.benchmark_group("stokes3d");
+    let method = lu_method();
+    let mut group = c.benchmark_group(if method == LuMethod::Pivoting { "stokes3d-pivoting" } else { "stokes3d" });
     group.sample_size(10);
     group.warm_up_time(Duration::from_millis(500));
     group.measurement_time(Duration::from_secs(3));
 
     let start_hwm = vm_hwm_kib();
-    eprintln!("[stokes3d] VmHWM at start: {:.1} MiB", mib(start_hwm));
+    eprintln!("[stokes3d] LU method {method:?}; VmHWM at start: {:.1} MiB", mib(start_hwm));
     let mut prev_hwm = start_hwm;
     for n in sizes() {
         let hwm_before = vm_hwm_kib();
@@ -136,14 +150,25 @@ fn stokes3d(c: &mut Criterion) {
         disc.assemble_system(&problem, &x, &x_old, 0.0, &constrained, &mut k, &mut rhs).expect("assembly");
         let first_assembly = t.elapsed();
 
-        let symbolic: Vec<Duration> = (0..3).map(|_| time_symbolic(&disc.pattern)).collect();
-        let symbolic_min = symbolic.iter().min().copied().unwrap_or_default();
+        let faer_symbolic = if method == LuMethod::Pivoting {
+            let t: Vec<Duration> = (0..3).map(|_| time_faer_symbolic(&disc.pattern)).collect();
+            format!(
+                " faer_symbolic_lu(min of 3)={:.3}s",
+                t.iter().min().copied().unwrap_or_default().as_secs_f64()
+            )
+        } else {
+            String::new()
+        };
 
-        let mut lu = FaerLu::default();
+        let mut lu = FaerLu::with_method(LinearSolverOptions::default(), method);
         let t = Instant::now();
         lu.factorize(&k).expect("first factorisation");
         let first_factorize = t.elapsed();
+        let t = Instant::now();
+        lu.factorize(&k).expect("second factorisation");
+        let second_factorize = t.elapsed();
         assert_eq!(lu.symbolic_factorizations(), 1);
+        let symbolic = first_factorize.saturating_sub(second_factorize);
 
         // Stokes is linear: one Newton step from x (Dirichlet values set) is the solution.
         let mut dx = rhs.clone();
@@ -158,20 +183,22 @@ fn stokes3d(c: &mut Criterion) {
 
         eprintln!(
             "[stokes3d] n={n}: cells={cells} dofs={ndofs} nnz={nnz} (nnz/dof {:.1}) constrained={} setup(build)={:.3}s \
-             first_assembly={:.3}s symbolic_lu(min of 3)={:.3}s [{}] first_factorize(symbolic+numeric)={:.3}s \
-             first_solve={:.3}s residual={:.2e} refinements={} |u-u_h|_L2={:.3e} |p-p_h|_L2={:.3e}",
+             first_assembly={:.3}s first_factorize(symbolic+numeric)={:.3}s second_factorize(numeric)={:.3}s \
+             symbolic(first-second)={:.3}s{faer_symbolic} first_solve={:.3}s residual={:.2e} refinements={} \
+             |u-u_h|_L2={:.3e} |p-p_h|_L2={:.3e} lu=[{}]",
             nnz as f64 / ndofs as f64,
             bcs.len(),
             setup.as_secs_f64(),
             first_assembly.as_secs_f64(),
-            symbolic_min.as_secs_f64(),
-            symbolic.iter().map(|d| format!("{:.3}", d.as_secs_f64())).collect::<Vec<_>>().join(", "),
             first_factorize.as_secs_f64(),
+            second_factorize.as_secs_f64(),
+            symbolic.as_secs_f64(),
             first_solve.as_secs_f64(),
             stats.residual,
             stats.refinements,
             errs.velocity_l2,
             errs.pressure_l2,
+            lu.describe(),
         );
         eprintln!(
             "[stokes3d] n={n}: VmHWM before={:.1} MiB, after setup+assembly+first LU+solve={:.1} MiB (growth {:.1} MiB)",
