@@ -174,6 +174,12 @@ fn main() -> Result<()> {
                 let errs: Vec<String> = s.errors.iter().map(|e| format!("{e:.3e}")).collect();
                 println!("{:28} {:16} {:>9.2} {:>9.3}   {}", s.name, s.quantity, s.expected_rate, s.observed_rate, errs.join(" "));
             }
+            for c in &report.checks {
+                println!(
+                    "{:28} exact state reproduced: max |u - u_ex| = {:.2e}, max |p - p_ex| = {:.2e}",
+                    c.name, c.displacement_error, c.pressure_error
+                );
+            }
             for r in &runs {
                 println!("{}: max |int_K div u_h| = {:.2e}, dofs {:?}", r.studies[0].name, r.max_cell_divergence, r.dofs);
             }

@@ -63,10 +63,12 @@ pub fn observed_rate(h: &[f64], e: &[f64]) -> f64 {
     (e[n - 2] / e[n - 1]).ln() / (h[n - 2] / h[n - 1]).ln()
 }
 
-/// The JSON document `fdfsi verify --json` writes.
+/// The JSON document `fdfsi verify --json` writes: the convergence studies, and the exact states
+/// reproduced to round-off.
 #[derive(Clone, Debug, Serialize)]
 pub struct VerifyReport {
     pub studies: Vec<Study>,
+    pub checks: Vec<solid_exact::ExactnessCheck>,
 }
 
 /// Mesh sizes of a study.
@@ -234,11 +236,12 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
     progress("time-euler, time-bdf2");
     studies.push(time_convergence(crate::time::TimeScheme::Euler)?);
     studies.push(time_convergence(crate::time::TimeScheme::Bdf2)?);
-    progress("solid: rivlin-bending, cylinder-inflation");
+    progress("solid: rivlin-bending, cylinder-inflation, homogeneous states");
     for run in solid_exact::solid_studies(effort)? {
         studies.extend(run.studies);
     }
-    Ok((VerifyReport { studies }, runs))
+    let checks = solid_exact::homogeneous_checks()?;
+    Ok((VerifyReport { studies, checks }, runs))
 }
 
 /// Kovasznay flow (steady Navier-Stokes, Re = 40) on `[-0.5, 1] x [-0.5, 1.5]` with the exact

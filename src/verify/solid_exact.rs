@@ -17,7 +17,7 @@ use super::{Effort, Study};
 use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
 use crate::physics::fluid::Formulation;
 use crate::solid::{
-    solid_errors, solve_quasi_static, ExactSolid, Lagrangian, LoadStepping, SolidDiscretization, SolidError,
+    pressure_at, solid_errors, solve_quasi_static, ExactSolid, Lagrangian, LoadStepping, SolidDiscretization, SolidError,
     SolidErrors, SolidProblem,
 };
 use crate::solve::linear::FaerLu;
@@ -460,4 +460,95 @@ mod tests {
             }
         }
     }
+}
+
+/// A homogeneous state that Q2/P1disc must reproduce to round-off.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ExactnessCheck {
+    pub name: String,
+    /// Largest nodal displacement error.
+    pub displacement_error: f64,
+    /// Largest pressure error over the quadrature points.
+    pub pressure_error: f64,
+}
+
+/// Largest nodal displacement error and pressure error (all cells, all quadrature points).
+fn homogeneous_errors<const D: usize>(
+    disc: &SolidDiscretization<D>,
+    x: &[f64],
+    u: impl Fn(&[f64; D]) -> [f64; D],
+    p: f64,
+) -> (f64, f64) {
+    let mut eu: f64 = 0.0;
+    for (node, x0) in disc.nodes_x0.iter().enumerate() {
+        let ue = u(x0);
+        let uh = disc.displacement(x, node);
+        for d in 0..D {
+            eu = eu.max((uh[d] - ue[d]).abs());
+        }
+    }
+    let mut ep: f64 = 0.0;
+    let nq = disc.points_per_cell();
+    for c in 0..disc.mesh.num_cells() {
+        for q in 0..nq {
+            ep = ep.max((pressure_at(disc, x, c, &disc.qp_x0[c * nq + q]) - p).abs());
+        }
+    }
+    (eu, ep)
+}
+
+/// The homogeneous exact states of EXACT-SOLUTIONS.md 1.1-1.2 with the paper's incompressible
+/// law: uniaxial stretch 1.5 in plane strain (G = 2, Q1 geometry), axisymmetric and 3D (27-node
+/// hexahedra), and simple shear gamma = 0.5 with the displacement on the whole boundary and the
+/// pressure pinned (it must come out uniform).
+pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
+    use fdfsi_fem::generate::box_hexahedra;
+    let solve = |disc: &SolidDiscretization<2>, problem: &SolidProblem<2>, steps: usize| {
+        solve_quasi_static(disc, problem, &LoadStepping::uniform(Lagrangian::Total, steps), &mut FaerLu::default(), &study_newton())
+    };
+    let mut out = Vec::new();
+    let mut push = |name: &str, (eu, ep): (f64, f64)| {
+        out.push(ExactnessCheck { name: name.into(), displacement_error: eu, pressure_error: ep });
+    };
+    // Plane strain uniaxial.
+    let g = 2.0;
+    let ex = UniaxialPlaneStrain { shear_modulus: g, stretch: 1.5 };
+    let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(g));
+    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 2, GeometryOrder::Linear), Formulation::Plane, mat.as_ref())?;
+    let problem = SolidProblem::new(Formulation::Plane, mat)
+        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("right", &[0], |_: &[f64; 2], l| [0.5 * l, 0.0]);
+    let sol = solve(&disc, &problem, 2)?;
+    push("uniaxial-plane-strain", homogeneous_errors(&disc, &sol.x, |x| ex.displacement(x), ex.pressure()));
+    // Axisymmetric uniaxial: stretch along the axis z = x[0]; the axis r = 0 is "bottom".
+    let ex3 = Uniaxial3d { shear_modulus: 1.0, stretch: 1.5 };
+    let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(1.0));
+    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, GeometryOrder::Quadratic), Formulation::Axisymmetric, mat.as_ref())?;
+    let problem = SolidProblem::new(Formulation::Axisymmetric, mat.clone())
+        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("right", &[0], |_: &[f64; 2], l| [0.5 * l, 0.0]);
+    let sol = solve(&disc, &problem, 2)?;
+    push("uniaxial-axisymmetric", homogeneous_errors(&disc, &sol.x, |x| ex3.displacement(x), ex3.pressure()));
+    // 3D uniaxial on 27-node hexahedra.
+    let disc = SolidDiscretization::build(box_hexahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 2, 1, 1, GeometryOrder::Quadratic), Formulation::ThreeD, mat.as_ref())?;
+    let problem = SolidProblem::new(Formulation::ThreeD, mat.clone())
+        .with_displacement("xmin", &[0], |_: &[f64; 3], _| [0.0; 3])
+        .with_displacement("ymin", &[1], |_: &[f64; 3], _| [0.0; 3])
+        .with_displacement("zmin", &[2], |_: &[f64; 3], _| [0.0; 3])
+        .with_displacement("xmax", &[0], |_: &[f64; 3], l| [0.5 * l, 0.0, 0.0]);
+    let sol = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Total, 2), &mut FaerLu::default(), &study_newton())?;
+    push("uniaxial-3d", homogeneous_errors(&disc, &sol.x, |x| ex3.displacement(x), ex3.pressure()));
+    // Simple shear, fully Dirichlet, pressure pinned to 0.3.
+    let sh = SimpleShear { gamma: 0.5 };
+    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 3, GeometryOrder::Quadratic), Formulation::Plane, mat.as_ref())?;
+    let mut problem = SolidProblem::new(Formulation::Plane, mat);
+    for b in ["left", "right", "bottom", "top"] {
+        problem = problem.with_displacement(b, &[0, 1], move |x: &[f64; 2], l| [l * sh.gamma * x[1], 0.0]);
+    }
+    problem.pin_pressure = Some(0.3);
+    let sol = solve(&disc, &problem, 1)?;
+    push("simple-shear", homogeneous_errors(&disc, &sol.x, |x| sh.displacement(x), 0.3));
+    Ok(out)
 }
