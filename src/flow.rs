@@ -131,7 +131,7 @@ impl<const D: usize> FlowDiscretization<D> {
         layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
         let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
-        let cell_rule = rule_for::<D>(mesh.cell_type, cell_degree(D));
+        let cell_rule = quadrature::for_cell::<D>(mesh.cell_type, cell_degree(D));
         let (facet_points, facet_weights) = facet_rule(mesh.cell_type, 6);
         Ok(FlowDiscretization {
             mesh,
@@ -285,19 +285,6 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 }
 
-/// The quadrature rule of degree `degree` on `cell`, whose dimension must be `D`.
-pub fn rule_for<const D: usize>(cell: ReferenceCell, degree: usize) -> QuadratureRule<D> {
-    use std::any::Any;
-    let b: Box<dyn Any> = match cell {
-        ReferenceCell::Triangle => Box::new(quadrature::triangle(degree)),
-        ReferenceCell::Quadrilateral => Box::new(quadrature::quadrilateral(degree)),
-        ReferenceCell::Tetrahedron => Box::new(quadrature::tetrahedron(degree)),
-        ReferenceCell::Hexahedron => Box::new(quadrature::hexahedron(degree)),
-        ReferenceCell::Segment => Box::new(quadrature::segment(degree)),
-    };
-    *b.downcast::<QuadratureRule<D>>().unwrap_or_else(|_| panic!("{cell:?} is not a {D}D cell"))
-}
-
 /// A rule on the facet cell of `cell`, as points padded to 2 components.
 fn facet_rule(cell: ReferenceCell, degree: usize) -> (Vec<[f64; 2]>, Vec<f64>) {
     match cell.facet_cell() {
@@ -416,7 +403,7 @@ pub fn flow_errors<const D: usize>(
     exact: &ExactFlow<'_, D>,
     degree: usize,
 ) -> Result<FlowErrors, FlowError> {
-    let mut cv = disc.cell_values(rule_for(disc.mesh.cell_type, degree));
+    let mut cv = disc.cell_values(quadrature::for_cell(disc.mesh.cell_type, degree));
     let vf = &disc.layout.fields[0];
     let pf = &disc.layout.fields[1];
     let mut coords = Vec::new();

@@ -213,7 +213,7 @@ impl<const D: usize> SolidDiscretization<D> {
         }
         let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
-        let cell_rule = crate::flow::rule_for::<D>(mesh.cell_type, CELL_DEGREE);
+        let cell_rule = fdfsi_fem::quadrature::for_cell::<D>(mesh.cell_type, CELL_DEGREE);
         // Facet rule and tabulations.
         let (facet_points, facet_weights): (Vec<[f64; 2]>, Vec<f64>) = if D == 2 {
             let q = quadrature::segment(CELL_DEGREE);
@@ -779,7 +779,7 @@ pub fn solid_errors<const D: usize>(
     exact: &ExactSolid<'_, D>,
     degree: usize,
 ) -> Result<SolidErrors, SolidError> {
-    let mut cv = CellValues::new(crate::flow::rule_for(disc.mesh.cell_type, degree), &disc.element, &disc.element);
+    let mut cv = CellValues::new(fdfsi_fem::quadrature::for_cell(disc.mesh.cell_type, degree), &disc.element, &disc.element);
     let vf = &disc.layout.fields[0];
     let axi = disc.formulation == Formulation::Axisymmetric;
     let mut coords = Vec::new();

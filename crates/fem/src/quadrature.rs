@@ -208,20 +208,18 @@ pub fn hexahedron(degree: usize) -> QuadratureRule<3> {
     QuadratureRule { cell: ReferenceCell::Hexahedron, degree, points, weights }
 }
 
-/// Rule of degree `degree` on any 2D reference cell.
-pub fn for_cell_2d(cell: ReferenceCell, degree: usize) -> QuadratureRule<2> {
-    match cell {
-        ReferenceCell::Quadrilateral => quadrilateral(degree),
-        _ => triangle(degree),
-    }
-}
-
-/// Rule of degree `degree` on any 3D reference cell.
-pub fn for_cell_3d(cell: ReferenceCell, degree: usize) -> QuadratureRule<3> {
-    match cell {
-        ReferenceCell::Hexahedron => hexahedron(degree),
-        _ => tetrahedron(degree),
-    }
+/// The rule of degree `degree` on `cell`, whose dimension must be `D` (panics otherwise: a
+/// programming error, not an input error).
+pub fn for_cell<const D: usize>(cell: ReferenceCell, degree: usize) -> QuadratureRule<D> {
+    use std::any::Any;
+    let b: Box<dyn Any> = match cell {
+        ReferenceCell::Triangle => Box::new(triangle(degree)),
+        ReferenceCell::Quadrilateral => Box::new(quadrilateral(degree)),
+        ReferenceCell::Tetrahedron => Box::new(tetrahedron(degree)),
+        ReferenceCell::Hexahedron => Box::new(hexahedron(degree)),
+        ReferenceCell::Segment => Box::new(segment(degree)),
+    };
+    *b.downcast::<QuadratureRule<D>>().unwrap_or_else(|_| panic!("{cell:?} is not a {D}D cell"))
 }
 
 #[cfg(test)]
