@@ -623,8 +623,13 @@ impl Case {
                 problems.push(format!("probe '{}': component must be < {d}", p.name));
             }
         }
+        let builtin = if crate::fsi_run::is_fsi(self) { crate::fsi_run::builtin_quantities(d) } else { Vec::new() };
         let mut known: std::collections::HashSet<&str> = self.output.probe.iter().map(|p| p.name.as_str()).collect();
         known.extend(self.output.boundary_integral.iter().map(|b| b.name.as_str()));
+        known.extend(builtin.iter().map(String::as_str));
+        if crate::fsi_run::is_fsi(self) && self.time.is_none() {
+            problems.push("an FSI run (fluid mesh and a solid material model) needs a [time] table".into());
+        }
         for b in &self.output.boundary_integral {
             if b.kind == BoundaryIntegralKind::Force && b.component >= d {
                 problems.push(format!("boundary_integral '{}': component must be < {d}", b.name));

@@ -22,3 +22,4 @@ pub mod time;
 pub mod adaptation;
 pub mod solid_run;
 pub mod fsi;
+pub mod fsi_run;

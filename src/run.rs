@@ -32,6 +32,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("schaefer-turek-2d1", include_str!("../cases/schaefer-turek-2d1.toml")),
     ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
+    ("model-problem-2", include_str!("../cases/model-problem-2.toml")),
     ("cylinder-re100", include_str!("../cases/cylinder-re100.toml")),
     ("slab-3d-poiseuille", include_str!("../cases/slab-3d-poiseuille.toml")),
     ("cook-membrane", include_str!("../cases/cook-membrane.toml")),
@@ -61,6 +62,8 @@ pub enum RunError {
     Adaptation(#[from] crate::adaptation::AdaptationError),
     #[error(transparent)]
     Solid(#[from] crate::solid::SolidError),
+    #[error(transparent)]
+    Fsi(#[from] crate::fsi::FsiError),
 }
 
 /// Receives what a run reports: log lines and step progress.
@@ -215,8 +218,9 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     std::fs::create_dir_all(&options.out_dir)
         .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
-    if case.mesh.is_none() {
-        let mut summary = crate::solid_run::run_solid(case, options, log)?;
+    if case.mesh.is_none() || crate::fsi_run::is_fsi(case) {
+        let mut summary =
+            if case.mesh.is_none() { crate::solid_run::run_solid(case, options, log)? } else { crate::fsi_run::run_fsi(case, options, log)? };
         summary.timings.total = t0.elapsed().as_secs_f64();
         let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
         write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;

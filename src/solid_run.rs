@@ -53,22 +53,24 @@ fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, RunError> {
     values.iter().map(|v| Expr::compile(v).map_err(invalid)).collect()
 }
 
-/// The solid problem of a case: boundary values times the load factor.
-fn problem<const D: usize>(case: &Case, spec: &SolidSpec) -> Result<SolidProblem<D>, RunError> {
+/// The solid problem of a case: boundary values times the load factor when `ramp` (quasi-static
+/// runs), constant otherwise (FSI runs, where the solver passes the time in the load argument).
+pub(crate) fn problem<const D: usize>(case: &Case, spec: &SolidSpec, ramp: bool) -> Result<SolidProblem<D>, RunError> {
+    let scale = move |load: f64| if ramp { load } else { 1.0 };
     let mut p = SolidProblem::new(case.physics.formulation, material(spec)?);
     for b in &spec.boundary {
         let exprs = compile(&b.value)?;
         match b.kind {
             SolidBoundaryType::Displacement => {
                 let comps: Vec<usize> = b.components.clone().unwrap_or_else(|| (0..D).collect());
-                p = p.with_displacement(&b.name, &comps, move |x, load| std::array::from_fn(|a| load * exprs[a].eval(x, 0.0)));
+                p = p.with_displacement(&b.name, &comps, move |x, load| std::array::from_fn(|a| scale(load) * exprs[a].eval(x, 0.0)));
             }
             SolidBoundaryType::Traction => {
-                p = p.with_traction(&b.name, move |x, load| std::array::from_fn(|a| load * exprs[a].eval(x, 0.0)));
+                p = p.with_traction(&b.name, move |x, load| std::array::from_fn(|a| scale(load) * exprs[a].eval(x, 0.0)));
             }
             SolidBoundaryType::Pressure => {
                 let value = exprs[0].eval(&[0.0; 3], 0.0);
-                p = p.with_pressure(&b.name, move |load| load * value);
+                p = p.with_pressure(&b.name, move |load| scale(load) * value);
             }
         }
     }
@@ -80,7 +82,7 @@ pub fn describe(case: &Case, case_dir: &Path) -> Result<String, RunError> {
     fn go<const D: usize>(case: &Case, spec: &SolidSpec, dir: &Path) -> Result<String, RunError> {
         let mesh = solid_mesh::<D>(spec, dir)?;
         let cells = mesh.num_cells();
-        let problem = problem::<D>(case, spec)?;
+        let problem = problem::<D>(case, spec, true)?;
         let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
         disc.check_problem(&problem)?;
         Ok(format!(
@@ -115,7 +117,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     let t = Instant::now();
     let mesh = solid_mesh::<D>(spec, &options.case_dir)?;
     let cells = mesh.num_cells();
-    let problem = problem::<D>(case, spec)?;
+    let problem = problem::<D>(case, spec, true)?;
     let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
     disc.check_problem(&problem)?;
     let mut timings = Timings { mesh: t.elapsed().as_secs_f64(), ..Default::default() };
@@ -192,7 +194,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
 }
 
 /// The deformed solid as a VTK grid (see the module doc for its arrays).
-fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn SolidMaterial, x: &[f64]) -> Result<UnstructuredGrid, RunError> {
+pub(crate) fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn SolidMaterial, x: &[f64]) -> Result<UnstructuredGrid, RunError> {
     let field = disc.displacement_field();
     let n = field.nodes.num_nodes;
     let points: Vec<[f64; 3]> = (0..n)

@@ -273,3 +273,24 @@ fn quarter_pipe_converges_to_hagen_poiseuille_under_refinement() {
     println!("quarter pipe: axis velocity errors {errors:?}");
     assert!(errors[1] < errors[0] / 3.0, "{errors:?}");
 }
+
+#[test]
+fn model_problem_2_fsi_force_matches_the_dirichlet_twin() {
+    let (fsi, out) = run("model-problem-2");
+    let (twin, _) = run("skewed-plate-dirichlet");
+    let f = [q(&fsi, "plate_force_x"), q(&fsi, "plate_force_y")];
+    let g = [q(&twin, "plate_force_x"), q(&twin, "plate_force_y")];
+    let diff = ((f[0] - g[0]).powi(2) + (f[1] - g[1]).powi(2)).sqrt() / (g[0].powi(2) + g[1].powi(2)).sqrt();
+    println!("model problem 2: FSI force {f:?}, twin {g:?}, relative difference {diff:.3e}");
+    assert!(diff < 0.01, "{diff}");
+    assert!((q(&fsi, "inlet_flux") + q(&fsi, "outlet_flux")).abs() < 1e-10);
+    assert_eq!(fsi.steps, 12);
+    assert!(q(&fsi, "coupling_facets") > 5.0);
+    // Fluid and solid pieces in the series (steps 6 and 12).
+    let entries = read_pvd(&out.join("solution.pvd")).unwrap();
+    let names: Vec<&str> = entries.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["fluid", "solid", "fluid", "solid"]);
+    let history = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 13);
+    assert!(history.lines().next().unwrap().contains("coupling_force_x"));
+}
