@@ -17,19 +17,13 @@ use fdfsi_fem::adapt::{adapt_with, AdaptError, AdaptOptions, AdaptStats, Adapted
 use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::generate;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh, GmshError};
-use fdfsi_fem::mesh::{BoundaryFacet, GeometryOrder, Mesh};
+use fdfsi_fem::mesh::{GeometryOrder, Mesh};
 use fdfsi_fem::vtk::{write_vtu, UnstructuredGrid, VtkCellType, VtkError};
 use serde::Serialize;
 use std::path::Path;
 use thiserror::Error;
 
-/// Name of the boundary the adapted fluid mesh gives the facets on gamma_s.
-pub const GAMMA_F: &str = "gamma_f";
-/// The facets of gamma_f seen from the fluid cells on the minus side of gamma_s (opposite to the
-/// normal of the solid surface `surface`, i.e. inside the solid for a closed body).
-pub const GAMMA_F_MINUS: &str = "gamma_f_minus";
-/// ... and from the plus side (the side the solid surface's outward normal points to).
-pub const GAMMA_F_PLUS: &str = "gamma_f_plus";
+pub use fdfsi_fem::adapt::{GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
 
 /// A failure while building the solid surface or adapting.
 #[derive(Debug, Error)]
@@ -116,24 +110,7 @@ pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path)
     let surface = Surface::from_mesh_boundary(&solid, name)?;
     let background = Background::new(&fluid)?;
     let mut adapted = adapt_with(&background, &surface, &AdaptOptions::new(spec.eps_hat))?;
-    let tag = adapted.mesh.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
-    let mut tagged = Vec::new();
-    for g in &adapted.gamma_f {
-        // One side suffices to name the facet's nodes; take the first side that exists.
-        if let Some(&(cell, facet)) = g.sides.iter().find(|s| s.0 != usize::MAX) {
-            tagged.push(BoundaryFacet { cell, facet, tag });
-        }
-        // Each side separately (for one-sided quantities such as wall shear stress).
-        for (k, &(cell, facet)) in g.sides.iter().enumerate() {
-            if cell != usize::MAX {
-                tagged.push(BoundaryFacet { cell, facet, tag: tag + 1 + k as u32 });
-            }
-        }
-    }
-    adapted.mesh.boundary.extend(tagged);
-    adapted.mesh.add_boundary_name(GAMMA_F, tag);
-    adapted.mesh.add_boundary_name(GAMMA_F_MINUS, tag + 1);
-    adapted.mesh.add_boundary_name(GAMMA_F_PLUS, tag + 2);
+    fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
     Ok(AdaptedFluid { original: fluid, solid, surface, adapted })
 }
 

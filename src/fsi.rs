@@ -42,7 +42,7 @@ use fdfsi_fem::adapt::{
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
 use fdfsi_fem::locate::simplex_reference_coords;
-use fdfsi_fem::mesh::{BoundaryFacet, Mesh, MeshError, NO_CELL};
+use fdfsi_fem::mesh::{Mesh, MeshError, NO_CELL};
 use fdfsi_fem::quadrature;
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use fdfsi_fem::values::det_inv;
@@ -243,13 +243,7 @@ fn measure<const D: usize>(p: &[[f64; D]; D]) -> f64 {
 /// [`crate::adaptation::GAMMA_F`] (one side per facet).
 pub fn tag_gamma_f<const D: usize>(adapted: &Adapted<D>) -> Mesh<D> {
     let mut mesh = adapted.mesh.clone();
-    let tag = mesh.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
-    for g in &adapted.gamma_f {
-        if let Some(&(cell, facet)) = g.sides.iter().find(|s| s.0 != usize::MAX) {
-            mesh.boundary.push(BoundaryFacet { cell, facet, tag });
-        }
-    }
-    mesh.add_boundary_name(crate::adaptation::GAMMA_F, tag);
+    fdfsi_fem::adapt::tag_gamma_f(&mut mesh, &adapted.gamma_f);
     mesh
 }
 

@@ -7,6 +7,8 @@
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
 //!   integral of the multiplier over gamma_f, plus `coupling_facets`;
+//! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
+//!   gamma_f);
 //! - `summary.json` as for every run.
 //!
 //! Solid boundary values are constant in time in FSI runs (no load factor).
@@ -107,6 +109,9 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
             History::new(&options.out_dir.join("history.csv"), &values.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>())
         });
         hist.push(k, r.time, r.newton.iterations, residual, &values.iter().map(|(_, v)| *v).collect::<Vec<_>>())?;
+        if k == total {
+            crate::run::write_profiles(case, &st.disc.flow, &st.fluid_problem, fluid_x, &options.out_dir, obs)?;
+        }
         if k % ts.output_every == 0 || k == total {
             series.add(r.time, "fluid", &fluid_grid(&st.disc.flow, fluid_x)?)?;
             series.add(r.time, "solid", &crate::solid_run::solid_grid(&model.solid, material.as_ref(), &next.solid_x)?)?;

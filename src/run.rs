@@ -419,15 +419,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
     for (name, v) in &out.last {
         obs.log(&format!("{name} = {v:.10e}"));
     }
-    if !case.output.profile.is_empty() {
-        let dir = options.out_dir.join("profiles");
-        std::fs::create_dir_all(&dir).map_err(|source| OutputError::Io { path: dir.display().to_string(), source })?;
-        for spec in &case.output.profile {
-            let pts = crate::quantities::profile(&disc, &problem, &x, spec)?;
-            write_atomic(&dir.join(format!("{}.csv", spec.name)), crate::quantities::profile_csv(&pts).as_bytes())?;
-            obs.log(&format!("profile {}: {} points along '{}'", spec.name, pts.len(), spec.boundary));
-        }
-    }
+    write_profiles(case, &disc, &problem, &x, &options.out_dir, obs)?;
     timings.output = out.seconds;
     let mut dofs = BTreeMap::new();
     dofs.insert("velocity".to_string(), nv);
@@ -446,6 +438,28 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         quantities: out.last.into_iter().collect(),
         timings,
     })
+}
+
+/// Writes the case's `[[output.profile]]`s of the flow `x` to `out_dir/profiles/NAME.csv`.
+pub(crate) fn write_profiles<const D: usize>(
+    case: &Case,
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    x: &[f64],
+    out_dir: &Path,
+    obs: &mut dyn RunObserver,
+) -> Result<(), RunError> {
+    if case.output.profile.is_empty() {
+        return Ok(());
+    }
+    let dir = out_dir.join("profiles");
+    std::fs::create_dir_all(&dir).map_err(|source| OutputError::Io { path: dir.display().to_string(), source })?;
+    for spec in &case.output.profile {
+        let pts = crate::quantities::profile(disc, problem, x, spec)?;
+        write_atomic(&dir.join(format!("{}.csv", spec.name)), crate::quantities::profile_csv(&pts).as_bytes())?;
+        obs.log(&format!("profile {}: {} points along '{}'", spec.name, pts.len(), spec.boundary));
+    }
+    Ok(())
 }
 
 impl Timings {

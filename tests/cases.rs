@@ -293,4 +293,8 @@ fn model_problem_2_fsi_force_matches_the_dirichlet_twin() {
     let history = std::fs::read_to_string(out.join("history.csv")).unwrap();
     assert_eq!(history.lines().count(), 13);
     assert!(history.lines().next().unwrap().contains("coupling_force_x"));
+    for side in ["wss_upstream_side", "wss_downstream_side"] {
+        let text = std::fs::read_to_string(out.join(format!("profiles/{side}.csv"))).unwrap();
+        assert!(text.lines().count() > 10, "{side}");
+    }
 }

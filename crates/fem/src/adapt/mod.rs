@@ -65,6 +65,36 @@ use thiserror::Error;
 /// gamma_f.
 pub const GAMMA_F_REL_TOL: f64 = 0.1;
 
+/// Name of the boundary [`tag_gamma_f`] gives the facets of gamma_f (seen from one side).
+pub const GAMMA_F: &str = "gamma_f";
+/// The facets of gamma_f seen from the cells on the minus side of gamma_s (opposite to the
+/// surface normal).
+pub const GAMMA_F_MINUS: &str = "gamma_f_minus";
+/// ... and from the plus side (the side the surface normal points to).
+pub const GAMMA_F_PLUS: &str = "gamma_f_plus";
+
+/// Adds the facets of `gamma_f` to the boundary of `mesh` (the adapted mesh they belong to) under
+/// the names [`GAMMA_F`] (one side, enough to name the facet's nodes), [`GAMMA_F_MINUS`] and
+/// [`GAMMA_F_PLUS`] (each side separately, for one-sided quantities such as wall shear stress).
+pub fn tag_gamma_f<const D: usize>(mesh: &mut Mesh<D>, gamma_f: &[GammaFacet<D>]) {
+    let tag = mesh.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
+    let mut tagged = Vec::new();
+    for g in gamma_f {
+        if let Some(&(cell, facet)) = g.sides.iter().find(|s| s.0 != usize::MAX) {
+            tagged.push(BoundaryFacet { cell, facet, tag });
+        }
+        for (k, &(cell, facet)) in g.sides.iter().enumerate() {
+            if cell != usize::MAX {
+                tagged.push(BoundaryFacet { cell, facet, tag: tag + 1 + k as u32 });
+            }
+        }
+    }
+    mesh.boundary.extend(tagged);
+    mesh.add_boundary_name(GAMMA_F, tag);
+    mesh.add_boundary_name(GAMMA_F_MINUS, tag + 1);
+    mesh.add_boundary_name(GAMMA_F_PLUS, tag + 2);
+}
+
 /// Errors of the adaptation and of the transfer.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum AdaptError {
