@@ -132,7 +132,7 @@ impl<const D: usize> FlowDiscretization<D> {
         let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
         let cell_rule = quadrature::for_cell::<D>(mesh.cell_type, cell_degree(D));
-        let (facet_points, facet_weights) = facet_rule(mesh.cell_type, 6);
+        let (facet_points, facet_weights) = quadrature::for_facets(mesh.cell_type, 6);
         Ok(FlowDiscretization {
             mesh,
             topology,
@@ -285,23 +285,6 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 }
 
-/// A rule on the facet cell of `cell`, as points padded to 2 components.
-fn facet_rule(cell: ReferenceCell, degree: usize) -> (Vec<[f64; 2]>, Vec<f64>) {
-    match cell.facet_cell() {
-        ReferenceCell::Triangle => {
-            let q = quadrature::triangle(degree);
-            (q.points, q.weights)
-        }
-        ReferenceCell::Quadrilateral => {
-            let q = quadrature::quadrilateral(degree);
-            (q.points, q.weights)
-        }
-        _ => {
-            let q = quadrature::segment(degree);
-            (q.points.iter().map(|p| [p[0], 0.0]).collect(), q.weights)
-        }
-    }
-}
 
 /// A flow solution on a discretisation: the global vector in the layout's numbering.
 #[derive(Clone, Debug)]

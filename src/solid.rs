@@ -215,13 +215,7 @@ impl<const D: usize> SolidDiscretization<D> {
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
         let cell_rule = fdfsi_fem::quadrature::for_cell::<D>(mesh.cell_type, CELL_DEGREE);
         // Facet rule and tabulations.
-        let (facet_points, facet_weights): (Vec<[f64; 2]>, Vec<f64>) = if D == 2 {
-            let q = quadrature::segment(CELL_DEGREE);
-            (q.points.iter().map(|p| [p[0], 0.0]).collect(), q.weights)
-        } else {
-            let q = quadrature::quadrilateral(CELL_DEGREE);
-            (q.points, q.weights)
-        };
+        let (facet_points, facet_weights) = quadrature::for_facets(mesh.cell_type, CELL_DEGREE);
         let cell = mesh.cell_type;
         let nv = element.num_dofs();
         let facet_tabs = (0..cell.num_facets())

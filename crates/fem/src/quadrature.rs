@@ -222,6 +222,26 @@ pub fn for_cell<const D: usize>(cell: ReferenceCell, degree: usize) -> Quadratur
     *b.downcast::<QuadratureRule<D>>().unwrap_or_else(|_| panic!("{cell:?} is not a {D}D cell"))
 }
 
+/// A rule of degree `degree` on the facet cell of `cell` (segment, triangle or quadrilateral),
+/// with the points padded to 2 components: the form [`crate::values::FacetValues`] and
+/// [`crate::element::ReferenceCell::facet_point`] take.
+pub fn for_facets(cell: ReferenceCell, degree: usize) -> (Vec<[f64; 2]>, Vec<f64>) {
+    match cell.facet_cell() {
+        ReferenceCell::Triangle => {
+            let q = triangle(degree);
+            (q.points, q.weights)
+        }
+        ReferenceCell::Quadrilateral => {
+            let q = quadrilateral(degree);
+            (q.points, q.weights)
+        }
+        _ => {
+            let q = segment(degree);
+            (q.points.iter().map(|p| [p[0], 0.0]).collect(), q.weights)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
