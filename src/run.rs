@@ -218,22 +218,22 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     std::fs::create_dir_all(&options.out_dir)
         .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
-    if case.mesh.is_none() || crate::fsi_run::is_fsi(case) {
-        let mut summary =
-            if case.mesh.is_none() { crate::solid_run::run_solid(case, options, log)? } else { crate::fsi_run::run_fsi(case, options, log)? };
-        summary.timings.total = t0.elapsed().as_secs_f64();
-        let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
-        write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
-        return Ok(summary);
-    }
-    let t = Instant::now();
-    let mesh = fluid_mesh(case, &options.case_dir, log)?;
-    let mesh_seconds = t.elapsed().as_secs_f64();
-    let mut summary = match mesh {
-        AnyMesh::D2(m) => run_flow::<2>(case, m, options, log)?,
-        AnyMesh::D3(m) => run_flow::<3>(case, m, options, log)?,
+    // Three kinds of run: solid only, FSI, or flow (with a fixed solid, if any).
+    let mut summary = if case.mesh.is_none() {
+        crate::solid_run::run_solid(case, options, log)?
+    } else if crate::fsi_run::is_fsi(case) {
+        crate::fsi_run::run_fsi(case, options, log)?
+    } else {
+        let t = Instant::now();
+        let mesh = fluid_mesh(case, &options.case_dir, log)?;
+        let mesh_seconds = t.elapsed().as_secs_f64();
+        let mut summary = match mesh {
+            AnyMesh::D2(m) => run_flow::<2>(case, m, options, log)?,
+            AnyMesh::D3(m) => run_flow::<3>(case, m, options, log)?,
+        };
+        summary.timings.mesh = mesh_seconds;
+        summary
     };
-    summary.timings.mesh = mesh_seconds;
     summary.timings.total = t0.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
     write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
