@@ -124,10 +124,19 @@ pub fn check_case(case: &Case, file: &str, case_dir: &Path) -> Result<String, Ru
     if case.mesh.is_none() {
         return Ok(crate::solid_run::describe(case, case_dir)?);
     }
-    match fluid_mesh(case, case_dir, &mut |_: &str| {})? {
-        AnyMesh::D2(m) => describe::<2>(case, m),
-        AnyMesh::D3(m) => describe::<3>(case, m),
-    }
+    let fluid = match fluid_mesh(case, case_dir, &mut |_: &str| {})? {
+        AnyMesh::D2(m) => describe::<2>(case, m)?,
+        AnyMesh::D3(m) => describe::<3>(case, m)?,
+    };
+    Ok(match (&case.solid, crate::fsi_run::is_fsi(case)) {
+        (Some(s), true) => format!(
+            "FSI run. Fluid (adapted to the solid at t = 0): {fluid}\nSolid: {:?} (G = {}), coupled on '{}' by the Lagrange multiplier",
+            s.model,
+            s.shear_modulus.unwrap_or(f64::NAN),
+            s.surface.as_deref().unwrap_or("?")
+        ),
+        _ => fluid,
+    })
 }
 
 fn describe<const D: usize>(case: &Case, mesh: Mesh<D>) -> Result<String, RunError> {
