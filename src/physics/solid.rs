@@ -521,10 +521,10 @@ pub struct FacetPoint<'a> {
     pub weight: f64,
 }
 
-/// The area vector `n da / d(eta)` of a facet at a point, from the nodal positions `x` of the
-/// cell, times `orientation` (+1 or -1 so that it points out of the body).
+/// The facet tangents `t_1 = dx/d eta_1`, `t_2 = dx/d eta_2` at a point, from the nodal
+/// positions `x` of the cell (`t_2` is zero on the segments of a 2D cell).
 #[inline]
-pub fn area_vector<const D: usize>(x: &[[f64; D]], pt: &FacetPoint<'_>, orientation: f64) -> [f64; 3] {
+fn facet_tangents<const D: usize>(x: &[[f64; D]], pt: &FacetPoint<'_>) -> ([f64; 3], [f64; 3]) {
     let mut t1 = [0.0; 3];
     let mut t2 = [0.0; 3];
     for (k, xk) in x.iter().enumerate() {
@@ -533,6 +533,13 @@ pub fn area_vector<const D: usize>(x: &[[f64; D]], pt: &FacetPoint<'_>, orientat
             t2[d] += xk[d] * pt.dphi_t[k][1];
         }
     }
+    (t1, t2)
+}
+
+/// `n da / d(eta)` from the facet tangents: `(t1_y, -t1_x)` in 2D, `t1 x t2` in 3D, times
+/// `orientation`.
+#[inline]
+fn area_from_tangents<const D: usize>(t1: &[f64; 3], t2: &[f64; 3], orientation: f64) -> [f64; 3] {
     if D == 2 {
         [orientation * t1[1], -orientation * t1[0], 0.0]
     } else {
@@ -542,6 +549,14 @@ pub fn area_vector<const D: usize>(x: &[[f64; D]], pt: &FacetPoint<'_>, orientat
             orientation * (t1[0] * t2[1] - t1[1] * t2[0]),
         ]
     }
+}
+
+/// The area vector `n da / d(eta)` of a facet at a point, from the nodal positions `x` of the
+/// cell, times `orientation` (+1 or -1 so that it points out of the body).
+#[inline]
+pub fn area_vector<const D: usize>(x: &[[f64; D]], pt: &FacetPoint<'_>, orientation: f64) -> [f64; 3] {
+    let (t1, t2) = facet_tangents(x, pt);
+    area_from_tangents::<D>(&t1, &t2, orientation)
 }
 
 /// Follower pressure on a facet in the *current* configuration, nodal positions `x` (all nodes
@@ -567,16 +582,9 @@ pub fn follower_pressure_facet<const D: usize>(
     let nv = x.len();
     let axi = formulation == Formulation::Axisymmetric;
     for pt in points {
-        let nda = area_vector(x, pt, orientation);
+        let (t1, t2) = facet_tangents(x, pt);
+        let nda = area_from_tangents::<D>(&t1, &t2, orientation);
         let r: f64 = if axi { (0..nv).map(|k| x[k][1] * pt.phi[k]).sum() } else { 1.0 };
-        let mut t1 = [0.0; 3];
-        let mut t2 = [0.0; 3];
-        for (k, xk) in x.iter().enumerate() {
-            for d in 0..D {
-                t1[d] += xk[d] * pt.dphi_t[k][0];
-                t2[d] += xk[d] * pt.dphi_t[k][1];
-            }
-        }
         let s = pressure * pt.weight;
         for i in 0..nv {
             for a in 0..D {
