@@ -15,13 +15,16 @@
 //! three as `newton_iteration`. Outside the timing it prints dofs, nnz, the factorisation in use
 //! and its fill, and the first (symbolic + numeric) factorisation time.
 //!
+//! `FDFSI_BENCH_ORDERING=amd` selects the AMD ordering of the static LU instead of the default
+//! nested dissection.
+//!
 //! Run: `CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench linear2d`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
 use fdfsi::flow::{DirichletBc, FlowDiscretization, FlowProblem, TractionBc};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
-use fdfsi::solve::linear::{FaerLu, LinearSolver};
+use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions};
 use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh};
@@ -30,6 +33,17 @@ use std::hint::black_box;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// The solver: `FaerLu` with the ordering from `FDFSI_BENCH_ORDERING` (`nd`, the default, or
+/// `amd`).
+fn solver() -> FaerLu {
+    let ordering = match std::env::var("FDFSI_BENCH_ORDERING").as_deref() {
+        Ok("amd") => FillOrdering::Amd,
+        Ok("nd") | Err(_) => FillOrdering::NestedDissection,
+        Ok(other) => panic!("FDFSI_BENCH_ORDERING: expected nd or amd, got {other}"),
+    };
+    FaerLu::new(LinearSolverOptions { ordering, ..Default::default() })
+}
 
 /// One benchmarked system: discretisation, problem, state and reusable buffers.
 struct System<const D: usize> {
@@ -52,7 +66,7 @@ impl<const D: usize> System<D> {
         let mut s = System { disc, problem, x, x_old: vec![0.0; n], constrained };
         let mut k = CscMatrix::zeros(&s.disc.pattern);
         let mut rhs = vec![0.0; n];
-        let mut lu = FaerLu::default();
+        let mut lu = solver();
         for _ in 0..newton_steps {
             s.assemble(&mut k, &mut rhs);
             lu.factorize(&k).expect("factorisation");
@@ -73,7 +87,7 @@ impl<const D: usize> System<D> {
         let mut k = CscMatrix::zeros(&self.disc.pattern);
         let mut rhs = vec![0.0; n];
         self.assemble(&mut k, &mut rhs);
-        let mut lu = FaerLu::default();
+        let mut lu = solver();
         let t = Instant::now();
         lu.factorize(&k).expect("first factorisation");
         let first = t.elapsed();

@@ -22,6 +22,9 @@
 //! faer's partial-pivoting LU (`LuMethod::Pivoting`, criterion group `stokes3d-pivoting`), for
 //! which faer's `factorize_symbolic_lu` is also timed on its own.
 //!
+//! `FDFSI_BENCH_ORDERING=amd` selects the AMD ordering of the static LU instead of the default
+//! nested dissection.
+//!
 //! Run: `CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench stokes3d`.
 //! Sizes can be overridden with `FDFSI_BENCH_SIZES=4,6,8` (always in increasing order).
 
@@ -30,7 +33,7 @@ use faer::sparse::linalg::lu::factorize_symbolic_lu;
 use faer::sparse::SymbolicSparseColMatRef;
 use fdfsi::flow::{flow_errors, DirichletBc, ExactFlow, FlowDiscretization, FlowProblem, TractionBc};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
-use fdfsi::solve::linear::{FaerLu, LinearSolver, LinearSolverOptions, LuMethod};
+use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
@@ -50,6 +53,16 @@ fn lu_method() -> LuMethod {
         Ok("pivoting") => LuMethod::Pivoting,
         Ok("auto") | Err(_) => LuMethod::Auto,
         Ok(other) => panic!("FDFSI_BENCH_LU: expected auto or pivoting, got {other}"),
+    }
+}
+
+/// The fill-reducing ordering of the static LU from `FDFSI_BENCH_ORDERING` (`nd`, the default,
+/// or `amd`).
+fn ordering() -> FillOrdering {
+    match std::env::var("FDFSI_BENCH_ORDERING").as_deref() {
+        Ok("amd") => FillOrdering::Amd,
+        Ok("nd") | Err(_) => FillOrdering::NestedDissection,
+        Ok(other) => panic!("FDFSI_BENCH_ORDERING: expected nd or amd, got {other}"),
     }
 }
 
@@ -163,7 +176,7 @@ fn stokes3d(c: &mut Criterion) {
             String::new()
         };
 
-        let mut lu = FaerLu::with_method(LinearSolverOptions::default(), method);
+        let mut lu = FaerLu::with_method(LinearSolverOptions { ordering: ordering(), ..Default::default() }, method);
         let t = Instant::now();
         lu.factorize(&k).expect("first factorisation");
         let first_factorize = t.elapsed();

@@ -1,0 +1,181 @@
+//! Fill, flops, time and memory of the static supernodal LU under one fill-reducing ordering.
+//!
+//! `cargo run --release --example lu_ordering -- SYSTEM ORDERING [REPS]`
+//!
+//! * `SYSTEM`: `coarse` / `medium` (Schaefer-Turek 2D-1 Jacobian after one Newton step on
+//!   `meshes/dfg2d-*.msh`, as `benches/linear2d.rs`) or `boxN` (the 3D Stokes verification problem
+//!   on the unit cube with N cells per side, as `benches/stokes3d.rs`);
+//! * `ORDERING`: `nd` (nested dissection) or `amd`;
+//! * `REPS`: numeric factorisations timed after the first (default 3; min and median printed).
+//!
+//! One system and ordering per process, so `VmHWM` (peak resident memory) is theirs alone.
+use fdfsi::case::Case;
+use fdfsi::flow::{DirichletBc, FlowDiscretization, FlowProblem, TractionBc};
+use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
+use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
+use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
+use fdfsi_fem::generate::box_tetrahedra;
+use fdfsi_fem::gmsh::{read_msh, AnyMesh};
+use fdfsi_fem::sparse::CscMatrix;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+fn vm_hwm_mib() -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+        .unwrap_or(0.0)
+        / 1024.0
+}
+
+/// CPU seconds of this process (all threads), from `/proc/self/stat` (10 ms resolution).
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let fields: Vec<&str> = stat.rsplit(')').next().unwrap_or("").split_whitespace().collect();
+    let tick = |i: usize| fields.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(11) + tick(12)) / 100.0
+}
+
+fn run<const D: usize>(
+    name: &str,
+    disc: FlowDiscretization<D>,
+    problem: FlowProblem<D>,
+    newton_steps: usize,
+    ordering: FillOrdering,
+    reps: usize,
+) {
+    let n = disc.num_dofs();
+    let mut x = vec![0.0; n];
+    let mut constrained = vec![false; n];
+    for (d, v) in disc.dirichlet_dofs(&problem, 0.0).expect("dirichlet dofs") {
+        constrained[d] = true;
+        x[d] = v;
+    }
+    let x_old = vec![0.0; n];
+    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut rhs = vec![0.0; n];
+    let assemble = |x: &[f64], k: &mut CscMatrix<'_>, rhs: &mut [f64]| {
+        k.values.iter_mut().for_each(|v| *v = 0.0);
+        rhs.iter_mut().for_each(|v| *v = 0.0);
+        disc.assemble_system(&problem, x, &x_old, 0.0, &constrained, k, rhs).expect("assembly");
+    };
+    if reps == 0 {
+        assemble(&x, &mut k, &mut rhs);
+        let c0 = cpu_seconds();
+        let s = FaerLu::analyse(&k, ordering).expect("analysis");
+        let cpu = cpu_seconds() - c0;
+        println!(
+            "{name} {ordering:?} (analysis only): dofs={n} nnz(L+U)={} flops={:.4e} supernodes={} ordering={:.3}s symbolic={:.3}s symbolic_cpu={cpu:.2}s",
+            s.nnz_lu, s.flops, s.supernodes, s.ordering_seconds, s.symbolic_seconds
+        );
+        return;
+    }
+    let opts = LinearSolverOptions { ordering, ..Default::default() };
+    let mut lu = FaerLu::with_method(opts, LuMethod::Auto);
+    assemble(&x, &mut k, &mut rhs);
+    let t = Instant::now();
+    lu.factorize(&k).expect("factorisation");
+    let first = t.elapsed().as_secs_f64();
+    for _ in 0..newton_steps {
+        lu.solve_in_place(&k, &mut rhs).expect("solve");
+        x.iter_mut().zip(&rhs).for_each(|(a, b)| *a += b);
+        assemble(&x, &mut k, &mut rhs);
+        lu.factorize(&k).expect("factorisation");
+    }
+    let mut times = Vec::new();
+    let mut cpu = Vec::new();
+    for _ in 0..reps {
+        let (t, c) = (Instant::now(), cpu_seconds());
+        lu.factorize(&k).expect("factorisation");
+        times.push(t.elapsed().as_secs_f64());
+        cpu.push(cpu_seconds() - c);
+    }
+    times.sort_by(f64::total_cmp);
+    cpu.sort_by(f64::total_cmp);
+    let mut buf = rhs.clone();
+    let t = Instant::now();
+    let stats = lu.solve_in_place(&k, &mut buf).expect("solve");
+    let solve = t.elapsed().as_secs_f64();
+    assert_eq!(lu.symbolic_factorizations(), 1);
+    let fs = lu.factor_stats();
+    println!(
+        "{name} {ordering:?}: dofs={n} nnz(A)={} nnz(L+U)={} fill={:.1} flops={:.3e} supernodes={} ordering={:.3}s symbolic={:.3}s \
+         first_factorize={:.3}s numeric(min/median of {reps})={:.3}/{:.3}s numeric_cpu(min)={:.2}s solve={:.3}s residual={:.1e} refinements={} VmHWM={:.1}MiB [{}]",
+        disc.pattern.nnz(),
+        fs.as_ref().map_or(0, |s| s.nnz_lu),
+        fs.as_ref().map_or(0.0, |s| s.nnz_lu as f64 / disc.pattern.nnz() as f64),
+        fs.as_ref().map_or(0.0, |s| s.flops),
+        fs.as_ref().map_or(0, |s| s.supernodes),
+        fs.as_ref().map_or(0.0, |s| s.ordering_seconds),
+        fs.as_ref().map_or(0.0, |s| s.symbolic_seconds),
+        first,
+        times.first().copied().unwrap_or(f64::NAN),
+        times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+        cpu.first().copied().unwrap_or(f64::NAN),
+        solve,
+        stats.residual,
+        stats.refinements,
+        vm_hwm_mib(),
+        lu.describe(),
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let system = args.get(1).map(String::as_str).unwrap_or("coarse");
+    let ordering = match args.get(2).map(String::as_str).unwrap_or("nd") {
+        "amd" => FillOrdering::Amd,
+        "nd" => FillOrdering::NestedDissection,
+        o => panic!("ordering: nd or amd, got {o}"),
+    };
+    let reps: usize = args.get(3).map(|r| r.parse().expect("REPS")).unwrap_or(3);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    if let Some(cells) = system.strip_prefix("box") {
+        let nc: usize = cells.parse().expect("boxN");
+        let exact = Arc::new(Stokes3d { eta: 1.0 });
+        let ex = exact.clone();
+        let problem = FlowProblem {
+            formulation: Formulation::ThreeD,
+            params: FluidParams {
+                viscosity: exact.viscosity(),
+                density: 1.0,
+                inv_dt: 0.0,
+                convection: false,
+                viscous_form: ViscousForm::Stress,
+            },
+            body_force: Some(Arc::new(move |x: &[f64; 3], _t| ex.body_force(x))),
+            dirichlet: ["xmin", "ymin", "ymax", "zmin", "zmax"]
+                .iter()
+                .map(|name| {
+                    let ex = exact.clone();
+                    DirichletBc {
+                        boundary: name.to_string(),
+                        components: vec![0, 1, 2],
+                        value: Arc::new(move |x: &[f64; 3], _t| ex.velocity(x)),
+                    }
+                })
+                .collect(),
+            traction: vec![{
+                let ex = exact.clone();
+                TractionBc { boundary: "xmax".to_string(), traction: Arc::new(move |x: &[f64; 3], nrm: &[f64; 3], _t| ex.traction(x, nrm)) }
+            }],
+            pin_pressure: false,
+        };
+        let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, nc, nc, nc);
+        let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).expect("discretisation");
+        run(system, disc, problem, 0, ordering, reps);
+    } else {
+        let file = format!("meshes/dfg2d-{system}.msh");
+        let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).expect("case");
+        let mesh = match read_msh(&root.join(&file)).expect("mesh") {
+            AnyMesh::D2(m) => m,
+            AnyMesh::D3(_) => panic!("{file}: expected a 2D mesh"),
+        };
+        let problem = fdfsi::run::flow_problem(&case, &mesh, &root.join("cases")).expect("problem");
+        let disc = FlowDiscretization::build(mesh, Formulation::Plane).expect("discretisation");
+        run(system, disc, problem, 1, ordering, reps);
+    }
+}
