@@ -104,11 +104,11 @@ pub struct SolidSpec {
     /// The material laws are solved in solid-only cases (no fluid mesh).
     #[serde(default)]
     pub model: SolidModel,
-    /// Shear modulus G (material laws).
+    /// Shear modulus G (material laws; > 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shear_modulus: Option<f64>,
-    /// Bulk modulus K: omitted for the incompressible neo-Hookean law (det F = 1); required by
-    /// the compressible laws.
+    /// Bulk modulus K (> 0): omitted for the incompressible neo-Hookean law (det F = 1); required
+    /// by the compressible laws.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bulk_modulus: Option<f64>,
     /// Boundary conditions of the solid.
@@ -121,7 +121,9 @@ pub struct SolidSpec {
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
-    /// Placement (2D): rotation in degrees (counter-clockwise) about `pivot`, then `translate`.
+    /// Placement (2D): rotation in degrees (counter-clockwise) about `pivot`, then `translate`
+    /// (finite numbers, one coordinate per dimension). The placed solid must lie inside the fluid
+    /// mesh (`fdfsi check` locates every vertex of the solid mesh).
     #[serde(default)]
     pub rotate_deg: f64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -182,7 +184,8 @@ pub enum SolidBoundaryType {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LoadingSpec {
-    /// Number of equal load increments (each is halved on failure, down to 1/64 of it).
+    /// Number of equal load increments (each is halved on failure, down to 1/64 of it); 1 to
+    /// [`MAX_STEPS`].
     #[serde(default = "one_usize")]
     pub steps: usize,
     /// `total` or `updated` (the paper's updated-Lagrangian form).
@@ -221,14 +224,14 @@ pub enum SolidMeshSpec {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSpec {
-    /// Time step (> 0).
+    /// Time step (> 0, finite); `end / dt` is at most [`MAX_STEPS`].
     pub dt: f64,
-    /// End time (> 0); the run starts at t = 0 from rest.
+    /// End time (> 0, finite); the run starts at t = 0 from rest.
     pub end: f64,
     /// `euler` (implicit Euler, the paper's; default) or `bdf2`.
     #[serde(default)]
     pub scheme: crate::time::TimeScheme,
-    /// Write the fields every this many steps (the last step is always written).
+    /// Write the fields every this many steps (>= 1; the last step is always written).
     #[serde(default = "one_usize")]
     pub output_every: usize,
     /// How often a step whose Newton solve fails is halved before the run stops.
@@ -249,14 +252,16 @@ fn four() -> usize {
 pub enum TimeFunction {
     /// 1.
     Constant,
-    /// `min(t / duration, 1)`.
+    /// `min(t / duration, 1)`; `duration > 0`.
     Ramp { duration: f64 },
-    /// `sin(2 pi t / period + phase)`.
+    /// `sin(2 pi t / period + phase)`; `period > 0`.
     Sine { period: f64, #[serde(default)] phase: f64 },
-    /// `sin(pi t / (2 rise))` for `t < rise`, then 1 (the first quarter of a sine, then held).
+    /// `sin(pi t / (2 rise))` for `t < rise`, then 1 (the first quarter of a sine, then held);
+    /// `rise > 0`.
     QuarterSineHold { rise: f64 },
-    /// Linear interpolation in a CSV file of `t,value` rows (a header line is allowed), held
-    /// constant outside its range. Path relative to the case file.
+    /// Linear interpolation in a CSV file of `t,value` rows (a header line is allowed; finite
+    /// numbers, `t` strictly increasing), held constant outside its range. Path relative to the
+    /// case file.
     Table { file: PathBuf },
 }
 
@@ -265,17 +270,19 @@ pub enum TimeFunction {
 #[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum MeshSpec {
     /// `[x0, x1] x [y0, y1]` in `n[0] x n[1]` squares, each split into two triangles (alternating
-    /// diagonals). Boundaries `left`, `right`, `bottom`, `top`.
+    /// diagonals). Boundaries `left`, `right`, `bottom`, `top`. Intervals increasing and finite,
+    /// counts >= 1, at most [`MAX_GENERATED_CELLS`] cells (also for the other generators).
     Rectangle { x: [f64; 2], y: [f64; 2], n: [usize; 2] },
     /// Channel `[0, length] x [0, height]`, x-spacing fine in the middle and coarse towards both
     /// ends (`grading` = ratio of the largest to the smallest cell, 1 = uniform). Boundaries
-    /// `inlet`, `outlet`, `bottom`, `top`.
+    /// `inlet`, `outlet`, `bottom`, `top`. `length`, `height`, `grading` > 0.
     Channel { length: f64, height: f64, n: [usize; 2], #[serde(default = "one")] grading: f64 },
     /// Box `[x0,x1] x [y0,y1] x [z0,z1]`, each hexahedral cell split into six tetrahedra.
     /// Boundaries `xmin`, `xmax`, `ymin`, `ymax`, `zmin`, `zmax`.
     Box { x: [f64; 2], y: [f64; 2], z: [f64; 2], n: [usize; 3] },
     /// Circular pipe along z of straight-sided tetrahedra (or a quarter with symmetry planes).
     /// Boundaries `inlet` (z = 0), `outlet`, `wall`, and `symmetry_x`, `symmetry_y` when quarter.
+    /// `radius`, `length` > 0; `n_radial`, `n_axial` >= 1.
     Pipe { radius: f64, length: f64, n_radial: usize, n_axial: usize, #[serde(default)] quarter: bool },
     /// A Gmsh MSH 4.1 file (path relative to the case file); boundary and region names are its
     /// physical names. Second-order (curved) triangles and tetrahedra are used isoparametrically.
@@ -356,7 +363,7 @@ pub struct BoundarySpec {
     pub name: String,
     #[serde(rename = "type")]
     pub kind: BoundaryType,
-    /// Velocity or traction components, or the pressure (one entry).
+    /// Velocity or traction components, or the pressure (one entry); numbers must be finite.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub value: Vec<Scalar>,
     /// For `symmetry`: the coordinate axis the plane is normal to.
@@ -429,8 +436,10 @@ pub struct CombinationSpec {
 pub struct ProbeSpec {
     pub name: String,
     pub field: ProbeField,
+    /// Velocity or displacement component, `< dimension`.
     #[serde(default)]
     pub component: usize,
+    /// One finite coordinate per dimension, inside the fluid mesh (velocity and pressure).
     pub point: Vec<f64>,
 }
 
@@ -484,7 +493,15 @@ impl Case {
     /// Reads and parses a case file.
     pub fn read(path: &std::path::Path) -> Result<Case, CaseError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| CaseError::Io { file: file.clone(), source })?;
+        let bytes = std::fs::read(path).map_err(|source| CaseError::Io { file: file.clone(), source })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let valid = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+            let line = valid.iter().filter(|&&b| b == b'\n').count() + 1;
+            let start = valid.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+            let col = String::from_utf8_lossy(&valid[start..]).chars().count() + 1;
+            let message = format!("line {line}, column {col}: not UTF-8 text (a case file is TOML, in UTF-8)");
+            CaseError::Parse { file: file.clone(), message }
+        })?;
         Self::from_toml_str(&text, &file)
     }
 
@@ -521,30 +538,20 @@ impl Case {
         }
         let mesh_dim = match self.mesh.as_ref().unwrap_or(&MeshSpec::Gmsh { file: PathBuf::new() }) {
             MeshSpec::Rectangle { x, y, n } => {
-                if !(x[1] > x[0] && y[1] > y[0]) {
-                    problems.push("mesh: x and y must be increasing intervals [lo, hi]".into());
-                }
-                if n.iter().any(|&k| k == 0) {
-                    problems.push("mesh.n: cell counts must be >= 1".into());
-                }
+                intervals("mesh", &[("x", x), ("y", y)], &mut problems);
+                cell_counts("mesh.n", n, 2, &mut problems);
                 Some(2)
             }
             MeshSpec::Channel { length, height, n, grading } => {
                 positive(*length, "mesh.length", &mut problems);
                 positive(*height, "mesh.height", &mut problems);
                 positive(*grading, "mesh.grading", &mut problems);
-                if n.iter().any(|&k| k == 0) {
-                    problems.push("mesh.n: cell counts must be >= 1".into());
-                }
+                cell_counts("mesh.n", n, 2, &mut problems);
                 Some(2)
             }
             MeshSpec::Box { x, y, z, n } => {
-                if !(x[1] > x[0] && y[1] > y[0] && z[1] > z[0]) {
-                    problems.push("mesh: x, y and z must be increasing intervals [lo, hi]".into());
-                }
-                if n.iter().any(|&k| k == 0) {
-                    problems.push("mesh.n: cell counts must be >= 1".into());
-                }
+                intervals("mesh", &[("x", x), ("y", y), ("z", z)], &mut problems);
+                cell_counts("mesh.n", n, 6, &mut problems);
                 Some(3)
             }
             MeshSpec::Pipe { radius, length, n_radial, n_axial, .. } => {
@@ -553,6 +560,8 @@ impl Case {
                 if *n_radial == 0 || *n_axial == 0 {
                     problems.push("mesh: n_radial and n_axial must be >= 1".into());
                 }
+                // About 6 n_radial^2 tetrahedra per layer.
+                cell_counts("mesh: n_radial^2 x n_axial", &[*n_radial, *n_radial, *n_axial], 6, &mut problems);
                 Some(3)
             }
             MeshSpec::Gmsh { .. } => None,
@@ -560,8 +569,8 @@ impl Case {
         if let Some(d) = mesh_dim {
             if d != self.dim() {
                 problems.push(format!(
-                    "physics.formulation = {:?} needs a {}D mesh, but the mesh generator makes {d}D meshes",
-                    self.physics.formulation,
+                    "physics.formulation = {} needs a {}D mesh, but the mesh generator makes {d}D meshes",
+                    spelled(&self.physics.formulation),
                     self.dim()
                 ));
             }
@@ -576,9 +585,9 @@ impl Case {
             if let Some(k) = expect {
                 if b.value.len() != k {
                     problems.push(format!(
-                        "boundary '{}' ({:?}): `value` needs {k} entr{}, got {}",
+                        "boundary '{}' (type = {}): `value` needs {k} entr{}, got {}",
                         b.name,
-                        b.kind,
+                        spelled(&b.kind),
                         if k == 1 { "y" } else { "ies" },
                         b.value.len()
                     ));
@@ -593,6 +602,9 @@ impl Case {
             for v in &b.value {
                 if let Err(e) = Expr::compile(v) {
                     problems.push(format!("boundary '{}': {e}", b.name));
+                }
+                if matches!(v, Scalar::Number(x) if !x.is_finite()) {
+                    problems.push(format!("boundary '{}': `value` entries must be finite numbers", b.name));
                 }
             }
         }
@@ -616,8 +628,12 @@ impl Case {
             if p.point.len() != d {
                 problems.push(format!("probe '{}': point needs {d} coordinates", p.name));
             }
-            if p.field == ProbeField::Displacement && self.mesh.is_some() {
-                problems.push(format!("probe '{}': displacement probes apply to solid-only runs", p.name));
+            if p.point.iter().any(|x| !x.is_finite()) {
+                problems.push(format!("probe '{}': point coordinates must be finite numbers", p.name));
+            }
+            let moving_solid = self.solid.as_ref().is_some_and(|s| s.model != SolidModel::Fixed);
+            if p.field == ProbeField::Displacement && !moving_solid {
+                problems.push(format!("probe '{}': displacement probes need a solid with a material model (solid-only or FSI runs)", p.name));
             }
             if matches!(p.field, ProbeField::Velocity | ProbeField::Displacement) && p.component >= d {
                 problems.push(format!("probe '{}': component must be < {d}", p.name));
@@ -629,6 +645,9 @@ impl Case {
         known.extend(builtin.iter().map(String::as_str));
         if crate::fsi_run::is_fsi(self) && self.time.is_none() {
             problems.push("an FSI run (fluid mesh and a solid material model) needs a [time] table".into());
+        }
+        if crate::fsi_run::is_fsi(self) && self.time.as_ref().is_some_and(|t| t.scheme != crate::time::TimeScheme::Euler) {
+            problems.push("an FSI run uses implicit Euler (the paper's scheme): set time.scheme = \"euler\"".into());
         }
         for b in &self.output.boundary_integral {
             if b.kind == BoundaryIntegralKind::Force && b.component >= d {
@@ -650,12 +669,12 @@ impl Case {
             if solid.model != SolidModel::Fixed {
                 match solid.shear_modulus {
                     Some(g) => positive(g, "solid.shear_modulus", &mut problems),
-                    None => problems.push(format!("solid.model = {:?} needs shear_modulus", solid.model)),
+                    None => problems.push(format!("solid.model = {} needs shear_modulus", spelled(&solid.model))),
                 }
                 if let Some(k) = solid.bulk_modulus {
                     positive(k, "solid.bulk_modulus", &mut problems);
                 } else if solid.model != SolidModel::NeoHookean {
-                    problems.push(format!("solid.model = {:?} needs bulk_modulus", solid.model));
+                    problems.push(format!("solid.model = {} needs bulk_modulus", spelled(&solid.model)));
                 }
                 if solid.loading.steps == 0 {
                     problems.push("solid.loading.steps must be >= 1".into());
@@ -673,9 +692,24 @@ impl Case {
             if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {
                 problems.push(format!("solid.eps_hat must lie in (0, 0.5], got {}", solid.eps_hat));
             }
-            let sd = match solid.mesh {
-                SolidMeshSpec::Rectangle { .. } | SolidMeshSpec::Quadrilateral { .. } => Some(2),
-                SolidMeshSpec::Box { .. } => Some(3),
+            let sd = match &solid.mesh {
+                SolidMeshSpec::Rectangle { x, y, n } => {
+                    intervals("solid.mesh", &[("x", x), ("y", y)], &mut problems);
+                    cell_counts("solid.mesh.n", n, 1, &mut problems);
+                    Some(2)
+                }
+                SolidMeshSpec::Quadrilateral { corners, n } => {
+                    if corners.iter().flatten().any(|c| !c.is_finite()) {
+                        problems.push("solid.mesh.corners must be finite numbers".into());
+                    }
+                    cell_counts("solid.mesh.n", n, 1, &mut problems);
+                    Some(2)
+                }
+                SolidMeshSpec::Box { x, y, z, n } => {
+                    intervals("solid.mesh", &[("x", x), ("y", y), ("z", z)], &mut problems);
+                    cell_counts("solid.mesh.n", n, 1, &mut problems);
+                    Some(3)
+                }
                 SolidMeshSpec::Gmsh { .. } => None,
             };
             if sd.is_some_and(|sd| sd != d) {
@@ -688,6 +722,15 @@ impl Case {
                 if v.as_ref().is_some_and(|v| v.len() != d) {
                     problems.push(format!("solid.{what} needs {d} coordinates"));
                 }
+                if v.as_ref().is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+                    problems.push(format!("solid.{what} must be finite numbers"));
+                }
+            }
+            if !solid.rotate_deg.is_finite() {
+                problems.push(format!("solid.rotate_deg must be a finite number, got {}", solid.rotate_deg));
+            }
+            if solid.loading.steps > MAX_STEPS {
+                problems.push(format!("solid.loading.steps = {} is more than {MAX_STEPS}", solid.loading.steps));
             }
         }
         if let Some(t) = &self.time {
@@ -695,6 +738,13 @@ impl Case {
             positive(t.end, "time.end", &mut problems);
             if t.output_every == 0 {
                 problems.push("time.output_every must be >= 1".into());
+            }
+            let steps = t.end / t.dt;
+            if t.dt > 0.0 && t.end > 0.0 && t.end.is_finite() && steps > MAX_STEPS as f64 {
+                problems.push(format!(
+                    "time.end / time.dt = {steps:.3e} steps, more than the {MAX_STEPS} allowed (dt = {:e}, end = {})",
+                    t.dt, t.end
+                ));
             }
         }
         for b in &self.boundary {
@@ -717,19 +767,97 @@ impl Case {
     }
 }
 
-/// A TOML error with line and column, and for an unknown key the nearest valid one.
+/// At most this many time steps (`time.end / time.dt`) or load steps.
+pub const MAX_STEPS: usize = 100_000_000;
+
+/// At most this many cells in a generated mesh.
+pub const MAX_GENERATED_CELLS: usize = 100_000_000;
+
+/// Each `(name, [lo, hi])` must be an increasing interval of finite numbers.
+fn intervals(table: &str, axes: &[(&str, &[f64; 2])], problems: &mut Vec<String>) {
+    for (name, [lo, hi]) in axes {
+        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            problems.push(format!(
+                "{table}.{name} = [{lo}, {hi}] must be an increasing interval [lo, hi] of finite numbers"
+            ));
+        }
+    }
+}
+
+/// Cell counts: each >= 1, and `per_cell` times their product at most [`MAX_GENERATED_CELLS`].
+fn cell_counts(what: &str, n: &[usize], per_cell: usize, problems: &mut Vec<String>) {
+    if n.iter().any(|&k| k == 0) {
+        problems.push(format!("{what}: cell counts must be >= 1, got {n:?}"));
+        return;
+    }
+    let cells = n.iter().try_fold(per_cell, |acc, &k| acc.checked_mul(k));
+    if cells.is_none_or(|c| c > MAX_GENERATED_CELLS) {
+        problems.push(format!("{what} = {n:?} makes more than {MAX_GENERATED_CELLS} cells"));
+    }
+}
+
+/// A TOML error with line and column, and for an unknown key the nearest valid one. The
+/// messages of `toml` and `serde` are reworded where they speak Rust (`usize`, `f64`, untagged
+/// enums) rather than TOML, and completed with the key for duplicate keys, the table for missing
+/// keys.
 fn describe_toml_error(e: &toml::de::Error, text: &str) -> String {
-    let mut msg = e.message().to_string();
+    let mut msg = reword(e.message());
     if let Some(span) = e.span() {
-        let before = &text[..span.start.min(text.len())];
+        let (start, end) = (char_floor(text, span.start), char_floor(text, span.end.max(span.start)));
+        let before = &text[..start];
+        let found = &text[start..end];
         let line = before.matches('\n').count() + 1;
-        let col = before.len() - before.rfind('\n').map(|i| i + 1).unwrap_or(0) + 1;
+        let line_start = before.rfind('\n').map(|i| i + 1).unwrap_or(0);
+        let col = before[line_start..].chars().count() + 1;
+        let line_text = text[line_start..].lines().next().unwrap_or("");
+        if msg == "duplicate key" && !found.trim().is_empty() {
+            msg = format!("duplicate key `{}`", found.trim().trim_matches('"'));
+        } else if msg.starts_with("missing field") {
+            let header = line_text.trim();
+            if start == 0 && !header.starts_with('[') {
+                msg.push_str(" (required at the top level of the case)");
+            } else if header.starts_with('[') {
+                msg.push_str(&format!(" (required in {header})"));
+            }
+        } else if let Some((key, value)) = line_text.split_once('=') {
+            if value.split('#').next().unwrap_or("").trim().is_empty() && !key.contains('"') && !key.contains('[') {
+                msg = format!("`{}` has no value after `=`", key.trim());
+            }
+        }
         msg = format!("line {line}, column {col}: {msg}");
-        if let Some(hint) = nearest_key_hint(e.message(), &text[span.start.min(text.len())..span.end.min(text.len())]) {
+        if let Some(hint) = nearest_key_hint(e.message(), found) {
             msg.push_str(&format!(" (did you mean `{hint}`?)"));
         }
     }
     msg
+}
+
+/// The largest char boundary of `text` at or below `i`.
+fn char_floor(text: &str, i: usize) -> usize {
+    let mut i = i.min(text.len());
+    while !text.is_char_boundary(i) {
+        i -= 1;
+    }
+    i
+}
+
+/// Rewords the parts of a `toml`/`serde` message that name Rust types.
+fn reword(message: &str) -> String {
+    let mut m = message.trim_end().to_string();
+    for (from, to) in [
+        ("data did not match any variant of untagged enum Scalar", "expected a number or an expression (a string)"),
+        ("expected usize", "expected a whole number >= 0"),
+        ("expected u32", "expected a whole number >= 0"),
+        ("expected f64", "expected a number"),
+        ("expected a sequence", "expected an array"),
+        ("invalid type: sequence", "invalid type: array"),
+        ("invalid type: map", "invalid type: table"),
+        ("expected a borrowed string", "expected a string"),
+        (", expected nothing", ""),
+    ] {
+        m = m.replace(from, to);
+    }
+    m
 }
 
 /// For "unknown field `foo`, expected one of `a`, `b`": the expected key closest to `foo`.
@@ -737,22 +865,59 @@ fn nearest_key_hint(message: &str, found: &str) -> Option<String> {
     let list = message.split("expected").nth(1)?;
     let candidates: Vec<&str> = list.split('`').skip(1).step_by(2).collect();
     let found = found.trim().trim_matches('"');
-    candidates.into_iter().map(|c| (edit_distance(c, found), c)).filter(|(d, _)| *d <= 3).min().map(|(_, c)| c.to_string())
+    nearest_name(candidates.into_iter(), found)
 }
 
-/// Levenshtein distance (small strings only).
+/// The candidate closest to `found` (edit distance at most 3, and less than the length of
+/// `found`), e.g. to suggest a boundary name.
+pub(crate) fn nearest_name<'a>(candidates: impl Iterator<Item = &'a str>, found: &str) -> Option<String> {
+    if found.chars().count() > 64 {
+        return None;
+    }
+    let limit = 3.min(found.chars().count().saturating_sub(1));
+    candidates
+        .filter(|c| c.chars().count() <= 64)
+        .map(|c| (edit_distance(c, found), c))
+        .filter(|(d, _)| *d <= limit)
+        .min()
+        .map(|(_, c)| c.to_string())
+}
+
+/// Edit distance with transpositions (optimal string alignment; small strings only): `titel`
+/// is 1 from `title`.
 fn edit_distance(a: &str, b: &str) -> usize {
     let (a, b): (Vec<char>, Vec<char>) = (a.chars().collect(), b.chars().collect());
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for i in 1..=a.len() {
-        let mut cur = vec![i; b.len() + 1];
-        for j in 1..=b.len() {
-            let sub = prev[j - 1] + usize::from(a[i - 1] != b[j - 1]);
-            cur[j] = sub.min(prev[j] + 1).min(cur[j - 1] + 1);
-        }
-        prev = cur;
+    let mut d = vec![vec![0usize; b.len() + 1]; a.len() + 1];
+    for (i, row) in d.iter_mut().enumerate() {
+        row[0] = i;
     }
-    prev[b.len()]
+    for j in 0..=b.len() {
+        d[0][j] = j;
+    }
+    for i in 1..=a.len() {
+        for j in 1..=b.len() {
+            let cost = usize::from(a[i - 1] != b[j - 1]);
+            let mut v = (d[i - 1][j - 1] + cost).min(d[i - 1][j] + 1).min(d[i][j - 1] + 1);
+            if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
+                v = v.min(d[i - 2][j - 2] + 1);
+            }
+            d[i][j] = v;
+        }
+    }
+    d[a.len()][b.len()]
+}
+
+/// The name of a unit enum variant as the case file spells it, quoted (`"3d"`).
+fn spelled<T: Serialize + std::fmt::Debug>(v: &T) -> String {
+    format!("\"{}\"", name_of(v))
+}
+
+/// The name of a unit enum variant as the case file spells it (`3d`, `neo-hookean`).
+pub(crate) fn name_of<T: Serialize + std::fmt::Debug>(v: &T) -> String {
+    match serde_json::to_value(v) {
+        Ok(serde_json::Value::String(s)) => s,
+        _ => format!("{v:?}"),
+    }
 }
 
 /// A compiled scalar expression of `x, y, z, r, t` (`r` is `y`, the radius of axisymmetric runs).
@@ -778,6 +943,38 @@ enum ExprKind {
 
 const VARIABLES: [&str; 5] = ["x", "y", "z", "r", "t"];
 
+/// The functions of exmex's default `f64` operators (besides the infix `min`, `max`, `atan2`).
+const FUNCTIONS: [&str; 26] = [
+    "abs", "signum", "sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh",
+    "floor", "round", "ceil", "trunc", "fract", "exp", "sqrt", "cbrt", "ln", "log", "log2", "log10",
+];
+
+/// The first name followed by `(` that is not a known function.
+fn unknown_function(text: &str) -> Option<String> {
+    let chars: Vec<char> = text.chars().collect();
+    let mut i = 0;
+    while i < chars.len() {
+        if chars[i].is_alphabetic() || chars[i] == '_' {
+            let s = i;
+            while i < chars.len() && (chars[i].is_alphanumeric() || chars[i] == '_') {
+                i += 1;
+            }
+            let name: String = chars[s..i].iter().collect();
+            let mut j = i;
+            while j < chars.len() && chars[j].is_whitespace() {
+                j += 1;
+            }
+            let known = FUNCTIONS.contains(&name.as_str()) || ["min", "max", "atan2"].contains(&name.as_str());
+            if chars.get(j) == Some(&'(') && !known {
+                return Some(name);
+            }
+        } else {
+            i += 1;
+        }
+    }
+    None
+}
+
 impl Expr {
     /// Compiles a number or an expression; unknown variables are an error.
     pub fn compile(s: &Scalar) -> Result<Expr, String> {
@@ -785,7 +982,13 @@ impl Expr {
         match s {
             Scalar::Number(v) => Ok(Expr { kind: ExprKind::Constant(*v) }),
             Scalar::Expression(text) => {
-                let expr = exmex::parse::<f64>(text).map_err(|e| format!("cannot parse expression \"{text}\": {e}"))?;
+                let expr = exmex::parse::<f64>(text).map_err(|e| match unknown_function(text) {
+                    Some(f) => format!(
+                        "cannot parse expression \"{text}\": unknown function `{f}` (known: {})",
+                        FUNCTIONS.join(", ")
+                    ),
+                    None => format!("cannot parse expression \"{text}\": {e}"),
+                })?;
                 let mut slots = Vec::new();
                 for name in expr.var_names() {
                     let k = VARIABLES.iter().position(|v| v == name).ok_or_else(|| {
@@ -868,6 +1071,27 @@ value = ["4*y*(1-y)", 0]
     }
 
     #[test]
+    fn suggestions_count_transpositions() {
+        assert_eq!(edit_distance("titel", "title"), 1);
+        assert_eq!(edit_distance("viscosty", "viscosity"), 1);
+        assert_eq!(nearest_name(["time", "title"].into_iter(), "titel").as_deref(), Some("title"));
+        assert_eq!(nearest_name(["left", "top"].into_iter(), "x"), None);
+    }
+
+    #[test]
+    fn toml_messages_speak_toml() {
+        let e = Case::from_toml_str(&GOOD.replace("n = [2, 2]", "n = [2, -2]"), "b.toml").unwrap_err().to_string();
+        // Inside the internally tagged [mesh] table the span is the table header.
+        assert!(e.contains("line 3, column 1") && e.contains("integer `-2`, expected a whole number >= 0"), "{e}");
+        let e = Case::from_toml_str(&GOOD.replace("density = 1.0", "density ="), "b.toml").unwrap_err().to_string();
+        assert!(e.contains("`density` has no value after `=`"), "{e}");
+        let e = Case::from_toml_str(&GOOD.replace("[physics]", "[physics]\nformulation = \"3d\""), "b.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("duplicate key `formulation`"), "{e}");
+    }
+
+    #[test]
     fn expressions_reject_unknown_variables() {
         assert!(Expr::compile(&Scalar::Expression("sin(q)".into())).unwrap_err().contains("unknown variable `q`"));
         let e = Expr::compile(&Scalar::Expression("r^2 + t*PI".into())).unwrap();
@@ -933,6 +1157,10 @@ fn parse_table(text: &str, file: &str) -> Result<Vec<(f64, f64)>, CaseError> {
         let parsed = (cols.len() == 2).then(|| (cols[0].parse::<f64>(), cols[1].parse::<f64>()));
         match parsed {
             Some((Ok(t), Ok(v))) => {
+                if !(t.is_finite() && v.is_finite()) {
+                    let message = format!("line {}: `{line}`: t and value must be finite numbers", i + 1);
+                    return Err(CaseError::Invalid { file: file.into(), message });
+                }
                 if rows.last().is_some_and(|&(tp, _)| t <= tp) {
                     return Err(CaseError::Invalid { file: file.into(), message: format!("line {}: times must increase", i + 1) });
                 }

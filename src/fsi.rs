@@ -30,6 +30,7 @@
 //! [`crate::physics::coupling`]); [`FsiDiscretization::multiplier_force`] is the force of the
 //! fluid on the body.
 
+use crate::checkpoint::{FluidRestart, FsiRestart};
 use crate::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
@@ -80,6 +81,38 @@ pub enum FsiError {
     Unlocated { facet: usize, point: usize, x: Vec<f64>, reason: String },
     #[error(transparent)]
     Newton(#[from] NewtonError<FsiAssemblyError>),
+    #[error("restart: {0}")]
+    Restart(String),
+    #[error("multiplier space: {0}")]
+    Multiplier(String),
+}
+
+/// The multiplier space on gamma_f.
+///
+/// The paper's P1-discontinuous multiplier has `2N` functions per component on a chain of `N`
+/// gamma_f facets (2D), the continuous P2 fluid trace `2N + 1` values: the weak no-slip
+/// `<mu, u_f - u_s> = 0` leaves one trace function per component and connected chain free, the
+/// function that is the Legendre polynomial `1 - 6s + 6s^2` on every facet (vertex values 1,
+/// mid-facet values -1/2; it is orthogonal to every P1 function on every facet and continuous).
+/// Its amplitude is set by the fluid alone, and on short facets its tangential derivative
+/// (`~ 6 c / |facet|`) shows in the pointwise wall shear stress (model problem 2).
+/// [`MultiplierSpace::P1DiscontinuousTraceMode`] adds that function to the multiplier space
+/// (one multiplier per component and chain): the pairing of multipliers and the trace space on a
+/// chain is then square and invertible, so the trace of `u_f` is fully determined by `u_s` (a
+/// stiff body at rest gives `u_f = 0` at every P2 node of gamma_f, as Dirichlet nodes would).
+/// The extra function integrates to zero on every facet, so `int lambda ds` (the force) is
+/// unchanged in form. Where a chain has a fluid Dirichlet node (vertex or mid-facet) on
+/// component `a`, that trace function is not free and its multiplier is fixed to zero
+/// ([`FsiDiscretization::inactive_multiplier_dofs`]). 2D only: in 3D the P2+ trace on a face
+/// (P2 and the face bubble) leaves more than one function free.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub enum MultiplierSpace {
+    /// The paper's: P1 discontinuous on each gamma_f facet.
+    #[default]
+    P1Discontinuous,
+    /// P1 discontinuous plus, per component and connected chain of gamma_f, the trace function
+    /// orthogonal to it (2D only).
+    P1DiscontinuousTraceMode,
 }
 
 /// The coupled problem: fluid and solid problems, the solid boundary that is gamma_s, and the
@@ -102,16 +135,24 @@ pub struct FsiModel<const D: usize> {
     pub problem: FsiProblem<D>,
     pub background: Background<D>,
     pub solid: SolidDiscretization<D>,
+    /// The multiplier space on gamma_f (default: the paper's P1 discontinuous).
+    pub multiplier: MultiplierSpace,
 }
 
 impl<const D: usize> FsiModel<D> {
+    /// The model with another multiplier space.
+    pub fn with_multiplier(mut self, multiplier: MultiplierSpace) -> Self {
+        self.multiplier = multiplier;
+        self
+    }
+
     /// Prepares the original fluid mesh and discretises the solid mesh (reference configuration).
     pub fn new(problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
         let background = Background::new(fluid_mesh)?;
         let solid = SolidDiscretization::build(solid_mesh, problem.solid.formulation, problem.solid.material.as_ref())?;
         solid.check_problem(&problem.solid)?;
         solid.mesh.boundary_tag(&problem.surface)?;
-        Ok(FsiModel { problem, background, solid })
+        Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default() })
     }
 
     /// The solid mesh at the total displacement in `solid_x` (solid numbering): every geometry
@@ -150,6 +191,8 @@ impl<const D: usize> FsiModel<D> {
 /// The fluid velocity of the last step on its adapted mesh (what the next step transfers).
 #[derive(Clone, Debug)]
 pub struct FluidSnapshot<const D: usize> {
+    /// The solid displacement `mesh` was adapted to (what a restart rebuilds it from).
+    pub solid_base: Vec<f64>,
     pub mesh: Mesh<D>,
     /// P2+ velocity node map of `mesh`.
     pub nodes: NodeMap,
@@ -185,6 +228,39 @@ impl<const D: usize> FsiState<D> {
     }
 }
 
+impl<const D: usize> FsiState<D> {
+    /// The state as saved in a checkpoint.
+    pub fn to_restart(&self) -> FsiRestart {
+        FsiRestart {
+            solid_x: self.solid_x.clone(),
+            solid_f: self.solid_f.clone(),
+            solid_v: self.solid_v.clone(),
+            fluid: self.fluid.as_ref().map(|f| FluidRestart { solid_base: f.solid_base.clone(), velocity: f.velocity.clone() }),
+        }
+    }
+
+    /// The state at `time` from a checkpoint; the fluid's adapted mesh is rebuilt from the solid
+    /// position it was made for, which reproduces it exactly (the adaptation is deterministic).
+    pub fn from_restart(model: &FsiModel<D>, time: f64, r: &FsiRestart) -> Result<Self, FsiError> {
+        let fluid = match &r.fluid {
+            None => None,
+            Some(f) => {
+                let disc = FsiDiscretization::build(model, &f.solid_base)?;
+                let vel = &disc.flow.layout.fields[0];
+                if vel.num_dofs() != f.velocity.len() {
+                    return Err(FsiError::Restart(format!(
+                        "the checkpoint's fluid velocity has {} values but the rebuilt mesh has {}",
+                        f.velocity.len(),
+                        vel.num_dofs()
+                    )));
+                }
+                Some(FluidSnapshot { solid_base: f.solid_base.clone(), mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: f.velocity.clone() })
+            }
+        };
+        Ok(FsiState { time, solid_x: r.solid_x.clone(), solid_f: r.solid_f.clone(), solid_v: r.solid_v.clone(), fluid })
+    }
+}
+
 /// The coupling elements (one per gamma_f facet) and their quadrature points, point-major flat
 /// arrays.
 #[derive(Clone, Debug, Default)]
@@ -204,6 +280,12 @@ pub struct CouplingElements<const D: usize> {
     pub phi_s: Vec<f64>,
     pub nf: usize,
     pub ns: usize,
+    /// [`MultiplierSpace::P1DiscontinuousTraceMode`]: the trace function orthogonal to P1 at each
+    /// point (`1 - 6s + 6s^2`), and the connected chain of gamma_f each element belongs to;
+    /// empty otherwise.
+    pub mode: Vec<f64>,
+    pub chain: Vec<usize>,
+    pub num_chains: usize,
     /// Largest distance of a coupling point from gamma_s.
     pub max_distance: f64,
 }
@@ -274,9 +356,14 @@ pub struct FsiDiscretization<const D: usize> {
     pub fluid_dofs: usize,
     pub solid_dofs: usize,
     pub multiplier_dofs: usize,
+    /// Multiplier dofs fixed to zero (trace-mode multipliers of chains with a fluid Dirichlet
+    /// node, see [`MultiplierSpace`]); [`step`] constrains them.
+    pub inactive_multiplier_dofs: Vec<usize>,
     pub pattern: Pattern,
     flow_map: Vec<usize>,
     solid_map: Vec<usize>,
+    /// Seconds spent on gamma_s and the adaptation in [`Self::build`].
+    pub adapt_seconds: f64,
 }
 
 /// Positions in `global` of the entries of `local` shifted by `offset` on both indices.
@@ -294,26 +381,55 @@ impl<const D: usize> FsiDiscretization<D> {
     /// Adapts the original fluid mesh of `model` to gamma_s at the solid displacement `solid_x`
     /// and builds the monolithic discretisation.
     pub fn build(model: &FsiModel<D>, solid_x: &[f64]) -> Result<Self, FsiError> {
+        let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
         let adapted = adapt_with(&model.background, &surface, &model.problem.adapt)?;
+        let adapt_seconds = clock.elapsed().as_secs_f64();
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
         }
         let flow = FlowDiscretization::build(tag_gamma_f(&adapted), model.problem.fluid.formulation)?;
-        let coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
+        let mut coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
         let fluid_dofs = flow.num_dofs();
         let solid_dofs = model.solid.num_dofs();
         let ne = coupling.num_elements();
-        let multiplier_dofs = ne * D * D;
+        let vel = &flow.layout.fields[0];
+        let mut inactive_multiplier_dofs = Vec::new();
+        if model.multiplier == MultiplierSpace::P1DiscontinuousTraceMode {
+            if D != 2 {
+                return Err(FsiError::Multiplier("the trace-mode multiplier is implemented in 2D only".into()));
+            }
+            Self::trace_mode(&mut coupling, &adapted.gamma_f);
+            // A (chain, component) whose trace has a fluid Dirichlet node has no free trace mode.
+            let fixed: std::collections::HashSet<usize> = flow.dirichlet_dofs(&model.problem.fluid, 0.0)?.into_iter().map(|(d, _)| d).collect();
+            let first = fluid_dofs + solid_dofs + ne * D * D;
+            let mut inactive = vec![false; coupling.num_chains * D];
+            let nf = coupling.nf;
+            for e in 0..ne {
+                let pts = coupling.point_start[e]..coupling.point_start[e + 1];
+                for (i, &node) in vel.nodes.cell(coupling.fluid_cell[e]).iter().enumerate() {
+                    let on_trace = pts.clone().any(|q| coupling.phi_f[q * nf + i].abs() > 1e-10);
+                    for a in 0..D {
+                        if on_trace && fixed.contains(&vel.dof(node, a)) {
+                            inactive[coupling.chain[e] * D + a] = true;
+                        }
+                    }
+                }
+            }
+            inactive_multiplier_dofs = (0..inactive.len()).filter(|&k| inactive[k]).map(|k| first + k).collect();
+        }
+        let multiplier_dofs = ne * D * D + coupling.num_chains * D;
         let (os, ol) = (fluid_dofs, fluid_dofs + solid_dofs);
         let n = ol + multiplier_dofs;
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
         // displacement of every solid cell its points land in.
-        let vel = &flow.layout.fields[0];
         let sf = model.solid.displacement_field();
         let coupling_dofs: Vec<Vec<usize>> = (0..ne)
             .map(|e| {
                 let mut d: Vec<usize> = (0..D * D).map(|k| ol + e * D * D + k).collect();
+                if let Some(&ch) = coupling.chain.get(e) {
+                    d.extend((0..D).map(|a| ol + ne * D * D + ch * D + a));
+                }
                 for &node in vel.nodes.cell(coupling.fluid_cell[e]) {
                     d.extend((0..D).map(|a| vel.dof(node, a)));
                 }
@@ -344,7 +460,58 @@ impl<const D: usize> FsiDiscretization<D> {
         });
         let flow_map = position_map(&flow.pattern, &pattern, 0);
         let solid_map = position_map(&model.solid.pattern, &pattern, os);
-        Ok(FsiDiscretization { surface, adapted, flow, coupling, fluid_dofs, solid_dofs, multiplier_dofs, pattern, flow_map, solid_map })
+        Ok(FsiDiscretization {
+            surface,
+            adapted,
+            flow,
+            coupling,
+            fluid_dofs,
+            solid_dofs,
+            multiplier_dofs,
+            inactive_multiplier_dofs,
+            pattern,
+            flow_map,
+            solid_map,
+            adapt_seconds,
+        })
+    }
+
+    /// Fills the trace function orthogonal to P1 (`1 - 6s + 6s^2`, `s = mu_1`) at every coupling
+    /// point and the connected chains of gamma_f (facets sharing a vertex), 2D.
+    fn trace_mode(c: &mut CouplingElements<D>, gamma_f: &[GammaFacet<D>]) {
+        c.mode = (0..c.num_points()).map(|q| {
+            let s = c.mu[q * D + 1];
+            1.0 - 6.0 * s + 6.0 * s * s
+        }).collect();
+        // Union-find over facets through their vertices.
+        let mut parent: Vec<usize> = (0..gamma_f.len()).collect();
+        fn root(p: &mut [usize], mut i: usize) -> usize {
+            while p[i] != i {
+                p[i] = p[p[i]];
+                i = p[i];
+            }
+            i
+        }
+        let mut owner: std::collections::HashMap<usize, usize> = Default::default();
+        for (e, g) in gamma_f.iter().enumerate() {
+            for &v in &g.vertices {
+                if let Some(&f) = owner.get(&v) {
+                    let (a, b) = (root(&mut parent, e), root(&mut parent, f));
+                    parent[a] = b;
+                } else {
+                    owner.insert(v, e);
+                }
+            }
+        }
+        let mut index: std::collections::HashMap<usize, usize> = Default::default();
+        c.chain = (0..gamma_f.len())
+            .map(|e| {
+                let r = root(&mut parent, e);
+                let n = index.len();
+                *index.entry(r).or_insert(n)
+            })
+            .collect();
+        c.num_chains = index.len();
     }
 
     /// Locates the quadrature points of every gamma_f facet in its fluid cell (the minus side,
@@ -419,6 +586,12 @@ impl<const D: usize> FsiDiscretization<D> {
         self.multiplier_offset() + (e * D + k) * D + a
     }
 
+    /// Global dof of component `a` of the trace-mode multiplier of chain `ch`
+    /// ([`MultiplierSpace::P1DiscontinuousTraceMode`]).
+    pub fn mode_multiplier_dof(&self, ch: usize, a: usize) -> usize {
+        self.multiplier_offset() + self.coupling.num_elements() * D * D + ch * D + a
+    }
+
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the coupled problem; rows of constrained
     /// dofs become identity rows with zero right-hand side.
     pub fn assemble(
@@ -459,8 +632,10 @@ impl<const D: usize> FsiDiscretization<D> {
         }
         // Coupling.
         let c = &self.coupling;
-        let (nm, nf, ns) = (D, c.nf, c.ns);
+        let with_mode = !c.mode.is_empty();
+        let (nm, nf, ns) = (D + usize::from(with_mode), c.nf, c.ns);
         let nloc = (nm + nf + ns) * D;
+        let mut mu = [0.0; 4];
         let mut ke = vec![0.0; nloc * nloc];
         let mut re = vec![0.0; nloc];
         let mut dofs = vec![0usize; nloc];
@@ -469,9 +644,14 @@ impl<const D: usize> FsiDiscretization<D> {
         let sf = model.solid.displacement_field();
         let inv_dt = 1.0 / input.dt;
         for e in 0..c.num_elements() {
-            for kk in 0..nm {
+            for kk in 0..D {
                 for a in 0..D {
                     dofs[kk * D + a] = self.multiplier_dof(e, kk, a);
+                }
+            }
+            if with_mode {
+                for a in 0..D {
+                    dofs[D * D + a] = self.mode_multiplier_dof(c.chain[e], a);
                 }
             }
             for (i, &node) in vel.nodes.cell(c.fluid_cell[e]).iter().enumerate() {
@@ -490,9 +670,13 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
                 ke.iter_mut().for_each(|v| *v = 0.0);
                 re.iter_mut().for_each(|v| *v = 0.0);
+                mu[..D].copy_from_slice(&c.mu[q * D..(q + 1) * D]);
+                if with_mode {
+                    mu[D] = c.mode[q];
+                }
                 let pt = CouplingPoint {
                     weight: c.weight[q],
-                    mu: &c.mu[q * nm..(q + 1) * nm],
+                    mu: &mu[..nm],
                     phi_f: &c.phi_f[q * nf..(q + 1) * nf],
                     phi_s: &c.phi_s[q * ns..(q + 1) * ns],
                 };
@@ -533,8 +717,12 @@ impl<const D: usize> FsiDiscretization<D> {
 
     /// `lambda` at coupling point `q` (of element `e`).
     pub fn multiplier_at(&self, x: &[f64], e: usize, q: usize) -> [f64; D] {
-        let mu = &self.coupling.mu[q * D..(q + 1) * D];
-        std::array::from_fn(|a| (0..D).map(|k| mu[k] * x[self.multiplier_dof(e, k, a)]).sum())
+        let c = &self.coupling;
+        let mu = &c.mu[q * D..(q + 1) * D];
+        std::array::from_fn(|a| {
+            let mode = if c.mode.is_empty() { 0.0 } else { c.mode[q] * x[self.mode_multiplier_dof(c.chain[e], a)] };
+            (0..D).map(|k| mu[k] * x[self.multiplier_dof(e, k, a)]).sum::<f64>() + mode
+        })
     }
 
     /// Force of the fluid on the body, `int_gamma_f lambda ds` (axisymmetric: times `2 pi`).
@@ -559,7 +747,9 @@ impl<const D: usize> FsiDiscretization<D> {
 /// Wall-clock seconds of the phases of a step.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct StepTimings {
-    /// gamma_s, adaptation, fluid discretisation, coupling elements, pattern.
+    /// gamma_s and the adaptation of the fluid mesh to it.
+    pub adapt: f64,
+    /// Fluid discretisation, coupling elements, pattern.
     pub build: f64,
     pub transfer: f64,
     pub newton: f64,
@@ -610,7 +800,8 @@ pub fn step<const D: usize>(
 ) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
     let clock = Instant::now();
     let disc = FsiDiscretization::build(model, &state.solid_x)?;
-    let mut seconds = StepTimings { build: clock.elapsed().as_secs_f64(), ..Default::default() };
+    let build = clock.elapsed().as_secs_f64();
+    let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
     let t_new = state.time + dt;
     let mut fluid = model.problem.fluid.clone();
     fluid.params.inv_dt = 1.0 / dt;
@@ -630,6 +821,9 @@ pub fn step<const D: usize>(
     for (d, v) in disc.flow.dirichlet_dofs(&fluid, t_new)? {
         constrained[d] = true;
         x[d] = v;
+    }
+    for &d in &disc.inactive_multiplier_dofs {
+        constrained[d] = true;
     }
     let nus = model.solid.displacement_field().num_dofs();
     x[os + nus..ol].copy_from_slice(&state.solid_x[nus..]);
@@ -663,7 +857,7 @@ pub fn step<const D: usize>(
     let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { inc[i] / dt } else { 0.0 }).collect();
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.layout.fields[0];
-    let snapshot = FluidSnapshot { mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec() };
+    let snapshot = FluidSnapshot { solid_base: state.solid_x.clone(), mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec() };
     seconds.update = clock.elapsed().as_secs_f64();
     let report = FsiStepReport {
         time: t_new,

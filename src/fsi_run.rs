@@ -3,7 +3,9 @@
 //!
 //! Each step adapts the ORIGINAL fluid mesh to the solid surface at `t_n`, transfers the fluid
 //! velocity, solves fluid, solid and multiplier in one Newton solve and moves the solid. Results:
-//! - `solution.pvd` with the pieces `fluid` (on each step's adapted mesh) and `solid` (deformed);
+//! - `solution.pvd` with the pieces `fluid` (on each step's adapted mesh), `solid` (deformed) and
+//!   `gamma_f` (the coupling elements with the multiplier lambda, the traction of the fluid on the
+//!   solid: see [`crate::output::gamma_f_grid`]);
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
 //!   integral of the multiplier over gamma_f, plus `coupling_facets`;
@@ -13,9 +15,10 @@
 //!
 //! Solid boundary values are constant in time in FSI runs (no load factor).
 
-use crate::case::{Case, CaseError, SolidModel};
-use crate::fsi::{step, FsiError, FsiModel, FsiProblem, FsiState};
-use crate::output::{fluid_grid, History};
+use crate::case::{Case, CaseError, ProbeField, SolidModel};
+use crate::checkpoint::{Checkpoint, Progress, RestartState};
+use crate::fsi::{step, FsiError, FsiModel, FsiProblem, FsiState, FsiStep};
+use crate::output::{fluid_grid, gamma_f_grid, History};
 use crate::quantities::{evaluate_all, QuantityError, StepState};
 use crate::run::{build_mesh, flow_problem, RunError, RunObserver, RunOptions, RunSummary, Timings};
 use crate::solve::linear::{FaerLu, LinearSolver};
@@ -50,31 +53,51 @@ pub fn run_fsi(case: &Case, options: &RunOptions, obs: &mut dyn RunObserver) -> 
     }
 }
 
-fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+/// The FSI model of a case on its (original) fluid mesh; relative paths in the case are resolved
+/// against `case_dir`.
+pub fn model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::path::Path) -> Result<FsiModel<D>, RunError> {
     let spec = case.solid.as_ref().ok_or_else(|| invalid("no [solid] table".into()))?;
     let ts = case.time.as_ref().ok_or_else(|| invalid("FSI runs need a [time] table".into()))?;
     if ts.scheme != crate::time::TimeScheme::Euler {
         return Err(invalid("FSI runs use implicit Euler (the paper's scheme): set time.scheme = \"euler\"".into()));
     }
     let surface = spec.surface.clone().ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
-    let t = Instant::now();
-    let fluid = flow_problem(case, &fluid_mesh, &options.case_dir)?;
-    let solid_mesh = crate::adaptation::solid_mesh::<D>(spec, &options.case_dir)?;
+    let fluid = flow_problem(case, fluid_mesh, case_dir)?;
+    let solid_mesh = crate::adaptation::solid_mesh::<D>(spec, case_dir)?;
     let solid = crate::solid_run::problem::<D>(case, spec, false)?;
-    let material = solid.material.clone();
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
-    let model = FsiModel::new(problem, &fluid_mesh, solid_mesh)?;
-    let mut timings = Timings { mesh: t.elapsed().as_secs_f64(), ..Default::default() };
-    let mut state = FsiState::at_rest(&model);
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?)
+}
+
+fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let ts = case.time.as_ref().ok_or_else(|| invalid("FSI runs need a [time] table".into()))?;
+    let t = Instant::now();
+    let model = model(case, &fluid_mesh, &options.case_dir)?;
+    let material = model.problem.solid.material.clone();
+    let mesh_seconds = t.elapsed().as_secs_f64();
+    // Displacement probes read the solid; the rest are fluid quantities.
+    let solid_probes = crate::solid_run::displacement_probes(case, &model.solid)?;
+    let mut fluid_output = case.output.clone();
+    fluid_output.probe.retain(|p| p.field != ProbeField::Displacement);
     let mut lu = FaerLu::default();
-    let total = (ts.end / ts.dt - 1e-9).ceil() as usize;
-    let mut series = PvdSeries::new(&options.out_dir, "solution");
-    let mut history: Option<History> = None;
+    let total = crate::time::num_steps(ts.dt, ts.end);
+    let (mut state, mut series, mut history, mut timings, mut iterations, mut residuals, first) = match &options.resume {
+        None => (FsiState::at_rest(&model), PvdSeries::new(&options.out_dir, "solution"), None, Timings::default(), 0, Vec::new(), 1),
+        Some(c) => {
+            let restart = c.fsi_state(&options.out_dir, model.solid.num_dofs())?;
+            let state = FsiState::from_restart(&model, c.time, restart)?;
+            let series = PvdSeries::resume(&options.out_dir, "solution", c.time)?;
+            let history = History::resume(&options.out_dir.join("history.csv"), c.step)?;
+            let p = &c.progress;
+            obs.log(&format!("resuming after step {} (t = {:.6e}) from {}", c.step, c.time, Checkpoint::path(&options.out_dir).display()));
+            (state, series, Some(history), p.timings.clone(), p.newton_iterations, p.residual_norms.clone(), c.step + 1)
+        }
+    };
+    timings.mesh = mesh_seconds;
     let mut last: Vec<(String, f64)> = Vec::new();
-    let (mut iterations, mut residuals) = (0usize, Vec::new());
     let mut dofs = BTreeMap::new();
     let clock = Instant::now();
-    for k in 1..=total {
+    for k in first..=total {
         let dt = (ts.end - state.time).min(ts.dt);
         let (next, st) = step(&model, &state, dt, &mut lu, &case.solver.newton).map_err(|e| match e {
             FsiError::Newton(n) => invalid(format!("step {k} (t = {:.6e}): {n}", state.time + dt)),
@@ -87,14 +110,19 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         timings.assemble += r.newton.assemble_seconds;
         timings.factorize += r.newton.factorize_seconds;
         timings.solve += r.newton.solve_seconds;
+        timings.adapt += r.seconds.adapt;
         timings.discretize += r.seconds.build;
+        timings.transfer += r.seconds.transfer;
         let out_t = Instant::now();
         let fluid_x = &st.x[..st.disc.fluid_dofs];
         let step_state = StepState { time: r.time, inv_dt: 1.0 / dt, u_star: Some(&st.u_old[..st.disc.fluid_dofs]) };
-        let mut values = evaluate_all(&case.output, &st.disc.flow, &st.fluid_problem, fluid_x, &step_state).map_err(|e| match e {
+        let mut values = evaluate_all(&fluid_output, &st.disc.flow, &st.fluid_problem, fluid_x, &step_state).map_err(|e| match e {
             QuantityError::ProbeOutside { name, point } => RunError::ProbeOutside { name, point },
             QuantityError::Flow(f) => RunError::Flow(f),
         })?;
+        for (name, node, a) in &solid_probes {
+            values.push((name.clone(), model.solid.displacement(&next.solid_x, *node)[*a]));
+        }
         for (name, v) in builtin_quantities(D).into_iter().zip(r.multiplier_force.iter().copied().chain([r.coupling_elements as f64])) {
             values.push((name, v));
         }
@@ -112,11 +140,16 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         if k == total {
             crate::run::write_profiles(case, &st.disc.flow, &st.fluid_problem, fluid_x, &options.out_dir, obs)?;
         }
+        if k == total {
+            write_speed_picture(&model, &st, &next.solid_x, &options.out_dir)?;
+        }
         if k % ts.output_every == 0 || k == total {
             series.add(r.time, "fluid", &fluid_grid(&st.disc.flow, fluid_x)?)?;
             series.add(r.time, "solid", &crate::solid_run::solid_grid(&model.solid, material.as_ref(), &next.solid_x)?)?;
+            series.add(r.time, "gamma_f", &gamma_f_grid(&st.disc, &st.x)?)?;
         }
-        timings.output += out_t.elapsed().as_secs_f64();
+        let out_seconds = out_t.elapsed().as_secs_f64();
+        timings.output += out_seconds;
         obs.log(&format!(
             "step {k}/{total} t = {:.6e}: newton {} |R| = {residual:.2e}; {} coupling facets, dofs {} + {} + {}; force [{}]; {:.2} s elapsed",
             r.time,
@@ -128,7 +161,6 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
             r.multiplier_force.iter().map(|f| format!("{f:.6e}")).collect::<Vec<_>>().join(", "),
             clock.elapsed().as_secs_f64()
         ));
-        obs.step(k, total, r.time);
         dofs = BTreeMap::from([
             ("fluid".to_string(), r.fluid_dofs),
             ("solid".to_string(), r.solid_dofs),
@@ -137,6 +169,12 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         ]);
         last = values;
         state = next;
+        options.after_step(case, k, state.time, || {
+            let progress = Progress { newton_iterations: iterations, residual_norms: residuals.clone(), timings: timings.clone() };
+            (RestartState::Fsi(state.to_restart()), progress)
+        })?;
+        timings.output += out_t.elapsed().as_secs_f64() - out_seconds;
+        obs.step(k, total, state.time);
     }
     for (name, v) in &last {
         obs.log(&format!("{name} = {v:.10e}"));
@@ -153,5 +191,29 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         symbolic_factorizations: lu.symbolic_factorizations(),
         quantities: last.into_iter().collect(),
         timings,
+        timings_per_step: None,
     })
+}
+
+/// 2D: `speed.png` of the last step around the solid (its bounding box widened by twice its size
+/// on each side, clipped to the fluid mesh), with gamma_f drawn in white.
+fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, solid_x: &[f64], out_dir: &std::path::Path) -> Result<(), RunError> {
+    let Some(flow) = (&st.disc.flow as &dyn std::any::Any).downcast_ref::<crate::flow::FlowDiscretization<2>>() else {
+        return Ok(());
+    };
+    let solid = model.current_solid_mesh(solid_x);
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for p in &solid.points {
+        for d in 0..2 {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let window = [[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]];
+    let outlines: Vec<Vec<[f64; 2]>> =
+        st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| std::array::from_fn(|d| flow.mesh.points[v][d])).collect()).collect();
+    let png = out_dir.join("speed.png");
+    crate::picture::write_speed_png_window(flow, &st.x[..st.disc.fluid_dofs], &png, 1600, Some(window), &outlines)
+        .map_err(|message| crate::output::OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
 }

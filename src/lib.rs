@@ -23,3 +23,6 @@ pub mod adaptation;
 pub mod solid_run;
 pub mod fsi;
 pub mod fsi_run;
+pub mod check;
+pub mod checkpoint;
+pub mod plot;

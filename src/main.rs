@@ -8,6 +8,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use fdfsi::verify::{self, Effort};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 #[derive(Parser)]
 #[command(name = "fdfsi", version, about = "Fluid-structure interaction for heart-valve modelling (van Loon et al. 2005)")]
@@ -22,11 +24,20 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a case (a TOML file or a built-in case name; default: the built-in channel-stokes case).
+    ///
+    /// Ctrl-C stops a time-dependent run after the current step and writes a checkpoint.
     Run {
+        #[arg(conflicts_with = "resume")]
         case: Option<String>,
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Write a restart file (DIR/checkpoint.json) every N steps.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        checkpoint_every: Option<u64>,
+        /// Continue the run whose output and checkpoint are in DIR (with the case stored there).
+        #[arg(long, value_name = "DIR")]
+        resume: Option<PathBuf>,
     },
     /// Parse and validate a case without running it; print a summary of the problem.
     Check { case: String },
@@ -39,6 +50,9 @@ enum Command {
         #[arg(long, default_value = "out-adapt")]
         out: PathBuf,
     },
+    /// Draw PNG plots of a run's results into DIR/plots: every history.csv column against time,
+    /// trajectories of STEM_x/STEM_y column pairs, and the profiles.
+    Plot { dir: PathBuf },
     /// Run the manufactured-solution convergence studies and print errors and rates.
     Verify {
         /// Also write the studies as JSON.
@@ -120,19 +134,48 @@ fn main() -> Result<()> {
         }
     };
     match cli.command {
-        Command::Run { case, out } => {
-            let (case, case_dir, label) = load_case(case.as_deref())?;
+        Command::Run { case, out, checkpoint_every, resume } => {
+            let (case, mut options, label) = match resume {
+                Some(dir) => {
+                    let (case, options) = RunOptions::resume(&dir)?;
+                    let label = format!("{} (resumed)", dir.display());
+                    (case, options, label)
+                }
+                None => {
+                    let (case, case_dir, label) = load_case(case.as_deref())?;
+                    (case, RunOptions::new(out, case_dir), label)
+                }
+            };
+            options.checkpoint_every = checkpoint_every.map(|n| n as usize);
+            let stop = Arc::new(AtomicBool::new(false));
+            let flag = stop.clone();
+            ctrlc::set_handler(move || {
+                if flag.swap(true, Ordering::SeqCst) {
+                    std::process::exit(130); // a second Ctrl-C stops at once
+                }
+                eprintln!("\nstopping after this step (Ctrl-C again to stop now) ...");
+            })
+            .context("installing the Ctrl-C handler")?;
+            options.stop = Some(stop);
             log(&format!("case: {label}: {}", case.title));
             let mut observer = CliObserver { quiet, bar: None, terminal: std::io::stderr().is_terminal() };
-            let summary = run_case(&case, &RunOptions { out_dir: out.clone(), case_dir }, &mut observer)
-                .with_context(|| format!("running {label}"))?;
+            let summary = match run_case(&case, &options, &mut observer) {
+                Err(e @ fdfsi::run::RunError::Interrupted { .. }) => {
+                    eprintln!("{e}");
+                    std::process::exit(130);
+                }
+                other => other.with_context(|| format!("running {label}"))?,
+            };
+            let t = &summary.timings;
             log(&format!(
-                "done in {:.2} s (assemble {:.2} s, factorize {:.2} s, solve {:.2} s); results in {}",
-                summary.timings.total,
-                summary.timings.assemble,
-                summary.timings.factorize,
-                summary.timings.solve,
-                out.display()
+                "done in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s); results in {}",
+                t.total,
+                t.adapt,
+                t.assemble,
+                t.factorize,
+                t.solve,
+                t.output,
+                options.out_dir.display()
             ));
         }
         Command::Check { case } => {
@@ -153,6 +196,13 @@ fn main() -> Result<()> {
                 "gamma_s: {} pieces, measure {:.6e}; gamma_f measure {:.6e}; min quality {:.3}; files in {}",
                 s.gamma_s_pieces, s.gamma_s_measure, s.gamma_f_measure, st.min_quality, out.display()
             );
+        }
+        Command::Plot { dir } => {
+            let files = fdfsi::plot::plot_results(&dir)?;
+            for f in &files {
+                println!("{}", f.display());
+            }
+            log(&format!("{} plots in {}", files.len(), dir.join("plots").display()));
         }
         Command::Cases { name } => match name {
             None => {

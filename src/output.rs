@@ -73,6 +73,34 @@ pub fn fluid_grid<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Re
     Ok(grid)
 }
 
+/// gamma_f of an FSI step as a VTK grid: one line (2D) or triangle (3D) per coupling element,
+/// with its own vertices because the multiplier is discontinuous between elements. Point data
+/// `multiplier`: lambda, the traction of the fluid on the solid (force per unit length in 2D, per
+/// unit area in 3D and per radian-length in axisymmetric runs); cell data `element`: the coupling
+/// element's index.
+pub fn gamma_f_grid<const D: usize>(disc: &crate::fsi::FsiDiscretization<D>, x: &[f64]) -> Result<UnstructuredGrid, VtkError> {
+    let gamma_f = &disc.adapted.gamma_f;
+    let points: Vec<[f64; 3]> = gamma_f
+        .iter()
+        .flat_map(|g| g.vertices.map(|v| disc.flow.mesh.points[v]))
+        .map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 }))
+        .collect();
+    let mut grid = UnstructuredGrid::new(points);
+    let cell_type = if D == 2 { VtkCellType::Line } else { VtkCellType::Triangle };
+    for e in 0..gamma_f.len() {
+        grid.push_cell(cell_type, &(e * D..(e + 1) * D).collect::<Vec<_>>())?;
+    }
+    let mut lambda = Vec::with_capacity(gamma_f.len() * D * 3);
+    for e in 0..gamma_f.len() {
+        for k in 0..D {
+            lambda.extend((0..3).map(|a| if a < D { x[disc.multiplier_dof(e, k, a)] } else { 0.0 }));
+        }
+    }
+    grid.add_point_data("multiplier", 3, lambda)?;
+    grid.add_cell_data("element", 1, (0..gamma_f.len()).map(|e| e as f64).collect())?;
+    Ok(grid)
+}
+
 /// A `history.csv` being written row by row (rewritten atomically after each row).
 pub struct History {
     path: std::path::PathBuf,
@@ -89,6 +117,23 @@ impl History {
         }
         text.push('\n');
         History { path: path.to_path_buf(), text }
+    }
+
+    /// Continues the `history.csv` of an interrupted run: keeps its header and the rows of steps
+    /// up to `until_step`, and rewrites the file with them.
+    pub fn resume(path: &Path, until_step: usize) -> Result<Self, OutputError> {
+        let io = |source| OutputError::Io { path: path.display().to_string(), source };
+        let old = std::fs::read_to_string(path).map_err(io)?;
+        let mut text = String::new();
+        for (i, line) in old.lines().enumerate() {
+            let keep = i == 0 || line.split(',').next().and_then(|s| s.parse::<usize>().ok()).is_some_and(|s| s <= until_step);
+            if keep {
+                text.push_str(line);
+                text.push('\n');
+            }
+        }
+        write_atomic(path, text.as_bytes())?;
+        Ok(History { path: path.to_path_buf(), text })
     }
 
     /// Appends a row and rewrites the file.

@@ -17,8 +17,22 @@ pub fn viridis(s: f64) -> RGBColor {
     RGBColor(mix(C[i].0, C[i + 1].0), mix(C[i].1, C[i + 1].1), mix(C[i].2, C[i + 1].2))
 }
 
-/// Writes the speed of a 2D flow solution as a PNG `width` pixels wide.
+/// Writes the speed of a 2D flow solution as a PNG `width` pixels wide, showing the whole mesh.
 pub fn write_speed_png(disc: &FlowDiscretization<2>, x: &[f64], path: &Path, width: u32) -> Result<(), String> {
+    write_speed_png_window(disc, x, path, width, None, &[])
+}
+
+/// Writes the speed of a 2D flow solution as a PNG `width` pixels wide showing the rectangle
+/// `window = [[x0, y0], [x1, y1]]` (default: the whole mesh), with the polylines `outlines`
+/// (e.g. gamma_f) drawn in white over it. The colour scale spans the speeds in the picture.
+pub fn write_speed_png_window(
+    disc: &FlowDiscretization<2>,
+    x: &[f64],
+    path: &Path,
+    width: u32,
+    window: Option<[[f64; 2]; 2]>,
+    outlines: &[Vec<[f64; 2]>],
+) -> Result<(), String> {
     let vf = &disc.layout.fields[0];
     let nodes = &disc.velocity_nodes;
     let speed = |n: usize| (x[vf.dof(n, 0)].powi(2) + x[vf.dof(n, 1)].powi(2)).sqrt();
@@ -29,10 +43,19 @@ pub fn write_speed_png(disc: &FlowDiscretization<2>, x: &[f64], path: &Path, wid
             hi[d] = hi[d].max(p[d]);
         }
     }
+    if let Some([a, b]) = window {
+        (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
+        if !(hi[0] > lo[0] && hi[1] > lo[1]) {
+            return Err(format!("the picture window {window:?} does not overlap the mesh"));
+        }
+    }
+    let inside = |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
     let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
     let height = ((width as f64) * h / w).round().clamp(40.0, 4.0 * width as f64) as u32;
-    let smax = (0..vf.nodes.num_nodes).map(speed).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
+    let smax = (0..vf.nodes.num_nodes).filter(|&n| inside(&nodes[n])).map(speed).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    // Drawn under a temporary name and renamed, so a crash never leaves a half-written picture.
+    let tmp = path.with_extension("tmp.png");
+    let root = BitMapBackend::new(&tmp, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let px = |p: [f64; 2]| -> (i32, i32) {
         (((p[0] - lo[0]) / w * (width - 1) as f64).round() as i32, ((hi[1] - p[1]) / h * (height - 1) as f64).round() as i32)
@@ -47,5 +70,11 @@ pub fn write_speed_png(disc: &FlowDiscretization<2>, x: &[f64], path: &Path, wid
             root.draw(&Polygon::new(pts, viridis(s).filled())).map_err(|e| e.to_string())?;
         }
     }
-    root.present().map_err(|e| e.to_string())
+    for line in outlines {
+        let pts: Vec<(i32, i32)> = line.iter().map(|&p| px(p)).collect();
+        root.draw(&PathElement::new(pts, WHITE.stroke_width(3))).map_err(|e| e.to_string())?;
+    }
+    root.present().map_err(|e| e.to_string())?;
+    drop(root);
+    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -7,15 +7,17 @@ use crate::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowError, Flow
 use crate::output::{fluid_grid, write_atomic, History, OutputError};
 use crate::physics::fluid::FluidParams;
 use crate::quantities::{evaluate_all, QuantityError, StepState};
-use crate::time::{solve_unsteady, TimeOptions};
+use crate::time::{solve_unsteady_from, TimeOptions};
 use crate::solve::linear::FaerLu;
 use fdfsi_fem::generate;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh, GmshError};
 use fdfsi_fem::mesh::{Mesh, Topology};
 use fdfsi_fem::vtk::{PvdSeries, VtkError};
-use serde::Serialize;
+use crate::checkpoint::{Checkpoint, CheckpointError, Progress, RestartState, CHECKPOINT_VERSION};
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 use thiserror::Error;
@@ -32,6 +34,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("schaefer-turek-2d1", include_str!("../cases/schaefer-turek-2d1.toml")),
     ("womersley-axisymmetric", include_str!("../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
+    ("model-problem-1", include_str!("../cases/model-problem-1.toml")),
     ("model-problem-2", include_str!("../cases/model-problem-2.toml")),
     ("cylinder-re100", include_str!("../cases/cylinder-re100.toml")),
     ("slab-3d-poiseuille", include_str!("../cases/slab-3d-poiseuille.toml")),
@@ -64,6 +67,10 @@ pub enum RunError {
     Solid(#[from] crate::solid::SolidError),
     #[error(transparent)]
     Fsi(#[from] crate::fsi::FsiError),
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+    #[error("interrupted after step {step} (t = {time:.6e}); a checkpoint is in {out_dir}: continue with `fdfsi run --resume {out_dir}`")]
+    Interrupted { step: usize, time: f64, out_dir: String },
 }
 
 /// Receives what a run reports: log lines and step progress.
@@ -80,23 +87,80 @@ impl<F: FnMut(&str)> RunObserver for F {
     }
 }
 
-/// Where a run reads and writes.
-#[derive(Clone, Debug)]
+/// Where a run reads and writes, and how it saves restart points.
+#[derive(Clone, Debug, Default)]
 pub struct RunOptions {
     /// Output directory (created).
     pub out_dir: PathBuf,
     /// Directory that relative paths in the case (mesh files) are resolved against.
     pub case_dir: PathBuf,
+    /// Write `out_dir/checkpoint.json` after every this many steps (time-dependent runs).
+    pub checkpoint_every: Option<usize>,
+    /// Continue from this checkpoint (read from `out_dir`) instead of starting at `t = 0`.
+    pub resume: Option<Checkpoint>,
+    /// When set (e.g. by a Ctrl-C handler), the run stops after the current step, writes a
+    /// checkpoint and returns [`RunError::Interrupted`].
+    pub stop: Option<Arc<AtomicBool>>,
+}
+
+impl RunOptions {
+    /// Options writing into `out_dir`, resolving case paths against `case_dir`, without
+    /// checkpoints.
+    pub fn new(out_dir: impl Into<PathBuf>, case_dir: impl Into<PathBuf>) -> Self {
+        RunOptions { out_dir: out_dir.into(), case_dir: case_dir.into(), ..Default::default() }
+    }
+
+    /// Options that continue the run whose output (and checkpoint) is in `out_dir`; returns them
+    /// with the case stored in the checkpoint.
+    pub fn resume(out_dir: impl Into<PathBuf>) -> Result<(Case, Self), RunError> {
+        let out_dir = out_dir.into();
+        let checkpoint = Checkpoint::read(&out_dir)?;
+        let file = Checkpoint::path(&out_dir).display().to_string();
+        let case = Case::from_toml_str(&checkpoint.case, &file)?;
+        let options = RunOptions { out_dir, case_dir: checkpoint.case_dir.clone(), resume: Some(checkpoint), ..Default::default() };
+        Ok((case, options))
+    }
+
+    /// Has a stop been requested?
+    fn stop_requested(&self) -> bool {
+        self.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst))
+    }
+
+    /// Saves a checkpoint after `step` if one is due (every `checkpoint_every` steps, or a stop
+    /// was requested); returns `Err` with the interruption message when the run must stop.
+    pub(crate) fn after_step(&self, case: &Case, step: usize, time: f64, state: impl FnOnce() -> (RestartState, Progress)) -> Result<(), RunError> {
+        let stop = self.stop_requested();
+        let due = self.checkpoint_every.is_some_and(|n| n > 0 && step % n == 0);
+        if stop || due {
+            let (state, progress) = state();
+            let case_dir = std::path::absolute(&self.case_dir).unwrap_or_else(|_| self.case_dir.clone());
+            let c = Checkpoint { version: CHECKPOINT_VERSION, case: case.to_toml(), case_dir, step, time, state, progress };
+            c.write(&self.out_dir)?;
+        }
+        if stop {
+            return Err(RunError::Interrupted { step, time, out_dir: self.out_dir.display().to_string() });
+        }
+        Ok(())
+    }
 }
 
 /// Wall time per phase, seconds.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Timings {
+    /// Building (and, with a solid, adapting) the initial mesh.
     pub mesh: f64,
+    /// Adapting the fluid mesh to gamma_s in the steps of an FSI run.
+    #[serde(default)]
+    pub adapt: f64,
+    /// Dof maps, sparsity patterns and coupling elements.
     pub discretize: f64,
+    /// Mapping the fluid velocity onto each step's adapted mesh (FSI).
+    #[serde(default)]
+    pub transfer: f64,
     pub assemble: f64,
     pub factorize: f64,
     pub solve: f64,
+    /// Quantities, history, fields and checkpoints.
     pub output: f64,
     pub total: f64,
 }
@@ -115,46 +179,18 @@ pub struct RunSummary {
     pub symbolic_factorizations: usize,
     pub quantities: BTreeMap<String, f64>,
     pub timings: Timings,
+    /// `timings` divided by the number of steps (time-dependent runs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub timings_per_step: Option<Timings>,
 }
 
-/// Parses and validates a case and checks that its mesh can be built and names the boundaries
-/// the case uses; returns a one-paragraph description of the problem (`fdfsi check`).
+/// Parses and validates a case and checks everything that needs no solve (see
+/// [`crate::check`]): the mesh can be built and names the boundaries the case uses, the tables
+/// can be read, the solid and the probes lie in the fluid. Returns a description of the problem
+/// and a summary: dofs per field, the number of steps, an estimate of the output size
+/// (`fdfsi check`).
 pub fn check_case(case: &Case, file: &str, case_dir: &Path) -> Result<String, RunError> {
-    case.validate(file)?;
-    if case.mesh.is_none() {
-        return Ok(crate::solid_run::describe(case, case_dir)?);
-    }
-    let fluid = match fluid_mesh(case, case_dir, &mut |_: &str| {})? {
-        AnyMesh::D2(m) => describe::<2>(case, m)?,
-        AnyMesh::D3(m) => describe::<3>(case, m)?,
-    };
-    Ok(match (&case.solid, crate::fsi_run::is_fsi(case)) {
-        (Some(s), true) => format!(
-            "FSI run. Fluid (adapted to the solid at t = 0): {fluid}\nSolid: {:?} (G = {}), coupled on '{}' by the Lagrange multiplier",
-            s.model,
-            s.shear_modulus.unwrap_or(f64::NAN),
-            s.surface.as_deref().unwrap_or("?")
-        ),
-        _ => fluid,
-    })
-}
-
-fn describe<const D: usize>(case: &Case, mesh: Mesh<D>) -> Result<String, RunError> {
-    for b in &case.boundary {
-        mesh.boundary_tag(&b.name).map_err(FlowError::from)?;
-    }
-    let cells = mesh.num_cells();
-    let disc = FlowDiscretization::build(mesh, case.physics.formulation)?;
-    let v = disc.layout.fields[0].num_dofs();
-    let p = disc.layout.fields[1].num_dofs();
-    Ok(format!(
-        "{}: {:?} {:?} flow, {D}D mesh of {cells} cells; dofs: velocity {v}, pressure {p}, total {}; nnz {}",
-        case.title,
-        case.physics.model,
-        case.physics.formulation,
-        v + p,
-        disc.pattern.nnz()
-    ))
+    Ok(crate::check::check(case, file, case_dir)?.to_string())
 }
 
 /// Builds the case's fluid mesh.
@@ -223,7 +259,17 @@ pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<crate:
 /// Runs a case; `log` receives one line per notable event.
 pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
     let t0 = Instant::now();
-    case.validate("case")?;
+    // The checks of `fdfsi check` (names, ranges, meshes, solid placement, probes), before
+    // anything is written.
+    crate::check::check(case, "case", &options.case_dir)?;
+    if let Some(c) = &options.resume {
+        if c.case != case.to_toml() {
+            return Err(RunError::Case(CaseError::Invalid {
+                file: Checkpoint::path(&options.out_dir).display().to_string(),
+                message: "the case differs from the one the checkpoint was written for; resume with the checkpoint's own case (`fdfsi run --resume DIR`)".into(),
+            }));
+        }
+    }
     std::fs::create_dir_all(&options.out_dir)
         .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
@@ -244,8 +290,17 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         summary
     };
     summary.timings.total = t0.elapsed().as_secs_f64();
+    if case.time.is_some() && summary.steps > 0 {
+        summary.timings_per_step = Some(summary.timings.scaled(1.0 / summary.steps as f64));
+    }
     let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
     write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
+    // The results are written: a failing plot is reported, not an error of the run.
+    match crate::plot::plot_results(&options.out_dir) {
+        Ok(files) if !files.is_empty() => log.log(&format!("plots: {} PNG files in {}", files.len(), options.out_dir.join("plots").display())),
+        Ok(_) => {}
+        Err(e) => log.log(&format!("warning: plots not made: {e}")),
+    }
     Ok(summary)
 }
 
@@ -380,12 +435,27 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         }
         Some(ts) => {
             let topts = TimeOptions { dt: ts.dt, t_end: ts.end, scheme: ts.scheme, max_cuts: ts.max_cuts };
-            let total = (ts.end / ts.dt - 1e-9).ceil() as usize;
-            let mut x = vec![0.0; disc.num_dofs()];
-            out.record(&disc, &problem, &x, &StepState::default(), 0, 0, 0.0, true, obs)?;
+            let total = crate::time::num_steps(ts.dt, ts.end);
+            let (mut x, start) = match &options.resume {
+                Some(c) => {
+                    let (x, level) = c.flow_state(&options.out_dir, disc.num_dofs())?;
+                    out.resume(c.step, c.time)?;
+                    out.seconds = c.progress.timings.output;
+                    newton_iterations = c.progress.newton_iterations;
+                    residual_norms.clone_from(&c.progress.residual_norms);
+                    timings = Timings { discretize, ..c.progress.timings.clone() };
+                    obs.log(&format!("resuming after step {} (t = {:.6e}) from {}", c.step, c.time, Checkpoint::path(&options.out_dir).display()));
+                    (x, level)
+                }
+                None => {
+                    let x = vec![0.0; disc.num_dofs()];
+                    out.record(&disc, &problem, &x, &StepState::default(), 0, 0, 0.0, true, obs)?;
+                    (x, crate::time::TimeLevel::default())
+                }
+            };
             let mut failure: Option<RunError> = None;
             let step_t = Instant::now();
-            let result = solve_unsteady(&disc, &problem, &mut x, &topts, &mut lu, &case.solver.newton, |rep, x| {
+            let result = solve_unsteady_from(&disc, &problem, &mut x, start, &topts, &mut lu, &case.solver.newton, |rep, x, level| {
                 for n in &rep.newton {
                     timings.add_newton(n);
                 }
@@ -402,7 +472,17 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
                 ));
                 let state = StepState { time: rep.time, inv_dt: rep.inv_dt, u_star: Some(&rep.u_star) };
                 let write = rep.step % ts.output_every == 0 || rep.step == total;
-                if let Err(e) = out.record(&disc, &problem, x, &state, rep.step, rep.iterations(), rep.residual(), write, obs) {
+                let saved = out.record(&disc, &problem, x, &state, rep.step, rep.iterations(), rep.residual(), write, obs).and_then(|()| {
+                    let clock = Instant::now();
+                    timings.output = out.seconds;
+                    let r = options.after_step(case, rep.step, rep.time, || {
+                        let progress = Progress { newton_iterations, residual_norms: residual_norms.clone(), timings: timings.clone() };
+                        (RestartState::Flow { x: x.to_vec(), level: level.clone() }, progress)
+                    });
+                    out.seconds += clock.elapsed().as_secs_f64();
+                    r
+                });
+                if let Err(e) = saved {
                     let msg = e.to_string();
                     failure = Some(e);
                     return Err(msg);
@@ -446,6 +526,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         symbolic_factorizations: crate::solve::linear::LinearSolver::symbolic_factorizations(&lu),
         quantities: out.last.into_iter().collect(),
         timings,
+        timings_per_step: None,
     })
 }
 
@@ -472,6 +553,22 @@ pub(crate) fn write_profiles<const D: usize>(
 }
 
 impl Timings {
+    /// Every phase times `factor`.
+    pub fn scaled(&self, factor: f64) -> Timings {
+        let t = self;
+        Timings {
+            mesh: t.mesh * factor,
+            adapt: t.adapt * factor,
+            discretize: t.discretize * factor,
+            transfer: t.transfer * factor,
+            assemble: t.assemble * factor,
+            factorize: t.factorize * factor,
+            solve: t.solve * factor,
+            output: t.output * factor,
+            total: t.total * factor,
+        }
+    }
+
     fn add_newton(&mut self, r: &crate::solve::newton::NewtonReport) {
         self.assemble += r.assemble_seconds;
         self.factorize += r.factorize_seconds;
@@ -499,6 +596,14 @@ impl Outputs {
             last: Vec::new(),
             seconds: 0.0,
         })
+    }
+
+    /// Continues the history and the field series of an interrupted run after `step` (time
+    /// `time`), dropping what it wrote later.
+    fn resume(&mut self, step: usize, time: f64) -> Result<(), RunError> {
+        self.history = Some(History::resume(&self.out_dir.join("history.csv"), step)?);
+        self.series = PvdSeries::resume(&self.out_dir, "solution", time)?;
+        Ok(())
     }
 
     /// Evaluates the quantities, appends a history row and (when `write_fields`) the fields.

@@ -103,6 +103,22 @@ pub fn describe(case: &Case, case_dir: &Path) -> Result<String, RunError> {
     }
 }
 
+/// The case's `displacement` probes as (name, solid node, component): each probe point must
+/// be a node of the solid mesh (reference configuration).
+pub fn displacement_probes<const D: usize>(case: &Case, disc: &SolidDiscretization<D>) -> Result<Vec<(String, usize, usize)>, RunError> {
+    let mut out = Vec::new();
+    for p in case.output.probe.iter().filter(|p| p.field == ProbeField::Displacement) {
+        let x0: [f64; D] = std::array::from_fn(|d| p.point.get(d).copied().unwrap_or(0.0));
+        let node = disc.node_near(&x0);
+        let dist: f64 = (0..D).map(|d| (disc.nodes_x0[node][d] - x0[d]).powi(2)).sum::<f64>().sqrt();
+        if dist > 1e-9 * (1.0 + x0.iter().map(|v| v.abs()).fold(0.0, f64::max)) {
+            return Err(invalid(format!("probe '{}': {:?} is not a node of the solid mesh (nearest is {dist:.3e} away)", p.name, p.point)));
+        }
+        out.push((p.name.clone(), node, p.component));
+    }
+    Ok(out)
+}
+
 /// Runs a solid-only case.
 pub fn run_solid(case: &Case, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
     if case.dim() == 2 {
@@ -123,20 +139,10 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     let mut timings = Timings { mesh: t.elapsed().as_secs_f64(), ..Default::default() };
     obs.log(&format!("solid: {} on {cells} cells, {} dofs; {} load steps", problem.material.name(), disc.num_dofs(), spec.loading.steps));
     let stepping = LoadStepping::uniform(spec.loading.mode, spec.loading.steps);
-    // Probes read the displacement at a node of the solid mesh.
-    let mut probe_nodes = Vec::new();
-    for p in &case.output.probe {
-        if p.field != ProbeField::Displacement {
-            return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
-        }
-        let x0: [f64; D] = std::array::from_fn(|d| p.point.get(d).copied().unwrap_or(0.0));
-        let node = disc.node_near(&x0);
-        let dist: f64 = (0..D).map(|d| (disc.nodes_x0[node][d] - x0[d]).powi(2)).sum::<f64>().sqrt();
-        if dist > 1e-9 * (1.0 + x0.iter().map(|v| v.abs()).fold(0.0, f64::max)) {
-            return Err(invalid(format!("probe '{}': {:?} is not a node of the solid mesh (nearest is {dist:.3e} away)", p.name, p.point)));
-        }
-        probe_nodes.push((p.name.clone(), node, p.component));
+    if let Some(p) = case.output.probe.iter().find(|p| p.field != ProbeField::Displacement) {
+        return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
     }
+    let probe_nodes = displacement_probes(case, &disc)?;
     let names: Vec<String> = probe_nodes.iter().map(|(n, _, _)| n.clone()).collect();
     let mut history = History::new(&options.out_dir.join("history.csv"), &names);
     let mut converged = 0usize;
@@ -190,6 +196,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         symbolic_factorizations: lu.symbolic_factorizations(),
         quantities,
         timings,
+        timings_per_step: None,
     })
 }
 

@@ -107,6 +107,24 @@ fn solve_step<const D: usize>(
     Ok(report)
 }
 
+/// Where the time loop stands after a completed step: what a restart needs besides the
+/// solution itself.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TimeLevel {
+    /// Completed steps (0 at the start).
+    pub step: usize,
+    /// Time reached.
+    pub time: f64,
+    /// The solution one step back, `u^{n-1}`, when the next step may use BDF2 (`None` at the
+    /// start and after a cut step).
+    pub x_prev: Option<Vec<f64>>,
+}
+
+/// Number of steps of size `dt` to reach `t_end` (the last one may be shorter).
+pub fn num_steps(dt: f64, t_end: f64) -> usize {
+    (t_end / dt - 1e-9).ceil() as usize
+}
+
 /// Integrates from `x` at time 0 to `options.t_end`. `on_step(report, x)` is called after every
 /// completed step; returning `Err(message)` stops the loop.
 pub fn solve_unsteady<const D: usize>(
@@ -118,13 +136,32 @@ pub fn solve_unsteady<const D: usize>(
     newton_options: &NewtonOptions,
     mut on_step: impl FnMut(&StepReport, &[f64]) -> Result<(), String>,
 ) -> Result<(), TimeError> {
+    solve_unsteady_from(disc, problem, x, TimeLevel::default(), options, solver, newton_options, |r, x, _| on_step(r, x))
+}
+
+/// Integrates from `x` at the time level `start` (a restart, or [`TimeLevel::default`] for
+/// `t = 0`) to `options.t_end`. `on_step(report, x, level)` is called after every completed step
+/// with the level reached; returning `Err(message)` stops the loop. Steps are numbered from the
+/// start of the run, and step `k` ends at `min(k dt, t_end)` whether or not the run was
+/// restarted, so a restarted run repeats the arithmetic of an uninterrupted one.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_unsteady_from<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    x: &mut Vec<f64>,
+    start: TimeLevel,
+    options: &TimeOptions,
+    solver: &mut dyn LinearSolver,
+    newton_options: &NewtonOptions,
+    mut on_step: impl FnMut(&StepReport, &[f64], &TimeLevel) -> Result<(), String>,
+) -> Result<(), TimeError> {
     if !(options.dt > 0.0 && options.t_end > 0.0) {
         return Err(TimeError::BadOptions { dt: options.dt, t_end: options.t_end });
     }
-    let num_steps = (options.t_end / options.dt - 1e-9).ceil() as usize;
-    let mut x_prev: Option<Vec<f64>> = None; // u^{n-1} for BDF2
-    let mut t = 0.0;
-    for step in 1..=num_steps {
+    let num_steps = num_steps(options.dt, options.t_end);
+    let mut x_prev: Option<Vec<f64>> = start.x_prev; // u^{n-1} for BDF2
+    let mut t = start.time;
+    for step in start.step + 1..=num_steps {
         let t_next = (step as f64 * options.dt).min(options.t_end);
         let dt = t_next - t;
         let x_n = x.clone();
@@ -180,7 +217,8 @@ pub fn solve_unsteady<const D: usize>(
             }
         }
         t = t_next;
-        on_step(&report, x).map_err(|message| TimeError::Observer { step, message })?;
+        let level = TimeLevel { step, time: t, x_prev: x_prev.clone() };
+        on_step(&report, x, &level).map_err(|message| TimeError::Observer { step, message })?;
     }
     Ok(())
 }

@@ -9,7 +9,8 @@
 //!   relative to its size); `z` is dropped.
 //! - **Nodes.** Gmsh node tags may be sparse; only nodes used by cells are kept, numbered
 //!   `0, 1, ...` in order of first use by the cells. Two distinct kept nodes closer than `1e-12`
-//!   times the bounding-box diagonal (in each coordinate) are an error (duplicate nodes).
+//!   times the bounding-box diagonal (in each coordinate) are an error (duplicate nodes), so is
+//!   a kept node with a NaN or infinite coordinate, and a node tag given twice in a block.
 //! - **Node order.** Cells are converted from Gmsh's node order to VTK's (the order of
 //!   [`crate::element`]) by matching the reference coordinates of the nodes: the Gmsh tables
 //!   below are copied from the Gmsh manual ("Node ordering") and Gmsh's `MTetrahedron` /
@@ -33,17 +34,21 @@
 //! - **Boundaries.** Every element of dimension `D - 1` (2-/3-node lines in 2D; 3-/6-node
 //!   triangles and 4-/9-node quadrangles in 3D) whose entity has a physical tag becomes a
 //!   [`BoundaryFacet`] with that tag: it is matched to `(cell, local facet)` by its sorted vertex
-//!   set. An element that matches no cell facet is an error. A facet shared by two cells (an
-//!   interface) is tagged once, on the first cell that has it. A facet tagged twice with
-//!   different tags is an error. Elements of dimension `D - 1` without a physical tag, and
-//!   elements of lower dimension, are ignored. Boundary names come from `$PhysicalNames` of
-//!   dimension `D - 1` (unnamed tags that are used are named by their number).
+//!   set. An element of dimension `D - 1` that matches no cell facet, tagged or not, is an error
+//!   (a file mixing 2D and 3D cells fails here: its triangles are no faces of its tetrahedra). A
+//!   facet shared by two cells (an interface) is tagged once, on the first cell that has it. A
+//!   facet tagged twice with different tags is an error. Elements of dimension `D - 1` without a
+//!   physical tag give no boundary facet; elements of lower dimension are ignored. Boundary
+//!   names come from `$PhysicalNames` of dimension `D - 1` (unnamed tags that are used are named
+//!   by their number).
 //!
 //! Limitations (of `mshio` 0.4): only format 4.1 is read; parametric node blocks are refused;
 //! when all node tags of the file are contiguous, `mshio` drops them and node `i` of the file is
 //! taken to have tag `min_tag + i` (the order Gmsh writes). `$PhysicalNames` is not parsed by
 //! `mshio` and is read here from the text (also in binary files, where Gmsh writes it as text).
-//! Errors name the file and, where it applies, the Gmsh element or node tag.
+//! Errors name the file and, where it applies, the Gmsh element or node tag, or the line (byte
+//! offset in binary files) where parsing failed; a file without `$Nodes` or `$Elements`, or with
+//! a section that is not closed, says so.
 
 use crate::element::ReferenceCell;
 use crate::mesh::{geometry_element, geometry_nodes, BoundaryFacet, GeometryOrder, Mesh};
@@ -108,12 +113,21 @@ pub enum GmshError {
     DuplicateNodes { file: String, node_a: u64, node_b: u64, coords: [f64; 3] },
     #[error("{file}: element {element_tag} is inverted (signed measure or det J {measure:.3e})")]
     InvertedCell { file: String, element_tag: u64, measure: f64 },
-    #[error("{file}: element {element_tag} is degenerate (signed measure {measure:.3e})")]
+    #[error("{file}: element {element_tag} is degenerate: its vertices span no area or volume (signed measure {measure:.3e})")]
     DegenerateCell { file: String, element_tag: u64, measure: f64 },
     #[error("{file}: element {element_tag} (entity {entity_tag}) belongs to no physical group, but other cells do")]
     MissingPhysicalGroup { file: String, element_tag: u64, entity_tag: i32 },
-    #[error("{file}: boundary element {element_tag} is not a facet of any cell")]
-    BoundaryNotOnFacet { file: String, element_tag: u64 },
+    #[error(
+        "{file}: element {element_tag} ({kind}) is not a facet of any {dim}D cell: the cells are the elements \
+         of the highest dimension ({dim}D), every {}D element must be a side of one (a file mixing 2D and 3D \
+         cells is refused)",
+        .dim - 1
+    )]
+    BoundaryNotOnFacet { file: String, element_tag: u64, kind: String, dim: usize },
+    #[error("{file}: the file has no {section} section")]
+    MissingSection { file: String, section: &'static str },
+    #[error("{file}: node {node_tag} has a non-finite coordinate {coords:?}")]
+    NonFiniteNode { file: String, node_tag: u64, coords: [f64; 3] },
     #[error("{file}: node {node_tag} has z = {z:e}: a 2D mesh must lie in the plane z = 0")]
     NotPlanar { file: String, node_tag: u64, z: f64 },
     #[error("{file}: no 2D or 3D elements (note: when physical groups are defined, Gmsh saves only elements in physical groups)")]
@@ -138,6 +152,12 @@ pub fn parse_msh(bytes: &[u8], source_name: &str) -> Result<AnyMesh, GmshError> 
     let file = source_name.to_string();
     let binary = check_header(bytes, &file)?;
     let msh = run_mshio(bytes, &file, binary)?;
+    if msh.data.elements.is_none() {
+        return Err(GmshError::MissingSection { file, section: "$Elements" });
+    }
+    if msh.data.nodes.is_none() {
+        return Err(GmshError::MissingSection { file, section: "$Nodes" });
+    }
     let names = physical_names(bytes, &file)?;
     let nodes = node_table(&msh, &file)?;
     let groups = entity_groups(&msh);
@@ -206,7 +226,12 @@ fn check_header(bytes: &[u8], file: &str) -> Result<bool, GmshError> {
     let binary = match token(1).as_deref() {
         Some("0") => false,
         Some("1") => true,
-        other => return Err(parse_err(&format!("invalid file type {other:?} in $MeshFormat (0 or 1)"))),
+        other => {
+            return Err(parse_err(&format!(
+                "invalid file type '{}' in $MeshFormat (0 = ASCII, 1 = binary)",
+                other.unwrap_or("")
+            )))
+        }
     };
     match token(2).as_deref().map(str::parse::<usize>) {
         Some(Ok(1 | 2 | 4 | 8 | 16)) => Ok(binary),
@@ -248,8 +273,11 @@ fn mshio_error(bytes: &[u8], err: &mshio::MshParserError<&[u8]>, file: &str, bin
         };
     }
     let message = match trace.first() {
-        None if !contains(bytes, b"$EndElements") => "the file ends before $EndElements (truncated?)".to_string(),
-        None => "malformed file (the parser gave no details)".to_string(),
+        None => match section_problem(bytes).or_else(|| if binary { None } else { bad_number(bytes) }) {
+            Some(problem) => problem,
+            None if !contains(bytes, b"$EndElements") => "the file ends before $EndElements (truncated?)".to_string(),
+            None => "malformed file (the parser gave no details)".to_string(),
+        },
         Some((at, kind)) => {
             let off = offset(at);
             let place = if binary {
@@ -264,6 +292,54 @@ fn mshio_error(bytes: &[u8], err: &mshio::MshParserError<&[u8]>, file: &str, bin
         }
     };
     GmshError::Parse { file: file.to_string(), message }
+}
+
+/// The first problem in the nesting of the `$Section` ... `$EndSection` lines, if any (a
+/// diagnosis for when `mshio` gives no details).
+fn section_problem(bytes: &[u8]) -> Option<String> {
+    let mut open: Option<(String, usize)> = None;
+    for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let line = line.trim();
+        let Some(name) = line.strip_prefix('$') else {
+            continue;
+        };
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric()) {
+            continue;
+        }
+        match (name.strip_prefix("End"), &open) {
+            (Some(end), Some((section, _))) if end == section => open = None,
+            (Some(_), _) => {
+                let inside = open.as_ref().map(|(s, l)| format!(" (inside ${s} of line {l})")).unwrap_or_default();
+                return Some(format!("${name} at line {} closes no section{inside}", i + 1));
+            }
+            (None, Some((section, l))) => {
+                return Some(format!("${section} (line {l}) has no $End{section}: ${name} starts at line {}", i + 1));
+            }
+            (None, None) => open = Some((name.to_string(), i + 1)),
+        }
+    }
+    open.map(|(section, l)| format!("${section} (line {l}) has no $End{section} (truncated?)"))
+}
+
+/// The first token of the `$Entities`, `$Nodes` or `$Elements` section of an ASCII file that is
+/// not a number (a diagnosis for when `mshio` gives no details).
+fn bad_number(bytes: &[u8]) -> Option<String> {
+    let mut numeric = false;
+    for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let line = line.trim();
+        if let Some(name) = line.strip_prefix('$') {
+            numeric = matches!(name, "Entities" | "Nodes" | "Elements");
+            continue;
+        }
+        if numeric {
+            if let Some(t) = line.split_ascii_whitespace().find(|t| t.parse::<f64>().is_err()) {
+                return Some(format!("line {}: `{t}` is not a number", i + 1));
+            }
+        }
+    }
+    None
 }
 
 /// The `$PhysicalNames` section: `(dimension, physical tag) -> name`. `mshio` skips this section,
@@ -323,7 +399,21 @@ fn node_table(msh: &MshFile<u64, i32, f64>, file: &str) -> Result<HashMap<u64, [
     for block in &nodes.node_blocks {
         let coords = |i: usize| block.nodes.get(i).map(|n| [n.x, n.y, n.z]);
         let entries: Vec<(u64, usize)> = match &block.node_tags {
-            Some(map) => map.iter().map(|(&t, &i)| (t, i)).collect(),
+            Some(map) => {
+                if map.len() != block.nodes.len() {
+                    return Err(GmshError::Inconsistent {
+                        file: file.to_string(),
+                        message: format!(
+                            "a node block of $Nodes has {} nodes but {} distinct node tags (a node tag is given twice)",
+                            block.nodes.len(),
+                            map.len()
+                        ),
+                    });
+                }
+                let mut e: Vec<(u64, usize)> = map.iter().map(|(&t, &i)| (t, i)).collect();
+                e.sort_unstable();
+                e
+            }
             None => (0..block.nodes.len()).map(|i| (next + i as u64, i)).collect(),
         };
         for (tag, i) in entries {
@@ -649,6 +739,9 @@ fn keep_node(cells: &mut Cells, input: &Input, element_tag: u64, tag: u64) -> Re
         element_tag,
         node_tag: tag,
     })?;
+    if !x.iter().all(|c| c.is_finite()) {
+        return Err(GmshError::NonFiniteNode { file: input.file.clone(), node_tag: tag, coords: *x });
+    }
     let id = cells.points.len();
     cells.points.push(*x);
     cells.point_tags.push(tag);
@@ -880,11 +973,8 @@ fn assign_boundary<const D: usize>(
             type_number: Some(e.ty as i64),
             detail: format!("{} as a boundary element of a {D}D mesh; {SUPPORTED}", type_name(e.ty)),
         })?;
-        let Some(&phys) = input.groups.get(&(e.entity_dim, e.entity_tag)).and_then(|t| t.first()) else {
-            continue;
-        };
-        let tag = physical_tag(phys, file)?;
-        let not_on_facet = || GmshError::BoundaryNotOnFacet { file: file.clone(), element_tag: e.tag };
+        let not_on_facet =
+            || GmshError::BoundaryNotOnFacet { file: file.clone(), element_tag: e.tag, kind: type_name(e.ty), dim: D };
         let mut verts = Vec::with_capacity(nv);
         for &node in e.nodes.iter().take(nv) {
             if !input.nodes.contains_key(&node) {
@@ -892,7 +982,13 @@ fn assign_boundary<const D: usize>(
             }
             verts.push(*compact.get(&node).ok_or_else(not_on_facet)?);
         }
+        // Every element of dimension D - 1 must be a facet (an untagged one too: otherwise it is
+        // a lower-dimensional part of a mixed-dimension mesh, silently dropped).
         let &(cell, facet) = facets.get(&facet_key(verts.into_iter())).ok_or_else(not_on_facet)?;
+        let Some(&phys) = input.groups.get(&(e.entity_dim, e.entity_tag)).and_then(|t| t.first()) else {
+            continue;
+        };
+        let tag = physical_tag(phys, file)?;
         match tagged.get(&(cell, facet)) {
             Some(&(t, _)) if t == tag => continue,
             Some(&(t, other)) => {

@@ -603,6 +603,28 @@ impl PvdSeries {
         PvdSeries { dir: dir.to_path_buf(), stem: stem.to_string(), parts: Vec::new(), entries: Vec::new() }
     }
 
+    /// Continues the series `dir/stem.pvd` of an interrupted run: keeps its entries up to time
+    /// `until` (inclusive) and rewrites the `.pvd` with them; later `.vtu` files are overwritten
+    /// by the next [`Self::add`]s. A missing `.pvd` gives an empty series.
+    pub fn resume(dir: &Path, stem: &str, until: f64) -> Result<Self, VtkError> {
+        let mut series = Self::new(dir, stem);
+        let path = series.pvd_path();
+        if !path.exists() {
+            return Ok(series);
+        }
+        for mut entry in read_pvd(&path)? {
+            if entry.time > until {
+                continue;
+            }
+            let part = series.part_index(&entry.name);
+            series.parts[part].1 += 1;
+            entry.part = part;
+            series.entries.push(entry);
+        }
+        write_pvd(&path, &series.entries)?;
+        Ok(series)
+    }
+
     /// Path of the collection file, `dir/stem.pvd`.
     pub fn pvd_path(&self) -> PathBuf {
         self.dir.join(format!("{}.pvd", self.stem))

@@ -1,0 +1,218 @@
+//! Restart files: `DIR/checkpoint.json` holds what a time loop needs to go on exactly where it
+//! stopped.
+//!
+//! A checkpoint is written after step `k` (every `N` steps with `--checkpoint-every N`, and when a
+//! run is interrupted). It holds:
+//! - the case as used (TOML text) and the folder its relative paths are resolved against;
+//! - the step number `k` and time `t_k`;
+//! - the state: for a flow run the solution `x^k` and, for BDF2, `x^{k-1}`; for an FSI run the
+//!   solid displacement, deformation gradients and velocity, the fluid velocity and the solid
+//!   position its (adapted) mesh was built for;
+//! - the run's running totals (Newton iterations, residuals, phase timings) for `summary.json`.
+//!
+//! Floating-point values are written in their shortest round-trip decimal form and read back
+//! exactly (serde_json's `float_roundtrip`), so a resumed run repeats the arithmetic of an
+//! uninterrupted one bit for bit. On resume, `history.csv` and `solution.pvd` are cut back to
+//! step `k` (rows and entries written after the checkpoint by the interrupted run are dropped).
+//!
+//! The file is written to a temporary name and renamed, so a run killed while writing leaves the
+//! previous checkpoint intact.
+
+use crate::output::{write_atomic, OutputError};
+use crate::run::Timings;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// File name of the checkpoint inside the output folder.
+pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+
+/// Format version; a checkpoint of another version is refused.
+pub const CHECKPOINT_VERSION: u32 = 1;
+
+/// A checkpoint failure.
+#[derive(Debug, Error)]
+pub enum CheckpointError {
+    #[error("{path}: no checkpoint to resume from (run with --checkpoint-every N to write one)")]
+    Missing { path: String },
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    #[error("{path}: not a valid fdfsi checkpoint: {message}")]
+    Invalid { path: String, message: String },
+    #[error("{path}: checkpoint format version {found}, this fdfsi reads version {CHECKPOINT_VERSION}")]
+    Version { path: String, found: u32 },
+    #[error("{path}: the checkpoint is of a {found} run but the case is a {expected} run")]
+    Kind { path: String, found: &'static str, expected: &'static str },
+    #[error("{path}: the checkpoint holds {found} values for {what} but the case has {expected}: was the case or its mesh changed?")]
+    Size { path: String, what: &'static str, found: usize, expected: usize },
+    #[error(transparent)]
+    Output(#[from] OutputError),
+}
+
+/// The state of an FSI run after a step (see [`crate::fsi::FsiState`]).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FsiRestart {
+    pub solid_x: Vec<f64>,
+    pub solid_f: Vec<[[f64; 3]; 3]>,
+    pub solid_v: Vec<f64>,
+    /// The fluid velocity of the last step and the solid displacement its adapted mesh was built
+    /// for (the mesh is rebuilt from it); `None` while the fluid is at rest.
+    pub fluid: Option<FluidRestart>,
+}
+
+/// The fluid velocity of an FSI step on the mesh adapted to `solid_base`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FluidRestart {
+    pub solid_base: Vec<f64>,
+    pub velocity: Vec<f64>,
+}
+
+/// What is saved of a run's state.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum RestartState {
+    /// A flow run: the solution and the time level (with `x^{k-1}` for BDF2).
+    Flow { x: Vec<f64>, level: crate::time::TimeLevel },
+    /// An FSI run.
+    Fsi(FsiRestart),
+}
+
+impl RestartState {
+    fn kind(&self) -> &'static str {
+        match self {
+            RestartState::Flow { .. } => "flow",
+            RestartState::Fsi(_) => "FSI",
+        }
+    }
+}
+
+/// Running totals of a run, carried over a restart into `summary.json`.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct Progress {
+    pub newton_iterations: usize,
+    pub residual_norms: Vec<f64>,
+    pub timings: Timings,
+}
+
+/// A restart point: see the module documentation.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Checkpoint {
+    pub version: u32,
+    /// The case as used, TOML.
+    pub case: String,
+    /// Folder that relative paths in the case are resolved against.
+    pub case_dir: PathBuf,
+    /// Completed steps.
+    pub step: usize,
+    /// Time reached.
+    pub time: f64,
+    pub state: RestartState,
+    pub progress: Progress,
+}
+
+impl Checkpoint {
+    /// Path of the checkpoint in the output folder `out_dir`.
+    pub fn path(out_dir: &Path) -> PathBuf {
+        out_dir.join(CHECKPOINT_FILE)
+    }
+
+    /// Writes the checkpoint into `out_dir` (atomically).
+    pub fn write(&self, out_dir: &Path) -> Result<(), CheckpointError> {
+        let text = serde_json::to_string(self).map_err(|e| CheckpointError::Invalid {
+            path: Self::path(out_dir).display().to_string(),
+            message: e.to_string(),
+        })?;
+        Ok(write_atomic(&Self::path(out_dir), text.as_bytes())?)
+    }
+
+    /// Reads the checkpoint of `out_dir`.
+    pub fn read(out_dir: &Path) -> Result<Self, CheckpointError> {
+        let path = Self::path(out_dir);
+        let shown = path.display().to_string();
+        let text = match std::fs::read_to_string(&path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(CheckpointError::Missing { path: shown }),
+            Err(source) => return Err(CheckpointError::Io { path: shown, source }),
+        };
+        let c: Checkpoint = serde_json::from_str(&text).map_err(|e| CheckpointError::Invalid { path: shown.clone(), message: e.to_string() })?;
+        if c.version != CHECKPOINT_VERSION {
+            return Err(CheckpointError::Version { path: shown, found: c.version });
+        }
+        Ok(c)
+    }
+
+    /// The flow state, checked against the run's dof count.
+    pub fn flow_state(&self, out_dir: &Path, num_dofs: usize) -> Result<(Vec<f64>, crate::time::TimeLevel), CheckpointError> {
+        let path = Self::path(out_dir).display().to_string();
+        match &self.state {
+            RestartState::Flow { x, level } => {
+                let prev = level.x_prev.as_ref().map_or(num_dofs, Vec::len);
+                for (what, found) in [("the solution", x.len()), ("the previous solution", prev)] {
+                    if found != num_dofs {
+                        return Err(CheckpointError::Size { path, what, found, expected: num_dofs });
+                    }
+                }
+                Ok((x.clone(), level.clone()))
+            }
+            other => Err(CheckpointError::Kind { path, found: other.kind(), expected: "flow" }),
+        }
+    }
+
+    /// The FSI state, checked against the solid's dof count.
+    pub fn fsi_state(&self, out_dir: &Path, solid_dofs: usize) -> Result<&FsiRestart, CheckpointError> {
+        let path = Self::path(out_dir).display().to_string();
+        match &self.state {
+            RestartState::Fsi(s) => {
+                let base = s.fluid.as_ref().map_or(solid_dofs, |f| f.solid_base.len());
+                for (what, found) in [("the solid displacement", s.solid_x.len()), ("the solid velocity", s.solid_v.len()), ("the fluid's solid position", base)] {
+                    if found != solid_dofs {
+                        return Err(CheckpointError::Size { path, what, found, expected: solid_dofs });
+                    }
+                }
+                Ok(s)
+            }
+            other => Err(CheckpointError::Kind { path, found: other.kind(), expected: "FSI" }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_is_exact() {
+        let dir = tempfile::tempdir().unwrap();
+        let awkward = [0.1 + 0.2, 1.0 / 3.0, 2.0f64.sqrt() * 1e-300, -7.123456789012345e17, f64::MIN_POSITIVE, 5e-324];
+        let c = Checkpoint {
+            version: CHECKPOINT_VERSION,
+            case: "title = \"t\"".into(),
+            case_dir: PathBuf::from("."),
+            step: 3,
+            time: 0.30000000000000004,
+            state: RestartState::Flow {
+                x: awkward.to_vec(),
+                level: crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) },
+            },
+            progress: Progress { newton_iterations: 7, residual_norms: vec![1e-11], timings: Timings::default() },
+        };
+        c.write(dir.path()).unwrap();
+        let back = Checkpoint::read(dir.path()).unwrap();
+        let (x, level) = back.flow_state(dir.path(), awkward.len()).unwrap();
+        assert_eq!(x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), awkward.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        assert_eq!(level, crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) });
+        let e = back.flow_state(dir.path(), 5).unwrap_err().to_string();
+        assert!(e.contains("holds 6 values for the solution but the case has 5"), "{e}");
+        assert!(back.fsi_state(dir.path(), 6).unwrap_err().to_string().contains("checkpoint is of a flow run"));
+    }
+
+    #[test]
+    fn missing_and_corrupt_files_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = Checkpoint::read(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("no checkpoint to resume from"), "{e}");
+        std::fs::write(Checkpoint::path(dir.path()), "{\"version\": 1, \"case\": ").unwrap();
+        let e = Checkpoint::read(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("checkpoint.json: not a valid fdfsi checkpoint"), "{e}");
+    }
+}

@@ -1,0 +1,202 @@
+//! Checkpoints and resume: an interrupted run (stopped through `RunOptions::stop`, as Ctrl-C
+//! does, or killed with SIGKILL) continued with `--resume` gives the history of an uninterrupted
+//! run, and no output file is ever left truncated.
+
+use fdfsi::case::Case;
+use fdfsi::checkpoint::Checkpoint;
+use fdfsi::run::{run_case, RunError, RunObserver, RunOptions, BUILTIN_CASES};
+use fdfsi_fem::vtk::{read_pvd, read_vtu};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// A small unsteady Navier-Stokes case: an impulsively started channel flow with BDF2, probes
+/// and a flux, `steps` steps.
+fn channel_case(steps: usize) -> String {
+    format!(
+        r#"title = "checkpoint test: impulsive channel flow"
+[mesh]
+kind = "rectangle"
+x = [0.0, 2.0]
+y = [0.0, 1.0]
+n = [16, 8]
+[physics]
+formulation = "plane"
+model = "navier-stokes"
+[fluid]
+density = 1.0
+viscosity = 0.01
+[time]
+dt = 0.05
+end = {}
+scheme = "bdf2"
+output_every = 2
+[[boundary]]
+name = "left"
+type = "velocity"
+value = ["4*y*(1-y)", 0.0]
+time_function = {{ kind = "sine", period = 2.0 }}
+[[boundary]]
+name = "top"
+type = "no-slip"
+[[boundary]]
+name = "bottom"
+type = "no-slip"
+[[boundary]]
+name = "right"
+type = "free"
+[[output.probe]]
+name = "u_mid"
+field = "velocity"
+component = 0
+point = [1.0, 0.5]
+[[output.probe]]
+name = "p_mid"
+field = "pressure"
+point = [1.0, 0.5]
+[[output.boundary_integral]]
+name = "outlet_flux"
+boundary = "right"
+kind = "flux"
+"#,
+        0.05 * steps as f64
+    )
+}
+
+/// The numbers of `history.csv`: one row of values per step.
+fn history(dir: &Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect()).collect()
+}
+
+/// Asserts two histories agree to `tol` (relative to the column's scale), row by row.
+fn assert_same_history(a: &[Vec<f64>], b: &[Vec<f64>], tol: f64) {
+    assert_eq!(a.len(), b.len(), "number of history rows");
+    for (ra, rb) in a.iter().zip(b) {
+        assert_eq!(ra.len(), rb.len());
+        // Column 3 is the final Newton residual, round-off that need not repeat exactly.
+        for (c, (x, y)) in ra.iter().zip(rb).enumerate().filter(|(c, _)| *c != 3) {
+            let scale = a.iter().map(|r| r[c].abs()).fold(1e-300, f64::max);
+            assert!((x - y).abs() <= tol * scale, "step {}: column {c}: {x} vs {y}", ra[0]);
+        }
+    }
+}
+
+/// Every `.vtu` the `.pvd` lists reads back, and `summary.json` parses.
+fn assert_outputs_whole(dir: &Path) {
+    let pvd = dir.join("solution.pvd");
+    for e in read_pvd(&pvd).unwrap() {
+        read_vtu(&e.resolve(&pvd)).unwrap_or_else(|err| panic!("{}: {err}", e.file));
+    }
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["quantities"].is_object());
+}
+
+/// Sets the stop flag once step `at` has completed, as a Ctrl-C handler would.
+struct StopAt {
+    at: usize,
+    flag: Arc<AtomicBool>,
+}
+
+impl RunObserver for StopAt {
+    fn log(&mut self, _line: &str) {}
+    fn step(&mut self, step: usize, _total: usize, _time: f64) {
+        if step == self.at {
+            self.flag.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
+/// Runs `case` uninterrupted into `full`, and interrupted after step `stop_after` (+1, since the
+/// flag is seen at the end of the next step) then resumed into `parts`; returns both histories.
+fn interrupted_and_resumed(case_text: &str, case_dir: &Path, stop_after: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, PathBuf) {
+    let case = Case::from_toml_str(case_text, "test").unwrap();
+    let tmp = tempfile::tempdir().unwrap().keep();
+    let (full, parts) = (tmp.join("full"), tmp.join("parts"));
+    run_case(&case, &RunOptions::new(&full, case_dir), &mut |_: &str| {}).unwrap();
+    let flag = Arc::new(AtomicBool::new(false));
+    let options = RunOptions { checkpoint_every: Some(1000), stop: Some(flag.clone()), ..RunOptions::new(&parts, case_dir) };
+    let err = run_case(&case, &options, &mut StopAt { at: stop_after, flag }).unwrap_err();
+    let RunError::Interrupted { step, .. } = err else { panic!("expected an interruption, got {err}") };
+    assert_eq!(step, stop_after + 1);
+    assert!(err.to_string().contains("fdfsi run --resume"), "{err}");
+    assert_eq!(history(&parts).len(), if case.solid.is_some() { step } else { step + 1 });
+    let (resumed_case, resume) = RunOptions::resume(&parts).unwrap();
+    assert_eq!(Checkpoint::read(&parts).unwrap().step, step);
+    run_case(&resumed_case, &resume, &mut |_: &str| {}).unwrap();
+    assert_outputs_whole(&parts);
+    (history(&full), history(&parts), parts)
+}
+
+#[test]
+fn flow_run_stopped_and_resumed_repeats_the_history() {
+    let (full, parts, dir) = interrupted_and_resumed(&channel_case(8), Path::new("."), 3);
+    assert_same_history(&full, &parts, 1e-10);
+    // The series lists each written step once: output_every = 2 over 8 steps, plus t = 0.
+    assert_eq!(read_pvd(&dir.join("solution.pvd")).unwrap().len(), 5);
+}
+
+#[test]
+fn fsi_run_stopped_and_resumed_repeats_the_history() {
+    let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "model-problem-2").unwrap().1;
+    let text = text.replace("end = 12.0", "end = 4.0").replace("n = [64, 16]", "n = [32, 8]").replace("output_every = 6", "output_every = 1");
+    let (full, parts, dir) = interrupted_and_resumed(&text, &Path::new(env!("CARGO_MANIFEST_DIR")).join("cases"), 1);
+    assert_same_history(&full, &parts, 1e-10);
+    // Fluid, solid and gamma_f pieces at each of the 4 steps.
+    assert_eq!(read_pvd(&dir.join("solution.pvd")).unwrap().len(), 12);
+}
+
+#[test]
+fn resume_refuses_a_changed_case() {
+    let case = Case::from_toml_str(&channel_case(2), "test").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let options = RunOptions { checkpoint_every: Some(1), ..RunOptions::new(dir.path(), ".") };
+    run_case(&case, &options, &mut |_: &str| {}).unwrap();
+    let (_, resume) = RunOptions::resume(dir.path()).unwrap();
+    let other = Case::from_toml_str(&channel_case(3), "test").unwrap();
+    let e = run_case(&other, &resume, &mut |_: &str| {}).unwrap_err().to_string();
+    assert!(e.contains("differs from the one the checkpoint was written for"), "{e}");
+    let e = RunOptions::resume(dir.path().join("nowhere")).unwrap_err().to_string();
+    assert!(e.contains("no checkpoint to resume from"), "{e}");
+}
+
+/// The binary killed with SIGKILL in the middle of a run, then `fdfsi run --resume DIR`: the
+/// history equals the uninterrupted run's and every output file reads back whole.
+#[test]
+fn killed_run_resumes_to_the_same_history() {
+    let exe = env!("CARGO_BIN_EXE_fdfsi");
+    let tmp = tempfile::tempdir().unwrap();
+    let case_file = tmp.path().join("channel.toml");
+    std::fs::write(&case_file, channel_case(40)).unwrap();
+    let (full, killed) = (tmp.path().join("full"), tmp.path().join("killed"));
+    let ok = Command::new(exe).args(["-q", "run"]).arg(&case_file).arg("--out").arg(&full).status().unwrap();
+    assert!(ok.success());
+    let mut child = Command::new(exe)
+        .args(["-q", "run"])
+        .arg(&case_file)
+        .arg("--out")
+        .arg(&killed)
+        .args(["--checkpoint-every", "1"])
+        .spawn()
+        .unwrap();
+    // Kill it once a few checkpoints exist, mid-way through a later step.
+    let start = Instant::now();
+    loop {
+        let step = Checkpoint::read(&killed).map(|c| c.step).unwrap_or(0);
+        if step >= 5 {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "no checkpoint written");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let at_kill = Checkpoint::read(&killed).unwrap().step;
+    assert!(at_kill < 40, "the run finished before it was killed; make the case longer");
+    let out = Command::new(exe).args(["-q", "run", "--resume"]).arg(&killed).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_outputs_whole(&killed);
+    assert_same_history(&history(&full), &history(&killed), 1e-10);
+}
