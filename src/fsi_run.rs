@@ -104,6 +104,16 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
             other => RunError::Fsi(other),
         })?;
         let r = &st.report;
+        crate::run::log_newton(obs, &r.newton);
+        let (a, sec) = (&r.adapt, &r.seconds);
+        obs.detail(&format!(
+            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells; {} coupling points, max distance to gamma_s {:.2e}",
+            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, r.coupling_points, r.max_coupling_distance
+        ));
+        obs.detail(&format!(
+            "  phases: adapt {:.3} s, build {:.3} s, transfer {:.3} s, newton {:.3} s, update {:.3} s",
+            sec.adapt, sec.build, sec.transfer, sec.newton, sec.update
+        ));
         iterations += r.newton.iterations;
         let residual = *r.newton.residual_norms.last().unwrap_or(&0.0);
         residuals.push(residual);

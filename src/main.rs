@@ -15,8 +15,11 @@ use std::sync::Arc;
 #[command(name = "fdfsi", version, about = "Fluid-structure interaction for heart-valve modelling (van Loon et al. 2005)")]
 struct Cli {
     /// Print only errors.
-    #[arg(long, short, global = true)]
+    #[arg(long, short, global = true, conflicts_with = "verbose")]
     quiet: bool,
+    /// Also print every Newton iteration and the phases of every step.
+    #[arg(long, short, global = true)]
+    verbose: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -90,6 +93,7 @@ fn load_case(arg: Option<&str>) -> Result<(Case, PathBuf, String)> {
 /// lines printed above it.
 struct CliObserver {
     quiet: bool,
+    verbose: bool,
     bar: Option<ProgressBar>,
     terminal: bool,
 }
@@ -103,6 +107,14 @@ impl RunObserver for CliObserver {
             Some(bar) if line.starts_with("step ") => bar.set_message(line.to_string()),
             Some(bar) => bar.println(line),
             None => eprintln!("{line}"),
+        }
+    }
+    fn detail(&mut self, line: &str) {
+        if self.verbose {
+            match &self.bar {
+                Some(bar) => bar.println(line),
+                None => eprintln!("{line}"),
+            }
         }
     }
     fn step(&mut self, step: usize, total: usize, time: f64) {
@@ -127,7 +139,7 @@ impl RunObserver for CliObserver {
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
-    let quiet = cli.quiet;
+    let (quiet, verbose) = (cli.quiet, cli.verbose);
     let log = |line: &str| {
         if !quiet {
             eprintln!("{line}");
@@ -158,7 +170,7 @@ fn main() -> Result<()> {
             .context("installing the Ctrl-C handler")?;
             options.stop = Some(stop);
             log(&format!("case: {label}: {}", case.title));
-            let mut observer = CliObserver { quiet, bar: None, terminal: std::io::stderr().is_terminal() };
+            let mut observer = CliObserver { quiet, verbose, bar: None, terminal: std::io::stderr().is_terminal() };
             let summary = match run_case(&case, &options, &mut observer) {
                 Err(e @ fdfsi::run::RunError::Interrupted { .. }) => {
                     eprintln!("{e}");

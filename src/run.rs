@@ -79,6 +79,20 @@ pub trait RunObserver {
     fn log(&mut self, line: &str);
     /// Called after step `step` of `total` completed at time `time`.
     fn step(&mut self, _step: usize, _total: usize, _time: f64) {}
+    /// A line of detail (every Newton iteration, the phases of a step): shown with `--verbose`.
+    fn detail(&mut self, _line: &str) {}
+}
+
+/// The Newton iterations of `report` as detail lines.
+pub(crate) fn log_newton(obs: &mut dyn RunObserver, report: &crate::solve::newton::NewtonReport) {
+    for (k, r) in report.residual_norms.iter().enumerate() {
+        let du = report.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
+        obs.detail(&format!("  newton {k}: |R| = {r:.3e}{du}"));
+    }
+    obs.detail(&format!(
+        "  assemble {:.3} s, factorize {:.3} s, solve {:.3} s",
+        report.assemble_seconds, report.factorize_seconds, report.solve_seconds
+    ));
 }
 
 impl<F: FnMut(&str)> RunObserver for F {
@@ -458,6 +472,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
             let result = solve_unsteady_from(&disc, &problem, &mut x, start, &topts, &mut lu, &case.solver.newton, |rep, x, level| {
                 for n in &rep.newton {
                     timings.add_newton(n);
+                    log_newton(obs, n);
                 }
                 newton_iterations += rep.iterations();
                 residual_norms.push(rep.residual());
