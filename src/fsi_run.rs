@@ -66,7 +66,11 @@ pub fn model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::
     let solid_mesh = crate::adaptation::solid_mesh::<D>(spec, case_dir)?;
     let solid = crate::solid_run::problem::<D>(case, spec, false)?;
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
-    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?)
+    let multiplier = match spec.multiplier {
+        crate::case::MultiplierChoice::P1Discontinuous => crate::fsi::MultiplierSpace::P1Discontinuous,
+        crate::case::MultiplierChoice::P1DiscontinuousTraceMode => crate::fsi::MultiplierSpace::P1DiscontinuousTraceMode,
+    };
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(multiplier))
 }
 
 fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {

@@ -75,7 +75,9 @@ pub fn fluid_grid<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Re
 
 /// gamma_f of an FSI step as a VTK grid: one line (2D) or triangle (3D) per coupling element,
 /// with its own vertices because the multiplier is discontinuous between elements. Point data
-/// `multiplier`: lambda, the traction of the fluid on the solid (force per unit length in 2D, per
+/// `multiplier`: the P1 part of lambda (all of it with the paper's multiplier; with the
+/// trace-mode multiplier its L2 projection onto P1 per element, and the mode's amplitude is cell
+/// data `multiplier_trace_mode`), the traction of the fluid on the solid (force per unit length in 2D, per
 /// unit area in 3D and per radian-length in axisymmetric runs); cell data `element`: the coupling
 /// element's index.
 pub fn gamma_f_grid<const D: usize>(disc: &crate::fsi::FsiDiscretization<D>, x: &[f64]) -> Result<UnstructuredGrid, VtkError> {
@@ -97,6 +99,14 @@ pub fn gamma_f_grid<const D: usize>(disc: &crate::fsi::FsiDiscretization<D>, x: 
         }
     }
     grid.add_point_data("multiplier", 3, lambda)?;
+    if !disc.coupling.mode.is_empty() {
+        // The trace-mode multiplier's amplitude per element (its function is 1 at the vertices
+        // and -1/2 mid-facet, and integrates to zero).
+        let mode = (0..gamma_f.len())
+            .flat_map(|e| (0..3).map(move |a| if a < D { x[disc.mode_multiplier_dof(disc.coupling.chain[e], a)] } else { 0.0 }))
+            .collect();
+        grid.add_cell_data("multiplier_trace_mode", 3, mode)?;
+    }
     grid.add_cell_data("element", 1, (0..gamma_f.len()).map(|e| e as f64).collect())?;
     Ok(grid)
 }

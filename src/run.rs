@@ -69,6 +69,8 @@ pub enum RunError {
     Fsi(#[from] crate::fsi::FsiError),
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
+    #[error("{out_dir}: the run will write about {needed} but only {available} are free; free some space, choose another --out or write the fields less often (time.output_every)")]
+    DiskFull { out_dir: String, needed: String, available: String },
     #[error("interrupted after step {step} (t = {time:.6e}); a checkpoint is in {out_dir}: continue with `fdfsi run --resume {out_dir}`")]
     Interrupted { step: usize, time: f64, out_dir: String },
 }
@@ -275,7 +277,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     let t0 = Instant::now();
     // The checks of `fdfsi check` (names, ranges, meshes, solid placement, probes), before
     // anything is written.
-    crate::check::check(case, "case", &options.case_dir)?;
+    let expected = crate::check::check(case, "case", &options.case_dir)?;
     if let Some(c) = &options.resume {
         if c.case != case.to_toml() {
             return Err(RunError::Case(CaseError::Invalid {
@@ -287,6 +289,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     std::fs::create_dir_all(&options.out_dir)
         .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
+    check_free_space(&options.out_dir, expected.output_bytes())?;
     // Three kinds of run: solid only, FSI, or flow (with a fixed solid, if any).
     let mut summary = if case.mesh.is_none() {
         crate::solid_run::run_solid(case, options, log)?
@@ -316,6 +319,24 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         Err(e) => log.log(&format!("warning: plots not made: {e}")),
     }
     Ok(summary)
+}
+
+/// Refuses to start when the file system of `out_dir` has less room than the run's expected
+/// output (`fdfsi check`'s estimate) plus a margin of 10 % and 16 MB for checkpoints, pictures
+/// and temporary files: a full disk is an error before the first step, not after an hour.
+fn check_free_space(out_dir: &Path, expected: u64) -> Result<(), RunError> {
+    let Ok(available) = fs4::available_space(out_dir) else {
+        return Ok(()); // unknown (an unusual file system): do not block the run on a guess
+    };
+    let needed = expected.saturating_add(expected / 10).saturating_add(16_000_000);
+    if available < needed {
+        return Err(RunError::DiskFull {
+            out_dir: out_dir.display().to_string(),
+            needed: crate::check::human_bytes(needed),
+            available: crate::check::human_bytes(available),
+        });
+    }
+    Ok(())
 }
 
 /// A vector of compiled expressions, times a time function, as a field of position and time.
@@ -652,5 +673,18 @@ impl Outputs {
         self.last = values;
         self.seconds += t.elapsed().as_secs_f64();
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_whose_output_cannot_fit_is_refused_before_it_starts() {
+        let dir = tempfile::tempdir().unwrap();
+        check_free_space(dir.path(), 1_000_000).unwrap();
+        let e = check_free_space(dir.path(), u64::MAX / 4).unwrap_err().to_string();
+        assert!(e.contains("the run will write about") && e.contains("are free"), "{e}");
     }
 }

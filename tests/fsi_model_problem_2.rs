@@ -10,31 +10,46 @@
 //! Compared: the force on the plate (FSI: `int lambda ds`; fluid: the consistent-residual force
 //! on `gamma_f`) and the wall shear stress on both sides of the plate (relative L2 difference).
 //!
-//! Measured (G = 1e4, dt = 1, 13 steps to a relative velocity change < 1e-7):
+//! Measured (G = 1e4, dt = 1, 13 steps to a relative velocity change < 1e-7), with the paper's
+//! P1-discontinuous multiplier and with [`MultiplierSpace::P1DiscontinuousTraceMode`]:
 //!
-//! | mesh | force diff | WSS rel. L2 side 0 / 1 | facet-mean WSS side 0 / 1 |
-//! |---|---|---|---|
-//! | 64 x 16 | 2.3e-3 | 0.297 / 0.134 | 0.132 / 0.052 |
-//! | 128 x 32 | 5.0e-4 | 0.157 / 0.107 | 0.085 / 0.049 |
+//! | mesh | multiplier | force diff | WSS rel. L2 side 0 / 1 | facet-mean WSS side 0 / 1 | max abs(u_f) on gamma_f |
+//! |---|---|---|---|---|---|
+//! | 64 x 16 | P1disc (paper) | 2.3e-3 | 0.297 / 0.134 | 0.132 / 0.052 | 1.4e-2 |
+//! | 128 x 32 | P1disc (paper) | 5.0e-4 | 0.157 / 0.107 | 0.085 / 0.049 | 6.1e-3 |
+//! | 64 x 16 | P1disc + trace mode | 7.3e-10 | 1.6e-9 / 8.2e-10 | 1.6e-9 / 8.1e-10 | 8e-14 |
+//! | 128 x 32 | P1disc + trace mode | 6.7e-10 | 1.3e-9 / 8.3e-10 | 1.4e-9 / 8.3e-10 | 2e-13 |
 //!
-//! The force meets the 1 % target. The wall shear stress does NOT meet the 3 % target: the weak
-//! (P1disc multiplier) no-slip leaves the continuous P2 trace one mode per component that is
-//! orthogonal to every multiplier (vertex values c, mid-facet values -c/2), and short gamma_f
-//! facets give oscillating pointwise shear within a facet; the difference decreases with h.
-//! The test asserts what the method does deliver: the force within 1 % on both meshes, and the
-//! shear-stress difference shrinking under refinement on both sides of the plate (issue 6 asks
-//! for that beside the 3 % target, which stays open).
+//! Cause of the paper-multiplier difference (measured): on a chain of `N` gamma_f facets the
+//! continuous P2 trace has `2N + 1` values per component and the P1-discontinuous multiplier
+//! `2N`; the free function is `1 - 6s + 6s^2` on every facet (vertex values c, mid-facet -c/2).
+//! In the FSI run the trace of `u_f` on gamma_f is exactly that function with c = (1.4e-2,
+//! -8.8e-3) on 64 x 16 (the solid is at rest: its last increment is ~1e-14), while the twin's
+//! Dirichlet nodes make it zero. Its tangential derivative `~ 6 c / |facet|` is largest on the
+//! short facets (0.0085 to 0.015 long against h = 0.0625, e.g. facet-mean WSS -0.41 vs -0.28 on
+//! a 0.0085 facet), so the difference concentrates there. It integrates to zero on every facet,
+//! which is why the force agrees far better than the shear. Adding that function to the multiplier
+//! space (one multiplier per component and connected chain) makes the trace pairing square and
+//! invertible: the FSI trace then vanishes and the FSI run reproduces the Dirichlet twin to the
+//! steady-state tolerance on both meshes (so there is no refinement trend left to measure with
+//! it; the paper's multiplier is kept as the default and checked for convergence under refinement).
+//!
+//! `gamma_f` (0.366) is shorter than gamma_s (0.400) in both runs alike (no node at the free ends
+//! of gamma_s); it does not enter the comparison, which uses the same adapted mesh and gamma_f.
 //!
 //! Numbers are printed and written to `$CARGO_TARGET_TMPDIR/fsi_model_problem_2_<nx>x<ny>.json`.
 //!
+//! `MP2_DIAG=1` prints, per gamma_f facet, the facet-mean shear of both runs and the FSI trace.
+//!
 //! `CARGO_TARGET_DIR=/tmp/target-fsi cargo test --release --test fsi_model_problem_2 -- --nocapture`
-//! (both meshes, about a minute in release).
+//! (both meshes, both multipliers, about a minute in release).
 
 use fdfsi::fem::adapt::AdaptOptions;
 use fdfsi::fem::generate::{rectangle_quads, rectangle_triangles, DiagonalPattern};
 use fdfsi::fem::mesh::{GeometryOrder, Mesh};
 use fdfsi::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
-use fdfsi::fsi::{step, tag_gamma_f, wall_shear_stress, FsiModel, FsiProblem, FsiState, WallShear};
+use fdfsi::fem::sparse::CscMatrix;
+use fdfsi::fsi::{step, tag_gamma_f, wall_shear_stress, FsiDiscretization, FsiModel, FsiProblem, FsiState, MultiplierSpace, StepInput, WallShear};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
 use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
 use fdfsi::quantities::{boundary_force, StepState};
@@ -100,19 +115,88 @@ fn rel_l2_facet_means(a: &[WallShear], b: &[WallShear], side: usize) -> f64 {
     (num / den).sqrt()
 }
 
+/// Velocity of the fluid vector `x` at `p` evaluated in cell `c`.
+fn eval_u(flow: &FlowDiscretization<2>, x: &[f64], c: usize, p: [f64; 2]) -> [f64; 2] {
+    let vel = &flow.layout.fields[0];
+    let nf = flow.velocity_element.num_dofs();
+    let v: Vec<[f64; 2]> = flow.mesh.cell_vertices(c).iter().map(|&k| flow.mesh.points[k]).collect();
+    let xi = fdfsi::fem::locate::simplex_reference_coords(&v, &p).unwrap();
+    let mut vals = vec![0.0; nf];
+    let mut grads = vec![[0.0; 2]; nf];
+    flow.velocity_element.eval_into(&xi, &mut vals, &mut grads);
+    let mut u = [0.0; 2];
+    for (i, &node) in vel.nodes.cell(c).iter().enumerate() {
+        for a in 0..2 {
+            u[a] += vals[i] * x[vel.dof(node, a)];
+        }
+    }
+    u
+}
+
+fn diagnose(
+    flow: &FlowDiscretization<2>,
+    x: &[f64],
+    twin: &FlowDiscretization<2>,
+    xt: &[f64],
+    gf: &[fdfsi::fem::adapt::GammaFacet<2>],
+    w_fsi: &[WallShear],
+    w_twin: &[WallShear],
+    print_facets: bool,
+) -> f64 {
+    let mut total = 0.0;
+    let mut umax: f64 = 0.0;
+    let mut mode: f64 = 0.0;
+    if print_facets {
+        println!("facet  x0 y0  len | mean tau fsi/twin side0 | side1 | max|dtau| s0 s1 | u(0),u(.5),u(1) fsi | P2 mode");
+    }
+    for (e, g) in gf.iter().enumerate() {
+        let [p0, p1] = g.vertices.map(|v| flow.mesh.points[v]);
+        let len = ((p1[0] - p0[0]).powi(2) + (p1[1] - p0[1]).powi(2)).sqrt();
+        total += len;
+        let c = if g.sides[0].0 != usize::MAX { g.sides[0].0 } else { g.sides[1].0 };
+        let at = |s: f64| [p0[0] + s * (p1[0] - p0[0]), p0[1] + s * (p1[1] - p0[1])];
+        let u: Vec<[f64; 2]> = [0.0, 0.5, 1.0].iter().map(|&s| eval_u(flow, x, c, at(s))).collect();
+        let ut: Vec<[f64; 2]> = [0.0, 0.5, 1.0].iter().map(|&s| eval_u(twin, xt, c, at(s))).collect();
+        assert!(ut.iter().flatten().all(|v| v.abs() < 1e-12));
+        for q in &u {
+            umax = umax.max(q[0].abs()).max(q[1].abs());
+        }
+        let m = [(u[0][0] + u[2][0] - 2.0 * u[1][0]) / 3.0, (u[0][1] + u[2][1] - 2.0 * u[1][1]) / 3.0];
+        mode = mode.max(m[0].abs()).max(m[1].abs());
+        let mut mean = [[0.0; 2]; 2];
+        let mut dmax = [0.0f64; 2];
+        for (p, q) in w_fsi.iter().zip(w_twin).filter(|(p, _)| p.facet == e) {
+            mean[p.side][0] += p.weight * p.tau / len;
+            mean[p.side][1] += q.weight * q.tau / len;
+            dmax[p.side] = dmax[p.side].max((p.tau - q.tau).abs());
+        }
+        if print_facets {
+            println!(
+            "{e:3} {:.4} {:.4} {len:.4} | {:+.4} {:+.4} | {:+.4} {:+.4} | {:.4} {:.4} | {:+.1e},{:+.1e} {:+.1e},{:+.1e} {:+.1e},{:+.1e} | {:+.1e} {:+.1e}",
+            p0[0], p0[1], mean[0][0], mean[0][1], mean[1][0], mean[1][1], dmax[0], dmax[1],
+            u[0][0], u[0][1], u[1][0], u[1][1], u[2][0], u[2][1], m[0], m[1]
+            );
+        }
+    }
+    println!("gamma_f: {} facets, length {total:.4}; FSI: max |u_f| at the P2 nodes of gamma_f {umax:.3e}, largest amplitude of the trace mode orthogonal to P1 {mode:.3e}", gf.len());
+    umax
+}
+
 struct Outcome {
     force_rel: f64,
     wss_rel: [f64; 2],
+    /// Largest |u_f| at the P2 nodes (vertices, mid-facets) of gamma_f in the FSI run.
+    trace_max: f64,
 }
 
-fn model_problem_2(nx: usize, ny: usize) -> Outcome {
+fn model_problem_2(nx: usize, ny: usize, multiplier: MultiplierSpace) -> Outcome {
     let fluid_mesh = rectangle_triangles(0.0, 4.0, 0.0, 1.0, nx, ny, DiagonalPattern::Alternating);
     let plate = rotated(rectangle_quads(1.8, 2.2, 0.49, 0.51, 8, 1, GeometryOrder::Quadratic), 30.0, [2.0, 0.5]);
     let dt = 1.0;
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(G));
     let solid = SolidProblem::new(Formulation::Plane, mat).with_displacement("bottom", &[0, 1], |_: &[f64; 2], _| [0.0; 2]);
     let problem = FsiProblem { fluid: channel(2.0 * dt), solid, surface: "top".into(), adapt: AdaptOptions::new(0.2) };
-    let model = FsiModel::new(problem, &fluid_mesh, plate).unwrap();
+    let model = FsiModel::new(problem, &fluid_mesh, plate).unwrap().with_multiplier(multiplier);
     let mut state = FsiState::at_rest(&model);
     let mut lu = FaerLu::default();
     let newton = NewtonOptions { max_iterations: 15, abs_tol: 1e-10, rel_tol: 1e-11 };
@@ -190,8 +274,9 @@ fn model_problem_2(nx: usize, ny: usize) -> Outcome {
     let m0 = rel_l2_facet_means(&w_fsi, &w_twin, 0);
     let m1 = rel_l2_facet_means(&w_fsi, &w_twin, 1);
     println!("wall shear stress facet means, relative L2 difference: side 0 {m0:.3e}, side 1 {m1:.3e}");
+    let trace_max = diagnose(&st.disc.flow, x_f, &twin_disc, &sol.x, gf, &w_fsi, &w_twin, std::env::var("MP2_DIAG").is_ok());
     let summary = serde_json::json!({
-        "mesh": [nx, ny], "G": G, "dt": dt, "eta": ETA,
+        "mesh": [nx, ny], "multiplier": multiplier, "trace_max": trace_max, "G": G, "dt": dt, "eta": ETA,
         "force_lambda": f_lambda, "force_fluid_residual": f_residual, "force_twin": f_twin,
         "force_relative_difference": force_rel, "force_consistency": consistency,
         "wss_relative_l2": [e0, e1], "wss_facet_mean_relative_l2": [m0, m1], "wss_l2_norm_twin": [n0, n1],
@@ -200,17 +285,17 @@ fn model_problem_2(nx: usize, ny: usize) -> Outcome {
         "twin_dofs": twin_disc.num_dofs(), "twin_newton": sol.newton.residual_norms,
         "steps": log,
     });
-    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("fsi_model_problem_2_{nx}x{ny}.json"));
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("fsi_model_problem_2_{nx}x{ny}_{multiplier:?}.json"));
     std::fs::write(&path, serde_json::to_string_pretty(&summary).unwrap()).unwrap();
     println!("wrote {}", path.display());
     assert!(consistency < 1e-6, "int lambda must equal the fluid's consistent-residual force: {consistency:e}");
-    Outcome { force_rel, wss_rel: [e0, e1] }
+    Outcome { force_rel, wss_rel: [e0, e1], trace_max }
 }
 
 #[test]
 fn model_problem_2_fsi_force_matches_the_dirichlet_twin_and_shear_converges() {
-    let coarse = model_problem_2(64, 16);
-    let fine = model_problem_2(128, 32);
+    let coarse = model_problem_2(64, 16, MultiplierSpace::P1Discontinuous);
+    let fine = model_problem_2(128, 32, MultiplierSpace::P1Discontinuous);
     for o in [&coarse, &fine] {
         assert!(o.force_rel < 0.01, "force differs by {:.3e}", o.force_rel);
     }
@@ -223,4 +308,140 @@ fn model_problem_2_fsi_force_matches_the_dirichlet_twin_and_shear_converges() {
             fine.wss_rel
         );
     }
+}
+
+#[test]
+fn model_problem_2_trace_mode_multiplier_matches_the_dirichlet_twin_wall_shear_within_3_percent() {
+    for (nx, ny) in [(64, 16), (128, 32)] {
+        let o = model_problem_2(nx, ny, MultiplierSpace::P1DiscontinuousTraceMode);
+        // The stiff plate is at rest: the fully controlled trace must vanish like the twin's
+        // Dirichlet nodes (to the steady-state tolerance, relative velocity change < 1e-7).
+        assert!(o.trace_max < 1e-6, "{nx}x{ny}: |u_f| on gamma_f = {:e}", o.trace_max);
+        assert!(o.force_rel < 0.01, "{nx}x{ny}: force differs by {:.3e}", o.force_rel);
+        for side in 0..2 {
+            assert!(o.wss_rel[side] < 0.03, "{nx}x{ny}: wall shear stress differs by {:?}", o.wss_rel);
+        }
+    }
+}
+
+/// The trace-mode multiplier on a tiny problem: the P1-discontinuous rows do not see the trace
+/// function `1 - 6s + 6s^2` (vertex 1, mid-facet -1/2) and its own row does
+/// (`int mode^2 = |gamma_f| / 5`); constants are reproduced; the assembled Jacobian equals a
+/// finite difference of the residual.
+#[test]
+fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacobian() {
+    let fluid_mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Alternating);
+    let plate = rotated(rectangle_quads(0.3, 0.7, 0.47, 0.53, 2, 1, GeometryOrder::Quadratic), 20.0, [0.5, 0.5]);
+    let params = FluidParams { viscosity: 0.1, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
+    let flow = FlowProblem { formulation: Formulation::Plane, params, body_force: None, dirichlet: vec![], traction: vec![], pin_pressure: false };
+    let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));
+    let solid = SolidProblem::new(Formulation::Plane, mat).with_displacement("bottom", &[0, 1], |_: &[f64; 2], _| [0.0; 2]);
+    let problem = FsiProblem { fluid: flow, solid, surface: "top".into(), adapt: AdaptOptions::new(0.2) };
+    let model = FsiModel::new(problem, &fluid_mesh, plate).unwrap().with_multiplier(MultiplierSpace::P1DiscontinuousTraceMode);
+    let nus = model.solid.displacement_field().num_dofs();
+    let mut seed = 17u64;
+    let mut rnd = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut base = vec![0.0; model.solid.num_dofs()];
+    for v in base[..nus].iter_mut() {
+        *v = 2e-3 * rnd();
+    }
+    let f = model.solid.deformation_gradients(&base).unwrap();
+    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let ne = disc.coupling.num_elements();
+    assert_eq!(disc.coupling.num_chains, 1);
+    assert_eq!(disc.multiplier_dofs, ne * 4 + 2);
+    assert!(disc.inactive_multiplier_dofs.is_empty());
+    // A fluid Dirichlet condition on the trace (here on gamma_f itself, component 0) removes the
+    // free trace function of that component: its multiplier is fixed.
+    let mut pinned = model.problem.clone();
+    pinned.fluid.dirichlet.push(DirichletBc { boundary: "gamma_f".into(), components: vec![0], value: Arc::new(|_: &[f64; 2], _| [0.0; 2]) });
+    let pinned = FsiModel::new(pinned, &fluid_mesh, model.solid.mesh.clone()).unwrap().with_multiplier(MultiplierSpace::P1DiscontinuousTraceMode);
+    let pd = FsiDiscretization::build(&pinned, &base).unwrap();
+    assert_eq!(pd.inactive_multiplier_dofs, vec![pd.mode_multiplier_dof(0, 0)]);
+    let mut fluid = model.problem.fluid.clone();
+    let dt = 0.1;
+    fluid.params.inv_dt = 1.0 / dt;
+    let zero_old = vec![0.0; disc.fluid_dofs];
+    let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &zero_old, solid_base: &base, solid_f: &f, solid_target: None };
+    let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
+    let vel = disc.flow.layout.fields[0].clone();
+    let sf = model.solid.displacement_field().clone();
+    let gamma_f = disc.adapted.gamma_f_measure();
+    // The trace function: 1 at the gamma_f vertices, -1/2 at the mid-facet nodes (component 0).
+    let mut x = vec![0.0; n];
+    let near = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).abs() + (p[1] - q[1]).abs() < 1e-12;
+    for g in &disc.adapted.gamma_f {
+        let [p0, p1] = g.vertices.map(|v| disc.flow.mesh.points[v]);
+        let mid = [0.5 * (p0[0] + p1[0]), 0.5 * (p0[1] + p1[1])];
+        for (node, &y) in disc.flow.velocity_nodes.iter().enumerate() {
+            if near(y, p0) || near(y, p1) {
+                x[vel.dof(node, 0)] = 1.0;
+            } else if near(y, mid) {
+                x[vel.dof(node, 0)] = -0.5;
+            }
+        }
+    }
+    let r = disc.residual(&model, &input, &x).unwrap();
+    let p1_rows = (0..ne).flat_map(|e| (0..2).flat_map(move |k| (0..2).map(move |a| (e, k, a))));
+    let worst_p1 = p1_rows.map(|(e, k, a)| r[disc.multiplier_dof(e, k, a)].abs()).fold(0.0, f64::max);
+    let mode_row = r[disc.mode_multiplier_dof(0, 0)];
+    println!("trace function: max |P1 rows| = {worst_p1:.2e}, mode row {mode_row:.6} vs |gamma_f| / 5 = {:.6}", gamma_f / 5.0);
+    assert!(worst_p1 < 1e-14, "{worst_p1:e}");
+    assert!((mode_row - gamma_f / 5.0).abs() < 1e-13);
+    // u_f = c, u_s = 0: the mode rows vanish (the function integrates to 0 on every facet);
+    // u_f = u_s = c: every constraint row vanishes.
+    let c = [0.8, -1.3];
+    let mut x = vec![0.0; n];
+    for node in 0..vel.nodes.num_nodes {
+        for a in 0..2 {
+            x[vel.dof(node, a)] = c[a];
+        }
+    }
+    let r = disc.residual(&model, &input, &x).unwrap();
+    for a in 0..2 {
+        assert!(r[disc.mode_multiplier_dof(0, a)].abs() < 1e-14);
+    }
+    for node in 0..sf.nodes.num_nodes {
+        for a in 0..2 {
+            x[os + sf.dof(node, a)] = c[a] * dt;
+        }
+    }
+    let r = disc.residual(&model, &input, &x).unwrap();
+    let worst = r[ol..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(worst < 1e-14, "{worst:e}");
+    // Jacobian vs central differences at a random state.
+    let u_old: Vec<f64> = (0..disc.fluid_dofs).map(|_| rnd()).collect();
+    let input = StepInput { u_old: &u_old, ..input };
+    let mut x: Vec<f64> = (0..n).map(|_| rnd()).collect();
+    for v in x[os..os + nus].iter_mut() {
+        *v *= 2e-3;
+    }
+    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut rhs = vec![0.0; n];
+    disc.assemble(&model, &input, &x, &vec![false; n], &mut k, &mut rhs).unwrap();
+    let mode_dofs: Vec<usize> = (0..2).map(|a| disc.mode_multiplier_dof(0, a)).collect();
+    let (mut worst, mut mode_checked) = (0.0f64, 0);
+    for j in 0..n {
+        let h = 1e-6 * (1.0 + x[j].abs()) * if (os..os + nus).contains(&j) { 1e-2 } else { 1.0 };
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[j] += h;
+        xm[j] -= h;
+        let rp = disc.residual(&model, &input, &xp).unwrap();
+        let rm = disc.residual(&model, &input, &xm).unwrap();
+        for i in 0..n {
+            let fd = (rp[i] - rm[i]) / (2.0 * h);
+            let kij = k.get(i, j);
+            assert!(fd == 0.0 || disc.pattern.find(i, j).is_some(), "R[{i}] depends on x[{j}] outside the pattern");
+            if (mode_dofs.contains(&i) || mode_dofs.contains(&j)) && kij != 0.0 {
+                mode_checked += 1;
+            }
+            worst = worst.max((fd - kij).abs() / (1.0 + kij.abs()));
+        }
+    }
+    println!("max |K - FD| / (1 + |K|) = {worst:.2e}; {mode_checked} nonzero trace-mode entries checked");
+    assert!(mode_checked > 0);
+    assert!(worst < 1e-5, "Jacobian mismatch {worst:.3e}");
 }
