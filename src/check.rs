@@ -23,7 +23,7 @@ use crate::solid::SolidDiscretization;
 use fdfsi_fem::adapt::{AdaptOptions, CellLocator, GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
 use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::gmsh::AnyMesh;
-use fdfsi_fem::mesh::Mesh;
+use fdfsi_fem::mesh::{bounding_box, Mesh};
 use std::path::Path;
 
 /// What `fdfsi check` reports about a valid case.
@@ -399,17 +399,6 @@ fn point_text(x: &[f64]) -> String {
     format!("({})", parts.join(", "))
 }
 
-fn bounding_box<const D: usize>(points: &[[f64; D]]) -> ([f64; D], [f64; D]) {
-    let mut lo = [f64::INFINITY; D];
-    let mut hi = [f64::NEG_INFINITY; D];
-    for p in points {
-        for d in 0..D {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
-    (lo, hi)
-}
 
 /// Size of an inline-binary VTU file: base64 of the coordinates, the connectivity, offsets and
 /// types, `point_values` Float64 values per point and `cell_values` per cell, plus the XML.

@@ -216,13 +216,7 @@ fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, sol
         return Ok(());
     };
     let solid = model.current_solid_mesh(solid_x);
-    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
-    for p in &solid.points {
-        for d in 0..2 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
+    let (lo, hi) = fdfsi_fem::mesh::bounding_box(&solid.points);
     let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let window = [[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]];
     let outlines: Vec<Vec<[f64; 2]>> =

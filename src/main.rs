@@ -55,7 +55,12 @@ enum Command {
     },
     /// Draw PNG plots of a run's results into DIR/plots: every history.csv column against time,
     /// trajectories of STEM_x/STEM_y column pairs, and the profiles.
-    Plot { dir: PathBuf },
+    Plot {
+        dir: PathBuf,
+        /// Draw the same quantities and profiles of these runs into the same plots.
+        #[arg(long = "with", value_name = "OTHER_DIR")]
+        with: Vec<PathBuf>,
+    },
     /// Run the manufactured-solution convergence studies and print errors and rates.
     Verify {
         /// Also write the studies as JSON.
@@ -209,8 +214,8 @@ fn main() -> Result<()> {
                 s.gamma_s_pieces, s.gamma_s_measure, s.gamma_f_measure, st.min_quality, out.display()
             );
         }
-        Command::Plot { dir } => {
-            let files = fdfsi::plot::plot_results(&dir)?;
+        Command::Plot { dir, with } => {
+            let files = fdfsi::plot::plot_compared(&dir, &with)?;
             for f in &files {
                 println!("{}", f.display());
             }

@@ -36,13 +36,7 @@ pub fn write_speed_png_window(
     let vf = &disc.layout.fields[0];
     let nodes = &disc.velocity_nodes;
     let speed = |n: usize| (x[vf.dof(n, 0)].powi(2) + x[vf.dof(n, 1)].powi(2)).sqrt();
-    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
-    for p in &disc.mesh.points {
-        for d in 0..2 {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
+    let (mut lo, mut hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
     if let Some([a, b]) = window {
         (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
         if !(hi[0] > lo[0] && hi[1] > lo[1]) {

@@ -178,46 +178,93 @@ fn trajectory_pairs(columns: &[String]) -> Vec<(String, String, String)> {
 
 /// Plots the results in `dir` (see the module documentation); returns the PNGs written.
 pub fn plot_results(dir: &Path) -> Result<Vec<PathBuf>, PlotError> {
-    let history = dir.join("history.csv");
-    let profiles = dir.join("profiles");
-    let mut profile_files: Vec<PathBuf> = match std::fs::read_dir(&profiles) {
-        Ok(entries) => entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "csv")).collect(),
-        Err(_) => Vec::new(),
-    };
-    profile_files.sort();
-    if !history.exists() && profile_files.is_empty() {
-        return Err(PlotError::Nothing { path: dir.display().to_string() });
+    plot_compared(dir, &[])
+}
+
+/// A run's results: its history (if any) and profiles (name, table).
+struct Results {
+    label: String,
+    history: Option<Table>,
+    profiles: Vec<(String, Table)>,
+}
+
+impl Results {
+    fn read(dir: &Path) -> Result<Self, PlotError> {
+        let history_path = dir.join("history.csv");
+        let history = if history_path.exists() { Some(Table::read(&history_path)?) } else { None };
+        let mut files: Vec<PathBuf> = match std::fs::read_dir(dir.join("profiles")) {
+            Ok(entries) => entries.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "csv")).collect(),
+            Err(_) => Vec::new(),
+        };
+        files.sort();
+        let mut profiles = Vec::new();
+        for file in files {
+            let table = Table::read(&file)?;
+            if table.column("s").is_none() || table.column("value").is_none() {
+                return Err(PlotError::Csv { path: file.display().to_string(), line: 1, message: "expected columns s and value".into() });
+            }
+            profiles.push((file.file_stem().and_then(|s| s.to_str()).unwrap_or("profile").to_string(), table));
+        }
+        if history.is_none() && profiles.is_empty() {
+            return Err(PlotError::Nothing { path: dir.display().to_string() });
+        }
+        let label = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| dir.display().to_string());
+        Ok(Results { label, history, profiles })
     }
+
+    /// The history columns worth plotting against time (none for a one-row, steady history).
+    fn history_columns(&self) -> &[String] {
+        match &self.history {
+            Some(t) if t.rows.len() > 1 => &t.columns,
+            _ => &[],
+        }
+    }
+
+    fn history_series(&self, x: &str, y: &str) -> Option<Series> {
+        let mut s = self.history.as_ref()?.series(x, y)?;
+        s.name = self.label.clone();
+        Some(s)
+    }
+
+    fn profile_series(&self, name: &str) -> Option<Series> {
+        let (_, t) = self.profiles.iter().find(|(n, _)| n == name)?;
+        let mut s = t.series("s", "value")?;
+        s.name = self.label.clone();
+        Some(s)
+    }
+}
+
+/// As [`plot_results`], with the same quantities and profiles of the runs in `others` drawn
+/// into the same plots (each curve labelled with its folder's name): `fdfsi plot DIR --with
+/// OTHER`, e.g. an FSI run against its pure-fluid twin.
+pub fn plot_compared(dir: &Path, others: &[PathBuf]) -> Result<Vec<PathBuf>, PlotError> {
+    let main = Results::read(dir)?;
+    let others: Vec<Results> = others.iter().map(|d| Results::read(d)).collect::<Result<_, _>>()?;
     let plots = dir.join("plots");
     std::fs::create_dir_all(&plots).map_err(|source| PlotError::Io { path: plots.display().to_string(), source })?;
+    let all = || std::iter::once(&main).chain(&others);
     let mut written = Vec::new();
-    if history.exists() {
-        let table = Table::read(&history)?;
-        // A steady run has one row: nothing to draw against time.
-        let columns = if table.rows.len() > 1 { table.columns.as_slice() } else { &[] };
-        for name in columns.iter().filter(|c| !matches!(c.as_str(), "step" | "time")) {
-            let Some(s) = table.series("time", name) else { continue };
-            let path = plots.join(format!("{name}.png"));
-            line_plot(&path, name, "time", name, &[s])?;
-            written.push(path);
+    let mut draw = |file: String, title: &str, x_label: &str, y_label: &str, series: Vec<Series>| -> Result<(), PlotError> {
+        let path = plots.join(file);
+        let mut series = series;
+        if series.len() == 1 {
+            series[0].name = y_label.to_string();
         }
-        for (stem, x, y) in trajectory_pairs(columns) {
-            let Some(mut s) = table.series(&x, &y) else { continue };
-            s.name = stem.clone();
-            let path = plots.join(format!("trajectory_{stem}.png"));
-            line_plot(&path, &format!("{stem}: path over the run"), &x, &y, &[s])?;
-            written.push(path);
-        }
-    }
-    for file in profile_files {
-        let table = Table::read(&file)?;
-        let name = file.file_stem().and_then(|s| s.to_str()).unwrap_or("profile").to_string();
-        let Some(s) = table.series("s", "value") else {
-            return Err(PlotError::Csv { path: file.display().to_string(), line: 1, message: "expected columns s and value".into() });
-        };
-        let path = plots.join(format!("profile_{name}.png"));
-        line_plot(&path, &name, "arc length s", "value", &[s])?;
+        line_plot(&path, title, x_label, y_label, &series)?;
         written.push(path);
+        Ok(())
+    };
+    for name in main.history_columns().iter().filter(|c| !matches!(c.as_str(), "step" | "time")) {
+        let series = all().filter_map(|r| r.history_series("time", name)).collect();
+        draw(format!("{name}.png"), name, "time", name, series)?;
+    }
+    for (stem, x, y) in trajectory_pairs(main.history_columns()) {
+        let series = all().filter_map(|r| r.history_series(&x, &y)).collect();
+        draw(format!("trajectory_{stem}.png"), &format!("{stem}: path over the run"), &x, &y, series)?;
+    }
+    for (name, _) in &main.profiles {
+        let series = all().filter_map(|r| r.profile_series(name)).collect();
+        draw(format!("profile_{name}.png"), name, "arc length s", "value", series)?;
     }
     Ok(written)
 }
@@ -245,6 +292,20 @@ mod tests {
             assert_eq!(&bytes[1..4], b"PNG", "{}", p.display());
         }
         assert!(!dir.path().join("plots/tip_x.tmp.png").exists());
+    }
+
+    #[test]
+    fn another_run_is_drawn_into_the_same_plots() {
+        let root = tempfile::tempdir().unwrap();
+        let (a, b) = (root.path().join("fsi"), root.path().join("twin"));
+        for (dir, scale) in [(&a, 1.0), (&b, 1.1)] {
+            std::fs::create_dir_all(dir.join("profiles")).unwrap();
+            std::fs::write(dir.join("profiles/wss.csv"), format!("s,x,y,value\n0,0,0,{scale}\n1,1,0,{}\n", 2.0 * scale)).unwrap();
+        }
+        let written = plot_compared(&a, std::slice::from_ref(&b)).unwrap();
+        assert_eq!(written, [a.join("plots/profile_wss.png")]);
+        let e = plot_compared(&a, &[root.path().join("missing")]).unwrap_err().to_string();
+        assert!(e.contains("no history.csv and no profiles"), "{e}");
     }
 
     #[test]

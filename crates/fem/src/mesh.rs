@@ -197,6 +197,19 @@ fn names(list: &[(String, u32)]) -> String {
     list.iter().map(|(n, _)| format!("'{n}'")).collect::<Vec<_>>().join(", ")
 }
 
+/// The axis-aligned bounding box `(lo, hi)` of `points` (infinite bounds for no points).
+pub fn bounding_box<const D: usize>(points: &[[f64; D]]) -> ([f64; D], [f64; D]) {
+    let mut lo = [f64::INFINITY; D];
+    let mut hi = [f64::NEG_INFINITY; D];
+    for p in points {
+        for d in 0..D {
+            lo[d] = lo[d].min(p[d]);
+            hi[d] = hi[d].max(p[d]);
+        }
+    }
+    (lo, hi)
+}
+
 /// Number of geometry nodes of a cell type at a geometric order.
 pub fn geometry_nodes(cell: ReferenceCell, order: GeometryOrder) -> usize {
     use GeometryOrder::*;

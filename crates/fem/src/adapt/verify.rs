@@ -108,13 +108,6 @@ fn check_children<const D: usize>(original: &Mesh<D>, adapted: &Adapted<D>) -> R
 }
 
 fn bbox_diameter<const D: usize>(points: &[[f64; D]]) -> f64 {
-    let mut lo = [f64::INFINITY; D];
-    let mut hi = [f64::NEG_INFINITY; D];
-    for p in points {
-        for d in 0..D {
-            lo[d] = lo[d].min(p[d]);
-            hi[d] = hi[d].max(p[d]);
-        }
-    }
+    let (lo, hi) = crate::mesh::bounding_box(points);
     (0..D).map(|d| (hi[d] - lo[d]).powi(2)).sum::<f64>().sqrt().max(1.0)
 }
