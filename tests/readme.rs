@@ -1,6 +1,8 @@
 //! The case-file reference in README.md and the parser cannot drift apart: the README's example
-//! case parses and validates with the parser, and every key that a shipped case uses is
-//! documented in the reference.
+//! case parses and validates with the parser, every key that a shipped case uses is documented
+//! in the reference, and so is every field the parser accepts in every table (read from the
+//! parser's own "expected one of ..." list for an unknown key, so a new schema field without
+//! documentation fails here).
 
 use fdfsi::case::Case;
 use std::collections::BTreeSet;
@@ -80,4 +82,48 @@ fn every_key_of_the_shipped_cases_is_documented() {
         }
     }
     assert!(missing.is_empty(), "keys used by cases/ but not documented in README's case-file reference: {missing:?}");
+}
+
+/// The field names the parser accepts in a table: the "expected one of ..." list of the error
+/// that an unknown key in it gives.
+fn accepted_fields(snippet: &str) -> Vec<String> {
+    let e = Case::from_toml_str(snippet, "probe.toml").map(|_| ()).unwrap_err().to_string();
+    let list = e.split("expected one of ").nth(1).or_else(|| e.split("expected ").nth(1)).unwrap_or_else(|| panic!("{snippet}: {e}"));
+    list.split('`').skip(1).step_by(2).map(String::from).collect()
+}
+
+#[test]
+fn every_field_the_parser_accepts_is_documented() {
+    const UNKNOWN: &str = "bogus_key = 1";
+    let mut tables: Vec<String> = [
+        "", "[physics]", "[fluid]", "[time]", "[solver]", "[solver.newton]", "[[boundary]]", "[output]", "[[output.probe]]",
+        "[[output.boundary_integral]]", "[[output.profile]]", "[[output.combination]]", "[solid]", "[[solid.boundary]]",
+        "[solid.loading]",
+    ]
+    .iter()
+    .map(|t| format!("title = \"t\"\n{t}\n{UNKNOWN}\n"))
+    .collect();
+    for kind in ["rectangle", "channel", "box", "pipe", "gmsh"] {
+        tables.push(format!("title = \"t\"\n[mesh]\nkind = \"{kind}\"\n{UNKNOWN}\n"));
+    }
+    for kind in ["rectangle", "quadrilateral", "box", "gmsh"] {
+        tables.push(format!("title = \"t\"\n[solid]\nmesh = {{ kind = \"{kind}\", {UNKNOWN} }}\n"));
+    }
+    for kind in ["ramp", "sine", "quarter-sine-hold", "table"] {
+        tables.push(format!("title = \"t\"\n[[boundary]]\nname = \"a\"\ntype = \"free\"\ntime_function = {{ kind = \"{kind}\", {UNKNOWN} }}\n"));
+    }
+    let reference = readme_case_section();
+    let mut missing = Vec::new();
+    for snippet in &tables {
+        let fields = accepted_fields(snippet);
+        assert!(!fields.is_empty(), "{snippet}");
+        for f in fields {
+            // A key (`f =`, `` `f` ``) or a table (`[f]`, `[[x.f]]`, `[f.x]`).
+            let forms = [format!("{f} ="), format!("`{f}`"), format!("[{f}]"), format!(".{f}]"), format!("[{f}.")];
+            if !forms.iter().any(|form| reference.contains(form.as_str())) {
+                missing.push(format!("{f} (in {:?})", snippet.lines().nth(1).unwrap_or("")));
+            }
+        }
+    }
+    assert!(missing.is_empty(), "fields the parser accepts but README's case-file reference does not document: {missing:?}");
 }
