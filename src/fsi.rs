@@ -156,7 +156,11 @@ impl<const D: usize> FsiModel<D> {
     }
 
     /// The solid mesh at the total displacement in `solid_x` (solid numbering): every geometry
-    /// node is placed by interpolating the Q2 displacement of its cell.
+    /// node is placed by interpolating the Q2 displacement of its cell. Basis values within
+    /// 1e-12 of 0 or 1 are taken as exactly 0 or 1, so a geometry node that is a displacement
+    /// node gets exactly its nodal position: an end of gamma_s held on the symmetry axis or a
+    /// wall stays exactly on it (a round-off of 3e-17 off the axis made the adaptation miss the
+    /// fluid's axis edge there, and gamma_f stopped one cell short of the axis).
     pub fn current_solid_mesh(&self, solid_x: &[f64]) -> Mesh<D> {
         let s = &self.solid;
         let mut mesh = s.mesh.clone();
@@ -169,7 +173,11 @@ impl<const D: usize> FsiModel<D> {
             for (k, &p) in s.mesh.cell(c).iter().enumerate() {
                 let mut x = [0.0; D];
                 for (i, &node) in dnodes.iter().enumerate() {
-                    let phi = tab.values[k * nv + i];
+                    let phi = match tab.values[k * nv + i] {
+                        v if v.abs() < 1e-12 => 0.0,
+                        v if (v - 1.0).abs() < 1e-12 => 1.0,
+                        v => v,
+                    };
                     if phi != 0.0 {
                         for d in 0..D {
                             x[d] += phi * (s.nodes_x0[node][d] + solid_x[vf.dof(node, d)]);
@@ -818,18 +826,24 @@ pub fn step<const D: usize>(
     let mut x = vec![0.0; n];
     x[..disc.fluid_dofs].copy_from_slice(&u_old);
     let mut constrained = vec![false; n];
+    // Constrained values, set again after Newton: the linear solves (with iterative refinement)
+    // may leave round-off on them, and a solid end held on an axis must stay exactly on it.
+    let mut fixed: Vec<(usize, f64)> = Vec::new();
     for (d, v) in disc.flow.dirichlet_dofs(&fluid, t_new)? {
         constrained[d] = true;
         x[d] = v;
+        fixed.push((d, v));
     }
     for &d in &disc.inactive_multiplier_dofs {
         constrained[d] = true;
     }
     let nus = model.solid.displacement_field().num_dofs();
     x[os + nus..ol].copy_from_slice(&state.solid_x[nus..]);
-    for (d, v) in model.solid.dirichlet_values(&model.problem.solid, t_new)? {
+    let solid_fixed = model.solid.dirichlet_values(&model.problem.solid, t_new)?;
+    for &(d, v) in &solid_fixed {
         constrained[os + d] = true;
         x[os + d] = if d < nus { v - state.solid_x[d] } else { v };
+        fixed.push((os + d, x[os + d]));
     }
     let target: Option<Vec<f64>> = (model.problem.solid.density > 0.0).then(|| state.solid_v.iter().map(|v| v * dt).collect());
     let input = StepInput {
@@ -843,6 +857,9 @@ pub fn step<const D: usize>(
     };
     let clock = Instant::now();
     let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs))?;
+    for &(d, v) in &fixed {
+        x[d] = v;
+    }
     seconds.newton = clock.elapsed().as_secs_f64();
     // Update the solid (updated Lagrangian) and keep the fluid for the next transfer.
     let clock = Instant::now();
@@ -854,6 +871,9 @@ pub fn step<const D: usize>(
         solid_x[i] += inc[i];
     }
     solid_x[nus..].copy_from_slice(&inc[nus..]);
+    for &(d, v) in solid_fixed.iter().filter(|(d, _)| *d < nus) {
+        solid_x[d] = v; // exactly the prescribed displacement (u_n + (v - u_n) may round)
+    }
     let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { inc[i] / dt } else { 0.0 }).collect();
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.layout.fields[0];
