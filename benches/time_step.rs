@@ -27,7 +27,7 @@ use fdfsi::fem::mesh::Mesh;
 use fdfsi::run::{build_mesh, flow_problem};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
-use fdfsi::time::{solve_unsteady_from, TimeLevel, TimeOptions};
+use fdfsi::time::{solve_unsteady_from, step_history, TimeLevel, TimeOptions};
 use fdfsi_fem::sparse::CscMatrix;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -74,11 +74,8 @@ impl<const D: usize> System<D> {
         let n = self.disc.num_dofs();
         let t = (self.level.step + 1) as f64 * self.options.dt;
         let mut problem = self.problem.clone();
-        problem.params.inv_dt = 1.5 / self.options.dt;
-        let u_star: Vec<f64> = match &self.level.x_prev {
-            Some(xp) => self.x.iter().zip(xp).map(|(a, b)| (4.0 * a - b) / 3.0).collect(),
-            None => self.x.clone(),
-        };
+        let (inv_dt, u_star) = step_history(self.options.scheme, self.options.dt, &self.x, self.level.x_prev.as_deref());
+        problem.params.inv_dt = inv_dt;
         let mut constrained = vec![false; n];
         for (d, _) in self.disc.dirichlet_dofs(&problem, t).expect("dirichlet dofs") {
             constrained[d] = true;

@@ -123,7 +123,7 @@ pub struct SolidSpec {
     /// the P2 trace function the paper's multiplier leaves free, so that the fluid velocity on
     /// gamma_f equals the solid's at every node; see [`crate::fsi::MultiplierSpace`]).
     #[serde(default, skip_serializing_if = "is_default")]
-    pub multiplier: MultiplierChoice,
+    pub multiplier: crate::fsi::MultiplierSpace,
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
@@ -136,15 +136,6 @@ pub struct SolidSpec {
     pub pivot: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translate: Option<Vec<f64>>,
-}
-
-/// The multiplier space of an FSI run (see [`SolidSpec::multiplier`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum MultiplierChoice {
-    #[default]
-    P1Discontinuous,
-    P1DiscontinuousTraceMode,
 }
 
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {
@@ -708,7 +699,7 @@ impl Case {
                     }
                 }
             }
-            if solid.multiplier == MultiplierChoice::P1DiscontinuousTraceMode && self.dim() == 3 {
+            if solid.multiplier == crate::fsi::MultiplierSpace::P1DiscontinuousTraceMode && self.dim() == 3 {
                 problems.push("solid.multiplier = \"p1-discontinuous-trace-mode\" is 2D only (plane or axisymmetric)".into());
             }
             if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {

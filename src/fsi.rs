@@ -105,7 +105,10 @@ pub enum FsiError {
 /// component `a`, that trace function is not free and its multiplier is fixed to zero
 /// ([`FsiDiscretization::inactive_multiplier_dofs`]). 2D only: in 3D the P2+ trace on a face
 /// (P2 and the face bubble) leaves more than one function free.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+///
+/// In case files (`[solid] multiplier`): `p1-discontinuous`, `p1-discontinuous-trace-mode`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum MultiplierSpace {
     /// The paper's: P1 discontinuous on each gamma_f facet.
     #[default]

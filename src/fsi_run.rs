@@ -19,7 +19,7 @@ use crate::case::{Case, CaseError, ProbeField, SolidModel};
 use crate::checkpoint::{Checkpoint, Progress, RestartState};
 use crate::fsi::{step, FsiError, FsiModel, FsiProblem, FsiState, FsiStep};
 use crate::output::{fluid_grid, gamma_f_grid, History};
-use crate::quantities::{evaluate_all, QuantityError, StepState};
+use crate::quantities::{evaluate_all, StepState};
 use crate::run::{build_mesh, flow_problem, RunError, RunObserver, RunOptions, RunSummary, Timings};
 use crate::solve::linear::{FaerLu, LinearSolver};
 use fdfsi_fem::adapt::AdaptOptions;
@@ -66,11 +66,7 @@ pub fn model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::
     let solid_mesh = crate::adaptation::solid_mesh::<D>(spec, case_dir)?;
     let solid = crate::solid_run::problem::<D>(case, spec, false)?;
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
-    let multiplier = match spec.multiplier {
-        crate::case::MultiplierChoice::P1Discontinuous => crate::fsi::MultiplierSpace::P1Discontinuous,
-        crate::case::MultiplierChoice::P1DiscontinuousTraceMode => crate::fsi::MultiplierSpace::P1DiscontinuousTraceMode,
-    };
-    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(multiplier))
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(spec.multiplier))
 }
 
 fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
@@ -130,10 +126,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         let out_t = Instant::now();
         let fluid_x = &st.x[..st.disc.fluid_dofs];
         let step_state = StepState { time: r.time, inv_dt: 1.0 / dt, u_star: Some(&st.u_old[..st.disc.fluid_dofs]) };
-        let mut values = evaluate_all(&fluid_output, &st.disc.flow, &st.fluid_problem, fluid_x, &step_state).map_err(|e| match e {
-            QuantityError::ProbeOutside { name, point } => RunError::ProbeOutside { name, point },
-            QuantityError::Flow(f) => RunError::Flow(f),
-        })?;
+        let mut values = evaluate_all(&fluid_output, &st.disc.flow, &st.fluid_problem, fluid_x, &step_state)?;
         for (name, node, a) in &solid_probes {
             values.push((name.clone(), model.solid.displacement(&next.solid_x, *node)[*a]));
         }
@@ -162,6 +155,8 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
             series.add(r.time, "solid", &crate::solid_run::solid_grid(&model.solid, material.as_ref(), &next.solid_x)?)?;
             series.add(r.time, "gamma_f", &gamma_f_grid(&st.disc, &st.x)?)?;
         }
+        // Output time is added before the checkpoint (so the checkpoint's totals include this
+        // step's) and the checkpoint's own write after it.
         let out_seconds = out_t.elapsed().as_secs_f64();
         timings.output += out_seconds;
         obs.log(&format!(

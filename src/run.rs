@@ -75,6 +75,15 @@ pub enum RunError {
     Interrupted { step: usize, time: f64, out_dir: String },
 }
 
+impl From<QuantityError> for RunError {
+    fn from(e: QuantityError) -> Self {
+        match e {
+            QuantityError::ProbeOutside { name, point } => RunError::ProbeOutside { name, point },
+            QuantityError::Flow(f) => RunError::Flow(f),
+        }
+    }
+}
+
 /// Receives what a run reports: log lines and step progress.
 pub trait RunObserver {
     /// One line of the run's log.
@@ -85,11 +94,18 @@ pub trait RunObserver {
     fn detail(&mut self, _line: &str) {}
 }
 
+/// One line per Newton iteration of `report`: `newton k: |R| = ..., |du| = ...`.
+fn newton_lines(report: &crate::solve::newton::NewtonReport) -> impl Iterator<Item = String> + '_ {
+    report.residual_norms.iter().enumerate().map(|(k, r)| {
+        let du = report.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
+        format!("newton {k}: |R| = {r:.3e}{du}")
+    })
+}
+
 /// The Newton iterations of `report` as detail lines.
 pub(crate) fn log_newton(obs: &mut dyn RunObserver, report: &crate::solve::newton::NewtonReport) {
-    for (k, r) in report.residual_norms.iter().enumerate() {
-        let du = report.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
-        obs.detail(&format!("  newton {k}: |R| = {r:.3e}{du}"));
+    for line in newton_lines(report) {
+        obs.detail(&format!("  {line}"));
     }
     obs.detail(&format!(
         "  assemble {:.3} s, factorize {:.3} s, solve {:.3} s",
@@ -457,9 +473,8 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         None => {
             let sol = solve_steady(&disc, &problem, &mut lu, &case.solver.newton)?;
             let rep = &sol.newton;
-            for (k, r) in rep.residual_norms.iter().enumerate() {
-                let du = rep.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
-                obs.log(&format!("newton {k}: |R| = {r:.3e}{du}"));
+            for line in newton_lines(rep) {
+                obs.log(&line);
             }
             timings.add_newton(rep);
             residual_norms.clone_from(&rep.residual_norms);
@@ -657,10 +672,7 @@ impl Outputs {
         _obs: &mut dyn RunObserver,
     ) -> Result<(), RunError> {
         let t = Instant::now();
-        let values = evaluate_all(&self.spec, disc, problem, x, state).map_err(|e| match e {
-            QuantityError::ProbeOutside { name, point } => RunError::ProbeOutside { name, point },
-            QuantityError::Flow(f) => RunError::Flow(f),
-        })?;
+        let values = evaluate_all(&self.spec, disc, problem, x, state)?;
         let history = self.history.get_or_insert_with(|| {
             let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
             History::new(&self.out_dir.join("history.csv"), &names)

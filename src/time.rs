@@ -120,6 +120,15 @@ pub struct TimeLevel {
     pub x_prev: Option<Vec<f64>>,
 }
 
+/// `(a0 / dt, u*)` of a step of size `dt` from `x_n` (see the module doc): BDF2 when `scheme` is
+/// BDF2 and the previous level `x_prev` is known, implicit Euler otherwise.
+pub fn step_history(scheme: TimeScheme, dt: f64, x_n: &[f64], x_prev: Option<&[f64]>) -> (f64, Vec<f64>) {
+    match (scheme, x_prev) {
+        (TimeScheme::Bdf2, Some(xp)) => (1.5 / dt, x_n.iter().zip(xp).map(|(a, b)| (4.0 * a - b) / 3.0).collect()),
+        _ => (1.0 / dt, x_n.to_vec()),
+    }
+}
+
 /// Number of steps of size `dt` to reach `t_end` (the last one may be shorter).
 pub fn num_steps(dt: f64, t_end: f64) -> usize {
     (t_end / dt - 1e-9).ceil() as usize
@@ -165,12 +174,7 @@ pub fn solve_unsteady_from<const D: usize>(
         let t_next = (step as f64 * options.dt).min(options.t_end);
         let dt = t_next - t;
         let x_n = x.clone();
-        let (inv_dt, u_star) = match (options.scheme, &x_prev) {
-            (TimeScheme::Bdf2, Some(xp)) => {
-                (1.5 / dt, x_n.iter().zip(xp).map(|(a, b)| (4.0 * a - b) / 3.0).collect::<Vec<f64>>())
-            }
-            _ => (1.0 / dt, x_n.clone()),
-        };
+        let (inv_dt, u_star) = step_history(options.scheme, dt, &x_n, x_prev.as_deref());
         let mut report = StepReport { step, time: t_next, dt, cuts: 0, newton: Vec::new(), inv_dt, u_star: Vec::new() };
         match solve_step(disc, problem, x, &u_star, inv_dt, t_next, solver, newton_options) {
             Ok(r) => {
