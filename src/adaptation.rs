@@ -62,6 +62,9 @@ pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<
         SolidMeshSpec::Box { x, y, z, n } => {
             AnyMesh::D3(generate::box_hexahedra(x[0], x[1], y[0], y[1], z[0], z[1], n[0], n[1], n[2], GeometryOrder::Quadratic))
         }
+        SolidMeshSpec::QuarterDisc { radius, z, n_core, n_ring, n_layers } => {
+            AnyMesh::D3(generate::quarter_disc_hexahedra(*radius, z[0], z[1], *n_core, *n_ring, *n_layers))
+        }
         SolidMeshSpec::Gmsh { file } => read_msh(&case_dir.join(file))?,
     };
     let boxed: Box<dyn std::any::Any> = match any {

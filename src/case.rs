@@ -226,6 +226,20 @@ pub enum SolidMeshSpec {
     Quadrilateral { corners: [[f64; 2]; 4], n: [usize; 2] },
     /// Box in `n` 27-node hexahedra; boundaries `xmin` ... `zmax`.
     Box { x: [f64; 2], y: [f64; 2], z: [f64; 2], n: [usize; 3] },
+    /// Quarter disc `x, y >= 0`, `x^2 + y^2 <= radius^2`, `z` in `[z0, z1]` in 27-node hexahedra:
+    /// a membrane across a quarter `pipe` (see [`fdfsi_fem::generate::quarter_disc_hexahedra`]).
+    /// A core block of `n_core x n_core` cells and two outer blocks of `n_core x n_ring`;
+    /// `n_layers` (default 1) through the thickness. The rim is the polygon of `2 n_core` equal
+    /// segments: with `2 n_core` equal to the pipe's wall segments (`round(1.5 n_radial)`) it is
+    /// the pipe's wall. Boundaries `zmin`, `zmax`, `wall`, `symmetry_x`, `symmetry_y`.
+    QuarterDisc {
+        radius: f64,
+        z: [f64; 2],
+        n_core: usize,
+        n_ring: usize,
+        #[serde(default = "one_usize")]
+        n_layers: usize,
+    },
     /// A Gmsh file of 9-node quadrilaterals or 27-node hexahedra.
     Gmsh { file: PathBuf },
 }
@@ -405,9 +419,29 @@ pub struct OutputSpec {
     /// Profiles along a boundary, written at the end of the run to `profiles/NAME.csv`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub profile: Vec<ProfileSpec>,
+    /// Quantities of the whole fluid domain: `max-speed`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub domain: Vec<DomainQuantitySpec>,
     /// Linear combinations of other quantities (evaluated after them, in file order).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub combination: Vec<CombinationSpec>,
+}
+
+/// A quantity of the whole fluid domain.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DomainQuantitySpec {
+    pub name: String,
+    pub kind: DomainQuantityKind,
+}
+
+/// Kinds of domain quantity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DomainQuantityKind {
+    /// `max |u|` over the vertices, edge midpoints and centroids of all fluid cells (the
+    /// points where P2+ is interpolatory plus its bubble point).
+    MaxSpeed,
 }
 
 /// A profile along a boundary: one row `s,x,y[,z],value` per facet quadrature point.
@@ -492,6 +526,11 @@ pub enum BoundaryIntegralKind {
     /// boundary and zero on the other Dirichlet boundaries. Axisymmetric: the axial force
     /// `2 pi int ... r ds`.
     Force,
+    /// The normal pressure that the boundary's `traction` or `pressure` condition applies,
+    /// `-int t . n w ds / int w ds` (`t` the prescribed traction, `n` out of the fluid, `w = r`
+    /// axisymmetric, else 1): the value itself for a `pressure` boundary. 0 on a boundary
+    /// without such a condition.
+    AppliedTraction,
 }
 
 impl Case {
@@ -652,6 +691,12 @@ impl Case {
         let builtin = if crate::fsi_run::is_fsi(self) { crate::fsi_run::builtin_quantities(d) } else { Vec::new() };
         let mut known: std::collections::HashSet<&str> = self.output.probe.iter().map(|p| p.name.as_str()).collect();
         known.extend(self.output.boundary_integral.iter().map(|b| b.name.as_str()));
+        known.extend(self.output.domain.iter().map(|q| q.name.as_str()));
+        if self.mesh.is_none() {
+            for q in &self.output.domain {
+                problems.push(format!("domain quantity '{}': needs a fluid [mesh]", q.name));
+            }
+        }
         known.extend(builtin.iter().map(String::as_str));
         if crate::fsi_run::is_fsi(self) && self.time.is_none() {
             problems.push("an FSI run (fluid mesh and a solid material model) needs a [time] table".into());
@@ -721,6 +766,16 @@ impl Case {
                 SolidMeshSpec::Box { x, y, z, n } => {
                     intervals("solid.mesh", &[("x", x), ("y", y), ("z", z)], &mut problems);
                     cell_counts("solid.mesh.n", n, 1, &mut problems);
+                    Some(3)
+                }
+                SolidMeshSpec::QuarterDisc { radius, z, n_core, n_ring, n_layers } => {
+                    positive(*radius, "solid.mesh.radius", &mut problems);
+                    intervals("solid.mesh", &[("z", z)], &mut problems);
+                    let around = n_core.saturating_add(n_ring.saturating_mul(2));
+                    cell_counts("solid.mesh [n_core, n_core + 2 n_ring, n_layers]", &[*n_core, around, *n_layers], 1, &mut problems);
+                    if *n_ring == 0 {
+                        problems.push("solid.mesh.n_ring must be >= 1".into());
+                    }
                     Some(3)
                 }
                 SolidMeshSpec::Gmsh { .. } => None,

@@ -241,7 +241,7 @@ impl Ctx<'_> {
             None => None,
         };
         let cells = mesh.num_cells();
-        let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.combination.len();
+        let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.domain.len() + case.output.combination.len();
         if let (true, Some((spec, solid_mesh))) = (fsi, solid) {
             let surface =
                 spec.surface.clone().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;

@@ -1,6 +1,7 @@
-//! PNG pictures of 2D fields (no fonts, no system libraries): `speed.png` of a 2D run shows
-//! `|u|` on the mesh, each quadratic triangle drawn as its four linear sub-triangles coloured by
-//! their mean nodal speed (viridis colour map, blue slow, yellow fast).
+//! PNG pictures (no fonts, no system libraries): `speed.png` of a 2D run shows `|u|` on the mesh,
+//! each quadratic triangle drawn as its four linear sub-triangles coloured by their mean nodal
+//! speed (viridis colour map, blue slow, yellow fast); [`write_surfaces_png`] draws the coupling
+//! surfaces gamma_s and gamma_f of a 3D run (the paper's figs. 7 and 8).
 
 use crate::flow::FlowDiscretization;
 use plotters::prelude::*;
@@ -68,6 +69,57 @@ pub fn write_speed_png_window(
         let pts: Vec<(i32, i32)> = line.iter().map(|&p| px(p)).collect();
         root.draw(&PathElement::new(pts, WHITE.stroke_width(3))).map_err(|e| e.to_string())?;
     }
+    root.present().map_err(|e| e.to_string())?;
+    drop(root);
+    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Colour of gamma_s (the solid's surface pieces) in [`write_surfaces_png`].
+pub const GAMMA_S_COLOUR: RGBColor = RGBColor(31, 119, 180);
+/// Colour of gamma_f (the adapted fluid mesh's facets) in [`write_surfaces_png`].
+pub const GAMMA_F_COLOUR: RGBColor = RGBColor(214, 39, 40);
+
+/// Writes the edges of two triangulated surfaces of a 3D run, gamma_s (blue) and gamma_f (red),
+/// as a PNG of two panels `size` pixels square: left, seen along the z axis (the x-y plane, the
+/// two non-conforming triangulations over each other); right, seen from the side in `(r, z)`
+/// with `r = sqrt(x^2 + y^2)` across and z up, z stretched to fill the panel (the shape of the
+/// bulge; the z range is printed nowhere, it is that of the surfaces with 10 % margins).
+pub fn write_surfaces_png(path: &Path, gamma_s: &[[[f64; 3]; 3]], gamma_f: &[[[f64; 3]; 3]], size: u32) -> Result<(), String> {
+    let all = || gamma_s.iter().chain(gamma_f).flatten();
+    if all().next().is_none() || all().flatten().any(|v| !v.is_finite()) {
+        return Err("no surface to draw, or a point that is not finite".into());
+    }
+    let fold = |f: &dyn Fn(&[f64; 3]) -> f64| {
+        all().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(f(p)), hi.max(f(p))))
+    };
+    let r = |p: &[f64; 3]| p[0].hypot(p[1]);
+    let (x, y, rr, z) = (fold(&|p| p[0]), fold(&|p| p[1]), fold(&r), fold(&|p| p[2]));
+    let pad = |(lo, hi): (f64, f64)| {
+        let m = 0.1 * (hi - lo).max(1e-9 * (1.0 + hi.abs()));
+        (lo - m, hi + m)
+    };
+    let span = (x.1 - x.0).max(y.1 - y.0);
+    let (x, y) = (pad((x.0, x.0 + span)), pad((y.0, y.0 + span)));
+    let (rr, z) = (pad((rr.0.min(0.0), rr.1)), pad(z));
+    let tmp = path.with_extension("tmp.png");
+    let root = BitMapBackend::new(&tmp, (2 * size, size)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let to_px = |u: f64, (u0, u1): (f64, f64), flip: bool| {
+        let t = (u - u0) / (u1 - u0);
+        ((if flip { 1.0 - t } else { t }) * (size - 1) as f64).round() as i32
+    };
+    let top = |p: &[f64; 3]| (to_px(p[0], x, false), to_px(p[1], y, true));
+    let side = |p: &[f64; 3]| (size as i32 + to_px(r(p), rr, false), to_px(p[2], z, true));
+    for (tris, colour) in [(gamma_s, GAMMA_S_COLOUR), (gamma_f, GAMMA_F_COLOUR)] {
+        for t in tris {
+            for view in [&top as &dyn Fn(&[f64; 3]) -> (i32, i32), &side] {
+                let pts: Vec<(i32, i32)> = [0, 1, 2, 0].iter().map(|&k| view(&t[k])).collect();
+                root.draw(&PathElement::new(pts, colour.stroke_width(1))).map_err(|e| e.to_string())?;
+            }
+        }
+    }
+    let split = [(size as i32, 0), (size as i32, size as i32)];
+    root.draw(&PathElement::new(split, BLACK.stroke_width(1))).map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())?;
     drop(root);
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))

@@ -5,9 +5,12 @@
 //!   probe on a facet, edge or vertex is the mean of the values of all cells that contain it;
 //! - flux: `Q = int_Gamma u . n ds` (axisymmetric: `2 pi int u . n r ds`, the physical volume
 //!   flow);
-//! - mean pressure: `int_Gamma p w ds / int_Gamma w ds` (`w = r` axisymmetric, else 1).
+//! - mean pressure: `int_Gamma p w ds / int_Gamma w ds` (`w = r` axisymmetric, else 1);
+//! - applied traction: `-int_Gamma t . n w ds / int_Gamma w ds`, the normal pressure that a
+//!   traction or pressure condition puts on the boundary;
+//! - max speed: `max |u|` over the vertices, edge midpoints and centroids of the cells.
 
-use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, ProbeField, ProbeSpec};
+use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec};
 use crate::flow::{FlowDiscretization, FlowError, FlowProblem};
 use crate::physics::fluid::Formulation;
 use fdfsi_fem::element::MAX_DOFS;
@@ -127,6 +130,7 @@ pub fn boundary_integral<const D: usize>(
     let mut fv = disc.facet_values();
     let vf = &disc.layout.fields[0];
     let pf = &disc.layout.fields[1];
+    let applied: Vec<&crate::flow::TractionBc<D>> = problem.traction.iter().filter(|bc| bc.boundary == spec.boundary).collect();
     let mut coords = Vec::new();
     let (mut num, mut den) = (0.0, 0.0);
     let mut psi = [0.0; 4];
@@ -150,6 +154,14 @@ pub fn boundary_integral<const D: usize>(
                     num += w * un;
                 }
                 BoundaryIntegralKind::Force => unreachable!("forces return above"),
+                BoundaryIntegralKind::AppliedTraction => {
+                    let n = &fv.normal[q];
+                    for bc in &applied {
+                        let t = (bc.traction)(&xq, n, state.time);
+                        num -= w * (0..D).map(|a| t[a] * n[a]).sum::<f64>();
+                    }
+                    den += w;
+                }
                 BoundaryIntegralKind::MeanPressure => {
                     p1disc_basis(&xq, &centroid, &mut psi);
                     let p: f64 = (0..=D).map(|k| x[pf.dof(bf.cell * (D + 1) + k, 0)] * psi[k]).sum();
@@ -162,12 +174,51 @@ pub fn boundary_integral<const D: usize>(
     Ok(spec.scale
         * match spec.kind {
             BoundaryIntegralKind::Flux if formulation == Formulation::Axisymmetric => 2.0 * std::f64::consts::PI * num,
-            BoundaryIntegralKind::MeanPressure => num / den,
+            BoundaryIntegralKind::MeanPressure | BoundaryIntegralKind::AppliedTraction => num / den,
             _ => num,
         })
 }
 
-/// Every quantity a case requests, in the order probes, boundary integrals, combinations.
+/// Evaluates a quantity of the whole domain.
+pub fn domain_quantity<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &DomainQuantitySpec) -> f64 {
+    match spec.kind {
+        DomainQuantityKind::MaxSpeed => max_speed(disc, x),
+    }
+}
+
+/// `max |u|` over the vertices, edge midpoints and centroid of every cell (in reference
+/// coordinates, so curved cells are sampled at the images of these points).
+pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64 {
+    let cell = disc.velocity_element.cell();
+    let verts: Vec<[f64; D]> = cell.vertices().iter().map(|v| std::array::from_fn(|d| v[d])).collect();
+    let mut points: Vec<[f64; D]> = verts.clone();
+    for i in 0..verts.len() {
+        for j in i + 1..verts.len() {
+            points.push(std::array::from_fn(|d| 0.5 * (verts[i][d] + verts[j][d])));
+        }
+    }
+    points.push(cell.centroid());
+    let tab = disc.velocity_element.tabulate(&points);
+    let n = disc.velocity_element.num_dofs();
+    let vf = &disc.layout.fields[0];
+    (0..disc.mesh.num_cells())
+        .map(|c| {
+            let nodes = vf.nodes.cell(c);
+            (0..points.len())
+                .map(|q| {
+                    let phi = &tab.values[q * n..(q + 1) * n];
+                    (0..D)
+                        .map(|a| nodes.iter().zip(phi).map(|(&node, v)| v * x[vf.dof(node, a)]).sum::<f64>().powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .fold(0.0, f64::max)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Every quantity a case requests, in the order probes, boundary integrals, domain quantities,
+/// combinations.
 pub fn evaluate_all<const D: usize>(
     output: &crate::case::OutputSpec,
     disc: &FlowDiscretization<D>,
@@ -182,6 +233,9 @@ pub fn evaluate_all<const D: usize>(
     }
     for b in &output.boundary_integral {
         out.push((b.name.clone(), boundary_integral(disc, problem, x, state, b)?));
+    }
+    for q in &output.domain {
+        out.push((q.name.clone(), domain_quantity(disc, x, q)));
     }
     for c in &output.combination {
         let v = c

@@ -36,6 +36,9 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("skewed-plate-dirichlet", include_str!("../cases/skewed-plate-dirichlet.toml")),
     ("model-problem-1", include_str!("../cases/model-problem-1.toml")),
     ("model-problem-2", include_str!("../cases/model-problem-2.toml")),
+    ("model-problem-3", include_str!("../cases/model-problem-3.toml")),
+    ("model-problem-4", include_str!("../cases/model-problem-4.toml")),
+    ("model-problem-4-fine", include_str!("../cases/model-problem-4-fine.toml")),
     ("cylinder-re100", include_str!("../cases/cylinder-re100.toml")),
     ("slab-3d-poiseuille", include_str!("../cases/slab-3d-poiseuille.toml")),
     ("cook-membrane", include_str!("../cases/cook-membrane.toml")),
@@ -108,8 +111,8 @@ pub(crate) fn log_newton(obs: &mut dyn RunObserver, report: &crate::solve::newto
         obs.detail(&format!("  {line}"));
     }
     obs.detail(&format!(
-        "  assemble {:.3} s, factorize {:.3} s, solve {:.3} s",
-        report.assemble_seconds, report.factorize_seconds, report.solve_seconds
+        "  assemble {:.3} s, factorize {:.3} s ({} numeric factorisations), solve {:.3} s",
+        report.assemble_seconds, report.factorize_seconds, report.factorizations, report.solve_seconds
     ));
 }
 

@@ -199,7 +199,7 @@ fn model_problem_2(nx: usize, ny: usize, multiplier: MultiplierSpace) -> Outcome
     let model = FsiModel::new(problem, &fluid_mesh, plate).unwrap().with_multiplier(multiplier);
     let mut state = FsiState::at_rest(&model);
     let mut lu = FaerLu::default();
-    let newton = NewtonOptions { max_iterations: 15, abs_tol: 1e-10, rel_tol: 1e-11 };
+    let newton = NewtonOptions { max_iterations: 15, abs_tol: 1e-10, rel_tol: 1e-11, ..Default::default() };
     let mut last = None;
     let mut log = Vec::new();
     for k in 1..=20 {

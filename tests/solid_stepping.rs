@@ -26,7 +26,7 @@ fn updated_lagrangian_stepping_ends_in_the_total_lagrangian_state() {
     let problem = SolidProblem::new(Formulation::Plane, mat.clone())
         .with_displacement("bottom", &[0, 1], bc)
         .with_displacement("top", &[0, 1], bc);
-    let newton = fdfsi::solve::newton::NewtonOptions { max_iterations: 25, abs_tol: 1e-12, rel_tol: 1e-13 };
+    let newton = fdfsi::solve::newton::NewtonOptions { max_iterations: 25, abs_tol: 1e-12, rel_tol: 1e-13, ..Default::default() };
     let tl = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Total, 8), &mut FaerLu::default(), &newton).unwrap();
     let ul = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Updated, 8), &mut FaerLu::default(), &newton).unwrap();
     let d = max_diff(&tl.x, &ul.x);

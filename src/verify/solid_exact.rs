@@ -264,7 +264,7 @@ pub fn cook_mesh(n: usize) -> Mesh<2> {
 
 /// Newton options of the studies: tight, as the exact solutions are smooth.
 pub fn study_newton() -> NewtonOptions {
-    NewtonOptions { max_iterations: 25, abs_tol: 1e-11, rel_tol: 1e-11 }
+    NewtonOptions { max_iterations: 25, abs_tol: 1e-11, rel_tol: 1e-11, ..Default::default() }
 }
 
 /// A solid convergence run: the studies and the raw numbers.
@@ -383,7 +383,7 @@ pub fn cook_membrane(levels: &[usize]) -> Result<Vec<CookResult>, SolidError> {
                 .with_displacement("left", &[0, 1], |_: &[f64; 2], _| [0.0; 2])
                 .with_traction("right", |_: &[f64; 2], l| [0.0, 6.25 * l]);
             let stepping = LoadStepping { initial_increment: 0.5, max_increment: 0.5, min_increment: 1e-3, ..Default::default() };
-            let sol = solve_quasi_static(&disc, &problem, &stepping, &mut FaerLu::default(), &NewtonOptions { max_iterations: 30, abs_tol: 1e-7, rel_tol: 1e-10 })?;
+            let sol = solve_quasi_static(&disc, &problem, &stepping, &mut FaerLu::default(), &NewtonOptions { max_iterations: 30, abs_tol: 1e-7, rel_tol: 1e-10, ..Default::default() })?;
             tips[m] = disc.displacement(&sol.x, disc.node_near(&[48.0, 60.0]))[1];
         }
         out.push(CookResult { elements_per_side: n, mixed_tip_uy: tips[0], displacement_only_tip_uy: tips[1] });

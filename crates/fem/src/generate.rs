@@ -1,4 +1,5 @@
-//! Structured mesh generators: rectangles, a graded channel, boxes and a circular pipe.
+//! Structured mesh generators: rectangles, a graded channel, boxes, a circular pipe and a
+//! quarter-disc membrane.
 //!
 //! Every generator returns a [`Mesh`] whose cells are positively oriented (`det J > 0`, so
 //! [`Mesh::check`] passes), whose cells all carry the region [`DOMAIN_REGION`] (tag
@@ -282,6 +283,198 @@ pub fn pipe_tetrahedra(radius: f64, length: f64, n_radial: usize, n_axial: usize
             None
         }
     })
+}
+
+/// Boundary names of [`quarter_disc_hexahedra`], tags 1..=5.
+pub const DISC_BOUNDARIES: [&str; 5] = ["zmin", "zmax", "wall", "symmetry_x", "symmetry_y"];
+
+/// Number of segments of the outer ring of a quarter [`pipe_tetrahedra`] section with
+/// `n_radial` rings: a quarter-disc solid made with [`quarter_disc_hexahedra`] fills that pipe's
+/// section exactly when `2 n_core` equals it.
+pub fn quarter_pipe_wall_segments(n_radial: usize) -> usize {
+    ring_segments(n_radial, true)
+}
+
+/// 27-node hexahedral mesh of a quarter disc (`x, y >= 0`) of thickness `z0 <= z <= z1`: a
+/// membrane across a quarter pipe.
+///
+/// Cross-section (an "O-grid"): a core block, the bilinear image of the unit square with corners
+/// `(0, 0)`, `(radius/2, 0)`, `(0.42 radius, 0.42 radius)`, `(0, radius/2)` in `n_core x n_core`
+/// quads, and two outer blocks between the core's outer edges and the rim, each `n_core` quads
+/// along the rim by `n_ring` radially (points blended linearly from the core edge to the rim). The
+/// rim is the polygon through `2 n_core` equal segments of the circle `r = radius`, with the
+/// vertices of [`pipe_tetrahedra`]'s outer ring of that many segments (the same floating-point
+/// values) and straight edges: with `2 n_core = quarter_pipe_wall_segments(n_radial)` the disc
+/// fills that pipe's polygonal section exactly, so a clamped rim seals the pipe. `n_layers`
+/// cells through the thickness. Cells: `n_layers (n_core^2 + 2 n_core n_ring)`.
+///
+/// Boundaries (tags 1..=5): `"zmin"`, `"zmax"`, `"wall"` (the rim), `"symmetry_x"` (x = 0),
+/// `"symmetry_y"` (y = 0). Region `"domain"`. Nodes on the symmetry planes have that
+/// coordinate exactly 0.
+///
+/// # Panics
+/// If `radius` is not positive, the interval is empty, or a count is 0.
+pub fn quarter_disc_hexahedra(radius: f64, z0: f64, z1: f64, n_core: usize, n_ring: usize, n_layers: usize) -> Mesh<3> {
+    check_interval("r", 0.0, radius);
+    check_interval("z", z0, z1);
+    check_count("n_core", n_core);
+    check_count("n_ring", n_ring);
+    check_count("n_layers", n_layers);
+    let section = QuarterDiscSection::new(radius, n_core, n_ring);
+    let zs = with_midpoints(&uniform_axis(z0, z1, n_layers));
+    let nz = zs.len();
+    let points: Vec<[f64; 3]> = section.points.iter().flat_map(|p| zs.iter().map(move |&z| [p[0], p[1], z])).collect();
+    let geo = geometry_element::<3>(ReferenceCell::Hexahedron, GeometryOrder::Quadratic);
+    let offsets: Vec<[usize; 3]> = geo.nodes().iter().map(|xi| std::array::from_fn(|d| (2.0 * xi[d]).round() as usize)).collect();
+    let mut cells = Vec::new();
+    for (block, n0, n1) in section.blocks() {
+        for layer in 0..n_layers {
+            for c1 in 0..n1 {
+                for c0 in 0..n0 {
+                    for o in &offsets {
+                        let planar = section.node(block, 2 * c0 + o[0], 2 * c1 + o[1]);
+                        cells.push(planar * nz + 2 * layer + o[2]);
+                    }
+                }
+            }
+        }
+    }
+    let flags = section.flags;
+    finish(points, ReferenceCell::Hexahedron, GeometryOrder::Quadratic, cells, &DISC_BOUNDARIES, |verts| {
+        let all = |bit: u8| verts.iter().all(|&v| flags[v / nz] & bit != 0);
+        if verts.iter().all(|&v| v % nz == 0) {
+            Some(1)
+        } else if verts.iter().all(|&v| v % nz == nz - 1) {
+            Some(2)
+        } else if all(ON_WALL) {
+            Some(3)
+        } else if all(ON_X0) {
+            Some(4)
+        } else if all(ON_Y0) {
+            Some(5)
+        } else {
+            None
+        }
+    })
+}
+
+/// Blocks of the quarter-disc O-grid (see [`quarter_disc_hexahedra`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum DiscBlock {
+    /// Index `(i, j)` along x-ish and y-ish.
+    Core,
+    /// Between the core edge `i = 2 n_core` and the rim from 0 to 45 degrees: `(t, k)`, `t`
+    /// outwards, `k` along the rim.
+    Lower,
+    /// Between the core edge `j = 2 n_core` (walked from 45 to 90 degrees) and the rim: `(t, k)`.
+    Upper,
+}
+
+/// Nodes of the quarter-disc section on the fine (quadratic) grid of each block, shared nodes
+/// numbered once.
+struct QuarterDiscSection {
+    n_core: usize,
+    n_ring: usize,
+    points: Vec<[f64; 2]>,
+    flags: Vec<u8>,
+    ids: std::collections::HashMap<(DiscBlock, usize, usize), usize>,
+}
+
+impl QuarterDiscSection {
+    fn new(radius: f64, n_core: usize, n_ring: usize) -> Self {
+        let mut s = QuarterDiscSection { n_core, n_ring, points: Vec::new(), flags: Vec::new(), ids: Default::default() };
+        let (m, l) = (2 * n_core, 2 * n_ring);
+        let (a, c) = (0.5 * radius, 0.42 * radius);
+        let corner = [[0.0, 0.0], [a, 0.0], [c, c], [0.0, a]];
+        let bilinear = |u: f64, v: f64| -> [f64; 2] {
+            std::array::from_fn(|d| {
+                (1.0 - u) * (1.0 - v) * corner[0][d] + u * (1.0 - v) * corner[1][d] + u * v * corner[2][d] + (1.0 - u) * v * corner[3][d]
+            })
+        };
+        let segs = 2 * n_core;
+        // Rim point `k` of the fine grid (0..=2 segs): vertices of the pipe's outer ring, and the
+        // midpoints of its straight edges.
+        let rim = |k: usize| -> [f64; 2] {
+            let v = |j: usize| {
+                let u = unit_vector(j, segs, true);
+                [radius * u[0], radius * u[1]]
+            };
+            if k % 2 == 0 {
+                v(k / 2)
+            } else {
+                let (p, q) = (v(k / 2), v(k / 2 + 1));
+                [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]
+            }
+        };
+        let frac = |k: usize, n: usize| if k == n { 1.0 } else { k as f64 / n as f64 };
+        for j in 0..=m {
+            for i in 0..=m {
+                let mut f = 0;
+                if i == 0 {
+                    f |= ON_X0;
+                }
+                if j == 0 {
+                    f |= ON_Y0;
+                }
+                s.add((DiscBlock::Core, i, j), bilinear(frac(i, m), frac(j, m)), f);
+            }
+        }
+        for (block, first_rim) in [(DiscBlock::Lower, 0), (DiscBlock::Upper, m)] {
+            for k in 0..=m {
+                let inner = match block {
+                    DiscBlock::Lower => bilinear(1.0, frac(k, m)),
+                    _ => bilinear(1.0 - frac(k, m), 1.0),
+                };
+                let outer = rim(first_rim + k);
+                for t in 0..=l {
+                    let tau = frac(t, l);
+                    let mut x: [f64; 2] = std::array::from_fn(|d| (1.0 - tau) * inner[d] + tau * outer[d]);
+                    let mut f = if t == l { ON_WALL } else { 0 };
+                    // Exact zeros on the symmetry planes.
+                    if block == DiscBlock::Lower && k == 0 {
+                        x[1] = 0.0;
+                        f |= ON_Y0;
+                    }
+                    if block == DiscBlock::Upper && k == m {
+                        x[0] = 0.0;
+                        f |= ON_X0;
+                    }
+                    s.add((block, t, k), x, f);
+                }
+            }
+        }
+        s
+    }
+
+    /// The shared key of a node: outer-block nodes on the core edge are core nodes, and the
+    /// upper block's first column is the lower block's last.
+    fn canonical(&self, key: (DiscBlock, usize, usize)) -> (DiscBlock, usize, usize) {
+        let m = 2 * self.n_core;
+        match key {
+            (DiscBlock::Lower, 0, k) => (DiscBlock::Core, m, k),
+            (DiscBlock::Upper, 0, k) => (DiscBlock::Core, m - k, m),
+            (DiscBlock::Upper, t, 0) => (DiscBlock::Lower, t, m),
+            other => other,
+        }
+    }
+
+    fn add(&mut self, key: (DiscBlock, usize, usize), x: [f64; 2], flags: u8) {
+        let key = self.canonical(key);
+        if !self.ids.contains_key(&key) {
+            self.ids.insert(key, self.points.len());
+            self.points.push(x);
+            self.flags.push(flags);
+        }
+    }
+
+    fn node(&self, block: DiscBlock, a: usize, b: usize) -> usize {
+        self.ids[&self.canonical((block, a, b))]
+    }
+
+    /// Each block with its cell counts along its two indices.
+    fn blocks(&self) -> [(DiscBlock, usize, usize); 3] {
+        [(DiscBlock::Core, self.n_core, self.n_core), (DiscBlock::Lower, self.n_ring, self.n_core), (DiscBlock::Upper, self.n_ring, self.n_core)]
+    }
 }
 
 /// Cross-section vertex flags of the pipe.
@@ -869,5 +1062,75 @@ mod tests {
             worst = worst.min(m.signed_vertex_measure(c) / h.powi(3));
         }
         assert!(worst > 0.01, "worst shape ratio {worst}");
+    }
+    #[test]
+    fn quarter_disc_is_conforming_fills_the_quarter_pipe_section_and_shares_its_wall_vertices() {
+        let (r, z0, z1) = (1.0, 1.975, 2.025);
+        for (n_radial, n_core, n_ring, n_layers) in [(4, 3, 2, 1), (8, 6, 3, 2)] {
+            assert_eq!(quarter_pipe_wall_segments(n_radial), 2 * n_core);
+            let m = quarter_disc_hexahedra(r, z0, z1, n_core, n_ring, n_layers);
+            m.check().unwrap();
+            assert_eq!(m.num_cells(), n_layers * (n_core * n_core + 2 * n_core * n_ring));
+            // Volume by Gauss quadrature of det J over each 27-node cell.
+            let rule = crate::quadrature::hexahedron(6);
+            let geo = m.geometry_element();
+            let tab = geo.tabulate(&rule.points);
+            let n = geo.num_dofs();
+            let mut vol = 0.0;
+            for c in 0..m.num_cells() {
+                for (q, w) in rule.weights.iter().enumerate() {
+                    let mut j = [[0.0; 3]; 3];
+                    for (k, &node) in m.cell(c).iter().enumerate() {
+                        let g = tab.grads[q * n + k];
+                        for a in 0..3 {
+                            for b in 0..3 {
+                                j[a][b] += m.points[node][a] * g[b];
+                            }
+                        }
+                    }
+                    let det = j[0][0] * (j[1][1] * j[2][2] - j[1][2] * j[2][1]) - j[0][1] * (j[1][0] * j[2][2] - j[1][2] * j[2][0])
+                        + j[0][2] * (j[1][0] * j[2][1] - j[1][1] * j[2][0]);
+                    assert!(det > 0.0, "cell {c} is inverted at a quadrature point");
+                    vol += w * det;
+                }
+            }
+            let exact = polygon_area(r, n_radial, true) * (z1 - z0);
+            assert!(close(vol, exact, 1e-12), "{vol} vs {exact}");
+            assert_boundary_complete(&m);
+            assert_conforming(&m);
+            // Shared facets carry the same quadratic nodes from both sides.
+            let mut faces: HashMap<Vec<usize>, Vec<usize>> = HashMap::new();
+            for c in 0..m.num_cells() {
+                for f in 0..6 {
+                    let local = m.facet_local_nodes(f);
+                    let mut v: Vec<usize> = m.cell_type.facet(f).iter().map(|&i| m.cell_vertices(c)[i]).collect();
+                    v.sort_unstable();
+                    let mut all: Vec<usize> = local.iter().map(|&l| m.cell(c)[l]).collect();
+                    all.sort_unstable();
+                    if let Some(other) = faces.insert(v, all.clone()) {
+                        assert_eq!(other, all, "a shared face has different nodes in its two cells");
+                    }
+                }
+            }
+            let ring = 2 * n_core;
+            assert_named_boundary(&m, "zmin", n_core * n_core + 2 * n_core * n_ring, |p| p[2] == z0);
+            assert_named_boundary(&m, "zmax", n_core * n_core + 2 * n_core * n_ring, |p| p[2] == z1);
+            assert_named_boundary(&m, "wall", ring * n_layers, |p| (p[0].hypot(p[1]) - r).abs() <= 4e-16);
+            assert_named_boundary(&m, "symmetry_x", (n_core + n_ring) * n_layers, |p| p[0] == 0.0);
+            assert_named_boundary(&m, "symmetry_y", (n_core + n_ring) * n_layers, |p| p[1] == 0.0);
+            // The rim's vertices are the quarter pipe's outer-ring vertices, bit for bit.
+            let pipe = pipe_tetrahedra(r, 4.0, n_radial, 1, true);
+            let wall: HashSet<[u64; 2]> = pipe.points.iter().filter(|p| p[2] == 0.0 && p[0].hypot(p[1]) > 0.999).map(|p| [p[0].to_bits(), p[1].to_bits()]).collect();
+            let mr = &m;
+            let rim: HashSet<[u64; 2]> = m
+                .boundary_facets("wall")
+                .unwrap()
+                .iter()
+                .flat_map(|b| mr.cell_type.facet(b.facet).iter().map(move |&i| mr.cell_vertices(b.cell)[i]).collect::<Vec<_>>())
+                .filter(|&v| m.points[v][2] == z0)
+                .map(|v| [m.points[v][0].to_bits(), m.points[v][1].to_bits()])
+                .collect();
+            assert_eq!(rim, wall);
+        }
     }
 }
