@@ -7,7 +7,11 @@
 //!
 //! * `model-problem-1`: the flexible slab in pulsatile flow (about 29 800 dofs), after 20 steps;
 //! * `model-problem-2`: the stiff skewed plate on the 64 x 16 (about 11 500 dofs) and
-//!   128 x 32 (about 45 000 dofs) channel meshes, after 3 steps.
+//!   128 x 32 (about 45 000 dofs) channel meshes, after 3 steps;
+//! * `model-problem-4`: the membrane across the quarter pipe (3D) on the coarse mesh of the CI
+//!   test (468 tetrahedra, 30 hexahedra, about 9 800 dofs), after 3 steps, with the case's Newton
+//!   options (one factorisation per step). The full-size problem (70 000 dofs, 25-30 s per step)
+//!   is measured by its run's `summary.json` (BENCHMARKS.md).
 //!
 //! Besides criterion's time per step, the split of one step by phase (as `summary.json` reports
 //! it) is printed.
@@ -20,7 +24,7 @@ use fdfsi::fem::gmsh::AnyMesh;
 use fdfsi::fsi::{step, FsiModel, FsiState};
 use fdfsi::run::{build_mesh, BUILTIN_CASES};
 use fdfsi::solve::linear::FaerLu;
-use fdfsi::solve::newton::NewtonOptions;
+use fdfsi::fem::mesh::Mesh;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
@@ -29,17 +33,23 @@ fn bench_case(c: &mut Criterion, name: &str, edit: impl Fn(String) -> String, wa
     let text = edit(BUILTIN_CASES.iter().find(|(n, _)| *n == name).expect("built-in case").1.to_string());
     let case = Case::from_toml_str(&text, name).expect("case");
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
-    let AnyMesh::D2(mesh) = build_mesh(&case, &dir).expect("mesh") else { panic!("2D case expected") };
-    let model: FsiModel<2> = fdfsi::fsi_run::model(&case, &mesh, &dir).expect("model");
+    let label = format!("{name}{}", if text.contains("n = [128, 32]") { "-128x32" } else { "" });
+    match build_mesh(&case, &dir).expect("mesh") {
+        AnyMesh::D2(mesh) => bench_model::<2>(c, &label, &case, &mesh, &dir, warm),
+        AnyMesh::D3(mesh) => bench_model::<3>(c, &label, &case, &mesh, &dir, warm),
+    }
+}
+
+fn bench_model<const D: usize>(c: &mut Criterion, label: &str, case: &Case, mesh: &Mesh<D>, dir: &Path, warm: usize) {
+    let model: FsiModel<D> = fdfsi::fsi_run::model(case, mesh, dir).expect("model");
     let dt = case.time.as_ref().expect("time").dt;
-    let newton = NewtonOptions::default();
+    let newton = case.solver.newton.clone();
     let mut state = FsiState::at_rest(&model);
     for _ in 0..warm {
         state = step(&model, &state, dt, &mut FaerLu::default(), &newton).expect("warm-up step").0;
     }
     let (_, st) = step(&model, &state, dt, &mut FaerLu::default(), &newton).expect("step");
     let r = &st.report;
-    let label = format!("{name}{}", if text.contains("n = [128, 32]") { "-128x32" } else { "" });
     eprintln!(
         "{label}: dofs {} + {} + {}, {} coupling elements, {} Newton iterations; phases (s): adapt {:.4}, build {:.4}, transfer {:.4}, newton {:.4} (assemble {:.4}, factorize {:.4}, solve {:.4}), update {:.4}",
         r.fluid_dofs,
@@ -69,6 +79,12 @@ fn benches(c: &mut Criterion) {
     bench_case(c, "model-problem-1", |t| t, 20);
     bench_case(c, "model-problem-2", |t| t, 3);
     bench_case(c, "model-problem-2", |t| t.replace("n = [64, 16]", "n = [128, 32]"), 3);
+    bench_case(
+        c,
+        "model-problem-4",
+        |t| t.replace("n_radial = 8\nn_axial = 12", "n_radial = 4\nn_axial = 6").replace("n_core = 6, n_ring = 4", "n_core = 3, n_ring = 2"),
+        3,
+    );
 }
 
 criterion_group!(fsi_step, benches);
