@@ -106,6 +106,11 @@ pub enum FsiError {
 /// ([`FsiDiscretization::inactive_multiplier_dofs`]). 2D only: in 3D the P2+ trace on a face
 /// (P2 and the face bubble) leaves more than one function free.
 ///
+/// In both spaces the P1-discontinuous multipliers that no free fluid velocity sees are removed
+/// ([`multiplier_kernel`]): with them lambda oscillated from facet to facet (a membrane from the
+/// axis to the wall: +-400 on a radial traction of 0.1; in 3D, around every interior vertex of
+/// gamma_f) while its integral was right.
+///
 /// In case files (`[solid] multiplier`): `p1-discontinuous`, `p1-discontinuous-trace-mode`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -370,6 +375,13 @@ pub struct FsiDiscretization<const D: usize> {
     /// Multiplier dofs fixed to zero (trace-mode multipliers of chains with a fluid Dirichlet
     /// node, see [`MultiplierSpace`]); [`step`] constrains them.
     pub inactive_multiplier_dofs: Vec<usize>,
+    /// The multipliers the fluid cannot see, removed from the multiplier space (see
+    /// [`multiplier_kernel`]): for each, its support `(P1 multiplier index (e * D + k) * D + a,
+    /// value of M z)`, `M` the multiplier mass matrix on gamma_f. Each has one extra unknown
+    /// `sigma_j` (after the other multipliers) with the equations `R_lambda += (M z_j) sigma_j`
+    /// and `(M z_j) . lambda = 0`: lambda is M-orthogonal to the kernel and the constraints are
+    /// tested only with its M-orthogonal complement.
+    pub kernel: Vec<Vec<(usize, f64)>>,
     pub pattern: Pattern,
     flow_map: Vec<usize>,
     solid_map: Vec<usize>,
@@ -429,7 +441,12 @@ impl<const D: usize> FsiDiscretization<D> {
             }
             inactive_multiplier_dofs = (0..inactive.len()).filter(|&k| inactive[k]).map(|k| first + k).collect();
         }
-        let multiplier_dofs = ne * D * D + coupling.num_chains * D;
+        let kernel = {
+            let fixed: std::collections::HashSet<usize> = flow.dirichlet_dofs(&model.problem.fluid, 0.0)?.into_iter().map(|(d, _)| d).collect();
+            multiplier_kernel(&coupling, &adapted.gamma_f, vel, &fixed)
+        };
+        let kernel_first = ne * D * D + coupling.num_chains * D;
+        let multiplier_dofs = kernel_first + kernel.len();
         let (os, ol) = (fluid_dofs, fluid_dofs + solid_dofs);
         let n = ol + multiplier_dofs;
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
@@ -458,8 +475,13 @@ impl<const D: usize> FsiDiscretization<D> {
             })
             .collect();
         let (nfc, nsc) = (flow.mesh.num_cells(), model.solid.mesh.num_cells());
-        let pattern = Pattern::from_cells(n, nfc + nsc + ne, |c, buf| {
-            if c < nfc {
+        let pattern = Pattern::from_cells(n, nfc + nsc + ne + kernel.len(), |c, buf| {
+            if c >= nfc + nsc + ne {
+                let j = c - nfc - nsc - ne;
+                buf.clear();
+                buf.extend(kernel[j].iter().map(|&(i, _)| ol + i));
+                buf.push(ol + kernel_first + j);
+            } else if c < nfc {
                 flow.layout.cell_dofs_into(c, buf);
             } else if c < nfc + nsc {
                 model.solid.layout.cell_dofs_into(c - nfc, buf);
@@ -480,6 +502,7 @@ impl<const D: usize> FsiDiscretization<D> {
             solid_dofs,
             multiplier_dofs,
             inactive_multiplier_dofs,
+            kernel,
             pattern,
             flow_map,
             solid_map,
@@ -708,6 +731,20 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
+        // The kernel of the multiplier space (see `kernel`).
+        let first = ol + self.multiplier_dofs - self.kernel.len();
+        for (j, y) in self.kernel.iter().enumerate() {
+            let sj = first + j;
+            let mut r = 0.0;
+            for &(i, v) in y {
+                let li = ol + i;
+                r += v * x[li];
+                rhs[li] -= v * x[sj];
+                k.values[self.pattern.find(li, sj).expect("kernel entries are in the pattern")] += v;
+                k.values[self.pattern.find(sj, li).expect("kernel entries are in the pattern")] += v;
+            }
+            rhs[sj] -= r;
+        }
         for (dof, &cn) in constrained.iter().enumerate().skip(ol) {
             if cn {
                 k.values[self.pattern.find(dof, dof).expect("diagonal")] = 1.0;
@@ -753,6 +790,148 @@ impl<const D: usize> FsiDiscretization<D> {
         }
         f
     }
+}
+
+/// The multipliers the fluid cannot see: the P1-discontinuous `mu` with `<mu, v> = 0` for every
+/// free (non-Dirichlet) fluid velocity `v`, returned as `M z` (see
+/// [`FsiDiscretization::kernel`]), one vector per mode, each supported on a few facets.
+///
+/// Pairing P1-discontinuous multipliers with the continuous P2(+) trace leaves such modes: per
+/// component they are the cycles of the graph whose nodes are the gamma_f facets (plus one
+/// "ground" node) and whose edges are the interior edges of gamma_f (plus its boundary edges
+/// whose trace is fluid-Dirichlet in that component, joined to ground). On a mode the nodal
+/// values are `+-1/|F|` at the two corners of a facet facing the cycle's edges. In 3D: one mode
+/// around every interior vertex of gamma_f and one around every boundary vertex whose two boundary
+/// edges are Dirichlet; in 2D: one along a chain whose two ends are Dirichlet (the radial
+/// component of an axisymmetric membrane from the axis to the wall). Such a `mu` tests only the
+/// solid (`<mu, u_s> = 0`, a constraint the continuous problem does not have) and its multiplier
+/// is the solid's reaction to it: lambda oscillates from facet to facet with an amplitude set by
+/// the solid's stiffness, while `int lambda` (the modes integrate to zero on every facet) is right.
+///
+/// Found numerically: per component, the null space of the pairing restricted to the facets of a
+/// vertex star (3D) or of a chain (2D); the union is kept linearly independent.
+pub fn multiplier_kernel<const D: usize>(
+    c: &CouplingElements<D>,
+    gamma_f: &[GammaFacet<D>],
+    vel: &fdfsi_fem::dofs::Field,
+    fixed: &std::collections::HashSet<usize>,
+) -> Vec<Vec<(usize, f64)>> {
+    use faer::{Mat, Side};
+    let ne = c.num_elements();
+    let nf = c.nf;
+    let area: Vec<f64> = (0..ne).map(|e| (c.point_start[e]..c.point_start[e + 1]).map(|q| c.weight[q]).sum()).collect();
+    // Groups of facets: vertex stars (3D), connected chains (2D).
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    if D == 3 {
+        let mut star: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+        for (e, g) in gamma_f.iter().enumerate() {
+            for &v in &g.vertices {
+                star.entry(v).or_default().push(e);
+            }
+        }
+        groups.extend(star.into_values());
+    } else {
+        let mut parent: Vec<usize> = (0..ne).collect();
+        fn root(p: &mut [usize], mut i: usize) -> usize {
+            while p[i] != i {
+                p[i] = p[p[i]];
+                i = p[i];
+            }
+            i
+        }
+        let mut owner: std::collections::HashMap<usize, usize> = Default::default();
+        for (e, g) in gamma_f.iter().enumerate() {
+            for &v in &g.vertices {
+                if let Some(&f) = owner.get(&v) {
+                    let (a, b) = (root(&mut parent, e), root(&mut parent, f));
+                    parent[a] = b;
+                } else {
+                    owner.insert(v, e);
+                }
+            }
+        }
+        let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+        for e in 0..ne {
+            let r = root(&mut parent, e);
+            by_root.entry(r).or_default().push(e);
+        }
+        groups.extend(by_root.into_values());
+    }
+    let mut out = Vec::new();
+    for a in 0..D {
+        // Accepted modes of this component, orthonormalised densely (for the independence test).
+        let mut basis: Vec<Vec<f64>> = Vec::new();
+        for group in &groups {
+            let ncol = group.len() * D;
+            let mut rows: std::collections::BTreeMap<usize, Vec<f64>> = Default::default();
+            for (gi, &e) in group.iter().enumerate() {
+                let cell = vel.nodes.cell(c.fluid_cell[e]);
+                for q in c.point_start[e]..c.point_start[e + 1] {
+                    for (i, &node) in cell.iter().enumerate() {
+                        let phi = c.phi_f[q * nf + i];
+                        let dof = vel.dof(node, a);
+                        if phi.abs() < 1e-14 || fixed.contains(&dof) {
+                            continue;
+                        }
+                        let row = rows.entry(dof).or_insert_with(|| vec![0.0; ncol]);
+                        for k in 0..D {
+                            // Columns scaled by 1/|F|: the Gram matrix is independent of the facet sizes.
+                            row[gi * D + k] += c.weight[q] * c.mu[q * D + k] * phi / area[e];
+                        }
+                    }
+                }
+            }
+            let mut g = Mat::<f64>::zeros(ncol, ncol);
+            for r in rows.values() {
+                for i in 0..ncol {
+                    for j in 0..ncol {
+                        g[(i, j)] += r[i] * r[j];
+                    }
+                }
+            }
+            let Ok(eig) = g.self_adjoint_eigen(Side::Lower) else { continue };
+            let s = eig.S();
+            let max = (0..ncol).map(|i| s[i]).fold(0.0f64, f64::max);
+            for m in 0..ncol {
+                if s[m] > 1e-10 * max {
+                    continue;
+                }
+                // Nodal values of the mode, dense over the multiplier dofs of component a.
+                let mut z = vec![0.0; ne * D];
+                for (gi, &e) in group.iter().enumerate() {
+                    for k in 0..D {
+                        z[e * D + k] = eig.U()[(gi * D + k, m)] / area[e];
+                    }
+                }
+                let mut r = z.clone();
+                for b in &basis {
+                    let d: f64 = b.iter().zip(&r).map(|(x, y)| x * y).sum();
+                    r.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
+                }
+                let (nz, nr) = (z.iter().map(|v| v * v).sum::<f64>().sqrt(), r.iter().map(|v| v * v).sum::<f64>().sqrt());
+                if nr < 1e-6 * nz {
+                    continue; // already spanned (a mode found from another star)
+                }
+                r.iter_mut().for_each(|v| *v /= nr);
+                basis.push(r);
+                // M z on the support, with z scaled to unit largest value.
+                let zmax = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let mut y = Vec::new();
+                for &e in group {
+                    for k in 0..D {
+                        let v: f64 = (c.point_start[e]..c.point_start[e + 1])
+                            .map(|q| c.weight[q] * c.mu[q * D + k] * (0..D).map(|l| c.mu[q * D + l] * z[e * D + l]).sum::<f64>())
+                            .sum();
+                        if v != 0.0 {
+                            y.push(((e * D + k) * D + a, v / zmax));
+                        }
+                    }
+                }
+                out.push(y);
+            }
+        }
+    }
+    out
 }
 
 /// Wall-clock seconds of the phases of a step.
