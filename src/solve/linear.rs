@@ -271,7 +271,9 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         }
     }
     let ordering_seconds = t_order.elapsed().as_secs_f64();
-    // Sort key: regular dof -> (2 * position), zero-diagonal dof -> (2 * max neighbour position + 1).
+    // Sort key: regular dof -> (2 * position), zero-diagonal dof -> (2 * max neighbour position + 1);
+    // a zero-diagonal dof with zero-diagonal neighbours only (the unknowns that remove multiplier
+    // modes, `fsi::multiplier_kernel`) goes after everything (key 2 m + 1), after its neighbours.
     let mut key = vec![0usize; n];
     for j in 0..n {
         key[j] = if !zero[j] {
@@ -280,7 +282,7 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
             let last = p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().filter(|&&i| !zero[i]).map(|&i| pos[local[i]]).max();
             match last {
                 Some(q) => 2 * q + 1,
-                None => 0,
+                None => 2 * m + 1,
             }
         };
     }
@@ -1077,6 +1079,49 @@ mod tests {
         assert!(diff <= 1e-10 * xn, "ND and AMD solutions differ by {diff:e} (|x| = {xn:e})");
         let err = norm(&sols[0].iter().zip(&x_exact).map(|(p, q)| p - q).collect::<Vec<_>>());
         assert!(err <= 1e-9 * norm(&x_exact));
+    }
+
+    #[test]
+    fn a_constraint_on_multipliers_is_eliminated_after_them_by_the_static_lu() {
+        // [[A, B^T, 0], [B, 0, c], [0, c^T, 0]]: a chain of regular dofs, multipliers on pairs of
+        // them and one unknown coupled to the multipliers only (as the removed multiplier modes
+        // of an FSI system); it must come last, not first with its zero pivot.
+        let (nr, nm) = (6, 3);
+        let n = nr + nm + 1;
+        let mut cells: Vec<Vec<usize>> = (0..nr - 1).map(|i| vec![i, i + 1]).collect();
+        cells.extend((0..nm).map(|k| vec![2 * k, 2 * k + 1, nr + k]));
+        cells.push((nr..n).collect());
+        let p = Pattern::from_cells(n, cells.len(), |c, b| {
+            b.clear();
+            b.extend_from_slice(&cells[c]);
+        });
+        let mut a = CscMatrix::zeros(&p);
+        let mut add = |i: usize, j: usize, v: f64| a.values[p.find(i, j).unwrap()] += v;
+        for i in 0..nr {
+            add(i, i, 4.0);
+            if i + 1 < nr {
+                add(i, i + 1, -1.0);
+                add(i + 1, i, -1.0);
+            }
+        }
+        for k in 0..nm {
+            for (d, w) in [(2 * k, 1.0), (2 * k + 1, -0.5)] {
+                add(d, nr + k, w);
+                add(nr + k, d, w);
+            }
+            add(nr + k, n - 1, 1.0 + k as f64);
+            add(n - 1, nr + k, 1.0 + k as f64);
+        }
+        let x_exact: Vec<f64> = (0..n).map(|i| 1.0 + i as f64).collect();
+        let mut b = vec![0.0; n];
+        a.mul_vec(&x_exact, &mut b);
+        let mut lu = FaerLu::default();
+        lu.factorize(&a).unwrap();
+        assert!(lu.factor_stats().is_some(), "the static LU is used, no fallback: {}", lu.describe());
+        lu.solve_in_place(&a, &mut b).unwrap();
+        for i in 0..n {
+            assert!((b[i] - x_exact[i]).abs() < 1e-10, "{i}: {} vs {}", b[i], x_exact[i]);
+        }
     }
 
     #[test]
