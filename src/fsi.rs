@@ -517,35 +517,7 @@ impl<const D: usize> FsiDiscretization<D> {
             let s = c.mu[q * D + 1];
             1.0 - 6.0 * s + 6.0 * s * s
         }).collect();
-        // Union-find over facets through their vertices.
-        let mut parent: Vec<usize> = (0..gamma_f.len()).collect();
-        fn root(p: &mut [usize], mut i: usize) -> usize {
-            while p[i] != i {
-                p[i] = p[p[i]];
-                i = p[i];
-            }
-            i
-        }
-        let mut owner: std::collections::HashMap<usize, usize> = Default::default();
-        for (e, g) in gamma_f.iter().enumerate() {
-            for &v in &g.vertices {
-                if let Some(&f) = owner.get(&v) {
-                    let (a, b) = (root(&mut parent, e), root(&mut parent, f));
-                    parent[a] = b;
-                } else {
-                    owner.insert(v, e);
-                }
-            }
-        }
-        let mut index: std::collections::HashMap<usize, usize> = Default::default();
-        c.chain = (0..gamma_f.len())
-            .map(|e| {
-                let r = root(&mut parent, e);
-                let n = index.len();
-                *index.entry(r).or_insert(n)
-            })
-            .collect();
-        c.num_chains = index.len();
+        (c.chain, c.num_chains) = connected_pieces(gamma_f);
     }
 
     /// Locates the quadrature points of every gamma_f facet in its fluid cell (the minus side,
@@ -792,6 +764,40 @@ impl<const D: usize> FsiDiscretization<D> {
     }
 }
 
+/// The connected pieces of gamma_f (facets sharing a vertex are connected): the piece of each
+/// facet, numbered in order of first appearance, and their number.
+fn connected_pieces<const D: usize>(gamma_f: &[GammaFacet<D>]) -> (Vec<usize>, usize) {
+    // Union-find over facets through their vertices.
+    let mut parent: Vec<usize> = (0..gamma_f.len()).collect();
+    fn root(p: &mut [usize], mut i: usize) -> usize {
+        while p[i] != i {
+            p[i] = p[p[i]];
+            i = p[i];
+        }
+        i
+    }
+    let mut owner: std::collections::HashMap<usize, usize> = Default::default();
+    for (e, g) in gamma_f.iter().enumerate() {
+        for &v in &g.vertices {
+            if let Some(&f) = owner.get(&v) {
+                let (a, b) = (root(&mut parent, e), root(&mut parent, f));
+                parent[a] = b;
+            } else {
+                owner.insert(v, e);
+            }
+        }
+    }
+    let mut index: std::collections::HashMap<usize, usize> = Default::default();
+    let piece = (0..gamma_f.len())
+        .map(|e| {
+            let r = root(&mut parent, e);
+            let n = index.len();
+            *index.entry(r).or_insert(n)
+        })
+        .collect();
+    (piece, index.len())
+}
+
 /// The multipliers the fluid cannot see: the P1-discontinuous `mu` with `<mu, v> = 0` for every
 /// free (non-Dirichlet) fluid velocity `v`, returned as `M z` (see
 /// [`FsiDiscretization::kernel`]), one vector per mode, each supported on a few facets.
@@ -831,31 +837,12 @@ pub fn multiplier_kernel<const D: usize>(
         }
         groups.extend(star.into_values());
     } else {
-        let mut parent: Vec<usize> = (0..ne).collect();
-        fn root(p: &mut [usize], mut i: usize) -> usize {
-            while p[i] != i {
-                p[i] = p[p[i]];
-                i = p[i];
-            }
-            i
+        let (piece, count) = connected_pieces(gamma_f);
+        let mut by_piece = vec![Vec::new(); count];
+        for (e, &k) in piece.iter().enumerate() {
+            by_piece[k].push(e);
         }
-        let mut owner: std::collections::HashMap<usize, usize> = Default::default();
-        for (e, g) in gamma_f.iter().enumerate() {
-            for &v in &g.vertices {
-                if let Some(&f) = owner.get(&v) {
-                    let (a, b) = (root(&mut parent, e), root(&mut parent, f));
-                    parent[a] = b;
-                } else {
-                    owner.insert(v, e);
-                }
-            }
-        }
-        let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
-        for e in 0..ne {
-            let r = root(&mut parent, e);
-            by_root.entry(r).or_default().push(e);
-        }
-        groups.extend(by_root.into_values());
+        groups.extend(by_piece);
     }
     let mut out = Vec::new();
     for a in 0..D {
