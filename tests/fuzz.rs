@@ -434,6 +434,9 @@ fn cheap_to_check(case: &Case, dir: &Path) -> bool {
         None => 0,
         Some(SolidMeshSpec::Rectangle { n, .. }) | Some(SolidMeshSpec::Quadrilateral { n, .. }) => prod(n, 1),
         Some(SolidMeshSpec::Box { n, .. }) => prod(n, 1),
+        Some(SolidMeshSpec::QuarterDisc { n_core, n_ring, n_layers, .. }) => {
+            prod(&[*n_core, n_core.saturating_add(n_ring.saturating_mul(2)), *n_layers], 1)
+        }
         Some(SolidMeshSpec::Gmsh { file }) => {
             if small_file(&dir.join(file), 20_000) {
                 0
