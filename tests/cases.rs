@@ -98,6 +98,8 @@ fn axisymmetric_pipe_is_hagen_poiseuille_to_round_off() {
     assert!((q(&s, "outlet_flux") - std::f64::consts::PI).abs() < 1e-11);
     let dp = q(&s, "pressure_at_z2") - q(&s, "pressure_at_z3");
     assert!((dp - 8.0).abs() < 1e-9, "{dp}");
+    // The largest speed is the axis velocity, sampled at vertices on the axis.
+    assert!((q(&s, "max_speed") - 2.0).abs() < 1e-10, "{}", q(&s, "max_speed"));
 }
 
 #[test]
