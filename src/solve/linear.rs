@@ -113,6 +113,11 @@ pub trait LinearSolver {
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError>;
     /// Number of symbolic factorisations done so far.
     fn symbolic_factorizations(&self) -> usize;
+    /// Whether a factorisation of a matrix with the pattern of `a` is held (from an earlier
+    /// `factorize`), so that `solve_in_place` may use it as a preconditioner for `a`.
+    fn holds_factorization_for(&self, _a: &CscMatrix<'_>) -> bool {
+        false
+    }
 }
 
 /// Which factorisation [`FaerLu`] uses.
@@ -834,6 +839,10 @@ impl LinearSolver for FaerLu {
 
     fn symbolic_factorizations(&self) -> usize {
         self.symbolic_count
+    }
+
+    fn holds_factorization_for(&self, a: &CscMatrix<'_>) -> bool {
+        !matches!(self.active, Active::None) && self.key == Some(pattern_key(a.pattern))
     }
 }
 

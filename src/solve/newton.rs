@@ -5,8 +5,10 @@
 //! `x += dx`. Convergence: `|R| <= abs_tol` or `|R| <= rel_tol |R_0|`, checked after assembly,
 //! so a linear problem stops after one solve and one confirming assembly.
 //!
-//! With `reuse_factorization`, iterations after the first solve `K(x_k) dx = -R(x_k)` with the
-//! factors of an earlier `K` as a preconditioner: the linear solver's iterative refinement
+//! With `reuse_factorization`, iterations after the first (and the first too, when the solver
+//! still holds a factorisation of a matrix with the same pattern, e.g. from the previous time
+//! step on an unchanged mesh) solve `K(x_k) dx = -R(x_k)` with the factors of an earlier `K` as a
+//! preconditioner: the linear solver's iterative refinement
 //! against the current `K` (see [`LinearSolver::solve_in_place`]) either reaches its accuracy
 //! (then the step is a Newton step up to that linear residual, and no numeric factorisation is
 //! paid) or fails, and `K(x_k)` is factorised after all. An iteration whose residual is not at
@@ -89,8 +91,9 @@ where
     let mut rhs = vec![0.0; x.len()];
     let mut report = NewtonReport::default();
     let mut r0 = None;
-    // Whether a factorisation of this solve may serve the next iteration.
+    // Whether the solver's factorisation may serve the next iteration.
     let mut reusable = false;
+    let mut first = true;
     let mut rhs_copy = Vec::new();
     loop {
         let t = std::time::Instant::now();
@@ -110,6 +113,9 @@ where
         }
         if report.iterations >= options.max_iterations {
             return Err(NewtonError::NotConverged { iterations: report.iterations, residual: r, tolerance: tol });
+        }
+        if std::mem::take(&mut first) {
+            reusable = solver.holds_factorization_for(&k);
         }
         let mut solved = false;
         // A reused factorisation must have contracted the residual well, or this step refactorises.
@@ -152,15 +158,19 @@ mod tests {
     /// `R(x)_i = 2 x_i - x_{i-1} - x_{i+1} + 0.5 x_i^3 - b_i` on a chain: nonlinear, with a
     /// Jacobian that changes from iteration to iteration.
     fn solve_chain(reuse: bool) -> (Vec<f64>, NewtonReport) {
+        solve_chain_with(reuse, &mut FaerLu::default(), 1.0, vec![0.0; 40])
+    }
+
+    /// The chain with right-hand side `scale * b`, solved from `x` with `lu`.
+    fn solve_chain_with(reuse: bool, lu: &mut FaerLu, scale: f64, mut x: Vec<f64>) -> (Vec<f64>, NewtonReport) {
         let n = 40;
         let p = Pattern::from_cells(n, n - 1, |c, b| {
             b.clear();
             b.extend([c, c + 1]);
         });
-        let b: Vec<f64> = (0..n).map(|i| 1.0 + (i as f64 * 0.4).sin()).collect();
-        let mut x = vec![0.0; n];
+        let b: Vec<f64> = (0..n).map(|i| scale * (1.0 + (i as f64 * 0.4).sin())).collect();
         let options = NewtonOptions { abs_tol: 1e-12, rel_tol: 1e-14, reuse_factorization: reuse, ..Default::default() };
-        let report = solve(&mut x, &p, &mut FaerLu::default(), &options, |x, k, rhs| {
+        let report = solve(&mut x, &p, lu, &options, |x, k, rhs| {
             for i in 0..n {
                 let mut r = 2.0 * x[i] + 0.5 * x[i].powi(3) - b[i];
                 k.values[p.find(i, i).unwrap()] += 2.0 + 1.5 * x[i] * x[i];
@@ -184,6 +194,19 @@ mod tests {
         assert!(rr.factorizations < rr.iterations, "{} factorisations in {} iterations", rr.factorizations, rr.iterations);
         assert!(*rr.residual_norms.last().unwrap() <= 1e-12);
         let diff = full.iter().zip(&reused).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(diff < 1e-11, "{diff}");
+    }
+
+    #[test]
+    fn a_held_factorisation_of_the_same_pattern_serves_the_next_solve() {
+        // As the next time step on an unchanged mesh: a nearby system, same pattern.
+        let mut lu = FaerLu::default();
+        let (x1, first) = solve_chain_with(true, &mut lu, 1.0, vec![0.0; 40]);
+        let (x, next) = solve_chain_with(true, &mut lu, 1.001, x1.clone());
+        assert!(first.factorizations >= 1);
+        assert_eq!(next.factorizations, 0, "the held factorisation preconditions the next solve");
+        let (full, _) = solve_chain_with(false, &mut FaerLu::default(), 1.001, x1);
+        let diff = full.iter().zip(&x).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(diff < 1e-11, "{diff}");
     }
 }
