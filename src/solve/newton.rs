@@ -124,10 +124,10 @@ where
         if options.reuse_factorization && reusable && contracting {
             let t = std::time::Instant::now();
             rhs_copy.clone_from(&rhs);
+            // Any failure of the reused factors (inaccurate, or not finite) means: factorise.
             match solver.solve_in_place(&k, &mut rhs) {
                 Ok(_) => solved = true,
-                Err(LinearSolveError::Inaccurate { .. }) => rhs.clone_from(&rhs_copy),
-                Err(e) => return Err(e.into()),
+                Err(_) => rhs.clone_from(&rhs_copy),
             }
             report.solve_seconds += t.elapsed().as_secs_f64();
         }
