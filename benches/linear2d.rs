@@ -22,16 +22,14 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
-use fdfsi::flow::{DirichletBc, FlowDiscretization, FlowProblem, TractionBc};
-use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
+use fdfsi::flow::{FlowDiscretization, FlowProblem};
+use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions};
-use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh};
 use fdfsi_fem::sparse::CscMatrix;
 use std::hint::black_box;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// The solver: `FaerLu` with the ordering from `FDFSI_BENCH_ORDERING` (`nd`, the default, or
@@ -142,25 +140,7 @@ fn schaefer_turek(mesh_file: &str) -> System<2> {
 /// The `stokes-3d` verification problem (manufactured solution, velocity on five faces, traction
 /// on `xmax`) on the unit cube with `n` cells per side.
 fn stokes3d(n: usize) -> System<3> {
-    let exact = Arc::new(Stokes3d { eta: 1.0 });
-    let ex = exact.clone();
-    let problem = FlowProblem {
-        formulation: Formulation::ThreeD,
-        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: ViscousForm::Stress },
-        body_force: Some(Arc::new(move |x: &[f64; 3], _t| ex.body_force(x))),
-        dirichlet: ["xmin", "ymin", "ymax", "zmin", "zmax"]
-            .iter()
-            .map(|name| {
-                let ex = exact.clone();
-                DirichletBc { boundary: name.to_string(), components: vec![0, 1, 2], value: Arc::new(move |x: &[f64; 3], _t| ex.velocity(x)) }
-            })
-            .collect(),
-        traction: vec![{
-            let ex = exact.clone();
-            TractionBc { boundary: "xmax".to_string(), traction: Arc::new(move |x: &[f64; 3], nrm: &[f64; 3], _t| ex.traction(x, nrm)) }
-        }],
-        pin_pressure: false,
-    };
+    let problem = fdfsi::verify::stokes_3d_problem();
     let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n);
     let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).expect("discretisation");
     System::new(disc, problem, 0)

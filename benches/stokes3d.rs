@@ -31,8 +31,8 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use faer::sparse::linalg::lu::factorize_symbolic_lu;
 use faer::sparse::SymbolicSparseColMatRef;
-use fdfsi::flow::{flow_errors, DirichletBc, ExactFlow, FlowDiscretization, FlowProblem, TractionBc};
-use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
+use fdfsi::flow::{flow_errors, ExactFlow, FlowDiscretization};
+use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -87,34 +87,6 @@ fn mib(kib: u64) -> f64 {
     kib as f64 / 1024.0
 }
 
-/// The `stokes-3d` verification problem (src/verify/mod.rs): manufactured solution, velocity on
-/// five faces, traction on `xmax`.
-fn problem(exact: Arc<Stokes3d>) -> FlowProblem<3> {
-    let velocity_faces = ["xmin", "ymin", "ymax", "zmin", "zmax"];
-    let ex = exact.clone();
-    FlowProblem {
-        formulation: Formulation::ThreeD,
-        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: ViscousForm::Stress },
-        body_force: Some(Arc::new(move |x: &[f64; 3], _t| ex.body_force(x))),
-        dirichlet: velocity_faces
-            .iter()
-            .map(|name| {
-                let ex = exact.clone();
-                DirichletBc {
-                    boundary: name.to_string(),
-                    components: vec![0, 1, 2],
-                    value: Arc::new(move |x: &[f64; 3], _t| ex.velocity(x)),
-                }
-            })
-            .collect(),
-        traction: vec![{
-            let ex = exact.clone();
-            TractionBc { boundary: "xmax".to_string(), traction: Arc::new(move |x: &[f64; 3], n: &[f64; 3], _t| ex.traction(x, n)) }
-        }],
-        pin_pressure: false,
-    }
-}
-
 /// faer's partial-pivoting symbolic LU of `pattern`, as `FaerLu` builds it for
 /// `LuMethod::Pivoting`; returns the time.
 fn time_faer_symbolic(pattern: &Pattern) -> Duration {
@@ -130,7 +102,7 @@ fn time_faer_symbolic(pattern: &Pattern) -> Duration {
 
 fn stokes3d(c: &mut Criterion) {
     let exact = Arc::new(Stokes3d { eta: 1.0 });
-    let problem = problem(exact.clone());
+    let problem = fdfsi::verify::stokes_3d_problem();
     let method = lu_method();
     let mut group = c.benchmark_group(if method == LuMethod::Pivoting { "stokes3d-pivoting" } else { "stokes3d" });
     group.sample_size(10);

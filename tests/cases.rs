@@ -494,7 +494,7 @@ fn case_file(name: &str) -> (Case, PathBuf) {
 #[test]
 #[ignore = "about two hours; run with --ignored"]
 fn model_problem_4_follows_model_problem_3() {
-    let (s3, out3) = run("model-problem-3");
+    let (_, out3) = run("model-problem-3");
     let (s4, out4) = run("model-problem-4");
     let (s4f, out4f) = run("model-problem-4-fine");
     let w3 = history_columns(&out3)["centre_displacement"].clone();

@@ -80,18 +80,17 @@ pub enum Effort {
     Full,
 }
 
-/// Solves a Stokes manufactured problem on `mesh` and returns the error norms and the largest
-/// cell divergence.
-pub fn stokes_errors<const D: usize>(
-    mesh: Mesh<D>,
+/// The steady Stokes problem whose solution is `exact`: its body force, its velocity on the
+/// `dirichlet` boundaries (with the listed components) and its traction on the `traction`
+/// boundaries; stress form of the viscous term.
+pub fn manufactured_problem<const D: usize>(
     formulation: Formulation,
     exact: Arc<dyn Manufactured<D>>,
     dirichlet: &[(&str, Vec<usize>)],
     traction: &[&str],
-) -> Result<(crate::flow::FlowErrors, usize), FlowError> {
-    let disc = FlowDiscretization::build(mesh, formulation)?;
+) -> FlowProblem<D> {
     let ex = exact.clone();
-    let problem = FlowProblem {
+    FlowProblem {
         formulation,
         params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: Default::default() },
         body_force: Some(Arc::new(move |x: &[f64; D], _t| ex.body_force(x))),
@@ -114,7 +113,32 @@ pub fn stokes_errors<const D: usize>(
             })
             .collect(),
         pin_pressure: false,
-    };
+    }
+}
+
+/// The boundaries of the `stokes-3d` study on the unit cube: velocity on five faces (all
+/// components), traction on `xmax`.
+const STOKES_3D_VELOCITY: [&str; 5] = ["xmin", "ymin", "ymax", "zmin", "zmax"];
+const STOKES_3D_TRACTION: [&str; 1] = ["xmax"];
+
+/// The `stokes-3d` verification problem ([`Stokes3d`] with `eta = 1`, boundaries as in
+/// [`stokes_3d`]), for `box_tetrahedra` on the unit cube: used by the benchmarks of the solver.
+pub fn stokes_3d_problem() -> FlowProblem<3> {
+    let dirichlet: Vec<(&str, Vec<usize>)> = STOKES_3D_VELOCITY.iter().map(|&f| (f, vec![0, 1, 2])).collect();
+    manufactured_problem(Formulation::ThreeD, Arc::new(Stokes3d { eta: 1.0 }), &dirichlet, &STOKES_3D_TRACTION)
+}
+
+/// Solves a Stokes manufactured problem on `mesh` and returns the error norms and the largest
+/// cell divergence.
+pub fn stokes_errors<const D: usize>(
+    mesh: Mesh<D>,
+    formulation: Formulation,
+    exact: Arc<dyn Manufactured<D>>,
+    dirichlet: &[(&str, Vec<usize>)],
+    traction: &[&str],
+) -> Result<(crate::flow::FlowErrors, usize), FlowError> {
+    let disc = FlowDiscretization::build(mesh, formulation)?;
+    let problem = manufactured_problem(formulation, exact.clone(), dirichlet, traction);
     let mut lu = FaerLu::default();
     let sol = solve_steady(&disc, &problem, &mut lu, &NewtonOptions::default())?;
     let (u, g, p) = (|x: &[f64; D]| exact.velocity(x), |x: &[f64; D]| exact.gradient(x), |x: &[f64; D]| exact.pressure(x));
@@ -197,14 +221,8 @@ pub fn stokes_3d(effort: Effort) -> Result<StokesRun, FlowError> {
         |n| box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n),
         Formulation::ThreeD,
         Arc::new(Stokes3d { eta: 1.0 }),
-        &[
-            ("xmin", vec![0, 1, 2]),
-            ("ymin", vec![0, 1, 2]),
-            ("ymax", vec![0, 1, 2]),
-            ("zmin", vec![0, 1, 2]),
-            ("zmax", vec![0, 1, 2]),
-        ],
-        &["xmax"],
+        &STOKES_3D_VELOCITY.iter().map(|&f| (f, vec![0, 1, 2])).collect::<Vec<_>>(),
+        &STOKES_3D_TRACTION,
     )
 }
 
