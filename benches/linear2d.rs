@@ -56,11 +56,7 @@ impl<const D: usize> System<D> {
     fn new(disc: FlowDiscretization<D>, problem: FlowProblem<D>, newton_steps: usize) -> Self {
         let n = disc.num_dofs();
         let mut x = vec![0.0; n];
-        let mut constrained = vec![false; n];
-        for (d, v) in disc.dirichlet_dofs(&problem, 0.0).expect("dirichlet dofs") {
-            constrained[d] = true;
-            x[d] = v;
-        }
+        let constrained = disc.impose_dirichlet(&problem, 0.0, &mut x).expect("dirichlet dofs");
         let mut s = System { disc, problem, x, x_old: vec![0.0; n], constrained };
         let mut k = CscMatrix::zeros(&s.disc.pattern);
         let mut rhs = vec![0.0; n];

@@ -47,11 +47,7 @@ fn run<const D: usize>(
 ) {
     let n = disc.num_dofs();
     let mut x = vec![0.0; n];
-    let mut constrained = vec![false; n];
-    for (d, v) in disc.dirichlet_dofs(&problem, 0.0).expect("dirichlet dofs") {
-        constrained[d] = true;
-        x[d] = v;
-    }
+    let constrained = disc.impose_dirichlet(&problem, 0.0, &mut x).expect("dirichlet dofs");
     let x_old = vec![0.0; n];
     let mut k = CscMatrix::zeros(&disc.pattern);
     let mut rhs = vec![0.0; n];

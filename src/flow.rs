@@ -169,6 +169,17 @@ impl<const D: usize> FlowDiscretization<D> {
         )
     }
 
+    /// Sets the Dirichlet values at time `t` in `x` and returns which dofs they constrain (the
+    /// mask the assembly takes).
+    pub fn impose_dirichlet(&self, problem: &FlowProblem<D>, t: f64, x: &mut [f64]) -> Result<Vec<bool>, FlowError> {
+        let mut constrained = vec![false; self.num_dofs()];
+        for (d, v) in self.dirichlet_dofs(problem, t)? {
+            constrained[d] = true;
+            x[d] = v;
+        }
+        Ok(constrained)
+    }
+
     /// Global dofs constrained by the Dirichlet conditions and their values at time `t`.
     pub fn dirichlet_dofs(&self, problem: &FlowProblem<D>, t: f64) -> Result<Vec<(usize, f64)>, FlowError> {
         let vel = &self.layout.fields[0];
@@ -316,12 +327,7 @@ pub fn solve_steady<const D: usize>(
 ) -> Result<FlowSolution, FlowError> {
     let n = disc.num_dofs();
     let mut x = vec![0.0; n];
-    let bcs = disc.dirichlet_dofs(problem, 0.0)?;
-    let mut constrained = vec![false; n];
-    for &(d, v) in &bcs {
-        constrained[d] = true;
-        x[d] = v;
-    }
+    let constrained = disc.impose_dirichlet(problem, 0.0, &mut x)?;
     let x_old = vec![0.0; n];
     let report = newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| {
         disc.assemble_system(problem, x, &x_old, 0.0, &constrained, k, rhs)

@@ -95,12 +95,7 @@ fn solve_step<const D: usize>(
 ) -> Result<NewtonReport, FlowError> {
     let mut step_problem = problem.clone();
     step_problem.params.inv_dt = inv_dt;
-    let n = disc.num_dofs();
-    let mut constrained = vec![false; n];
-    for (d, v) in disc.dirichlet_dofs(&step_problem, t)? {
-        constrained[d] = true;
-        x[d] = v;
-    }
+    let constrained = disc.impose_dirichlet(&step_problem, t, x)?;
     let report = newton::solve(x, &disc.pattern, solver, options, |x, k, rhs| {
         disc.assemble_system(&step_problem, x, u_star, t, &constrained, k, rhs)
     })?;
