@@ -684,31 +684,42 @@ impl FaerLu {
     fn check_accuracy(&self, a: &CscMatrix<'_>) -> f64 {
         let n = a.pattern.n;
         let e: Vec<f64> = (0..n).map(|i| 1.0 + 0.5 * ((i * 7919) % 13) as f64 / 13.0).collect();
-        let mut b = vec![0.0; n];
-        a.mul_vec(&e, &mut b);
-        let bnorm = norm(&b).max(f64::MIN_POSITIVE);
-        let mut x = b.clone();
-        self.raw_solve(&mut x);
-        let mut r = vec![0.0; n];
-        let residual = |x: &[f64], r: &mut Vec<f64>| {
-            a.mul_vec(x, r);
-            r.iter_mut().zip(&b).for_each(|(ri, bi)| *ri = bi - *ri);
-            norm(r) / bnorm
-        };
-        let mut res = residual(&x, &mut r);
-        for _ in 0..self.options.max_refinements {
-            if !(res > STATIC_CHECK_TOLERANCE) {
-                break;
-            }
-            self.raw_solve(&mut r);
-            x.iter_mut().zip(&r).for_each(|(xi, d)| *xi += d);
-            res = residual(&x, &mut r);
-        }
+        let mut x = vec![0.0; n];
+        a.mul_vec(&e, &mut x);
+        let (res, _) = self.refined_solve(a, &mut x, STATIC_CHECK_TOLERANCE);
         if res.is_finite() {
             res
         } else {
             f64::INFINITY
         }
+    }
+
+    /// Solves `A x = b` in place (`x` holds `b` on entry) with the current factorisation and
+    /// iterative refinement against `a` (up to `max_refinements` steps while the relative
+    /// residual is above `tolerance`); returns that residual and the refinement count.
+    fn refined_solve(&self, a: &CscMatrix<'_>, x: &mut [f64], tolerance: f64) -> (f64, usize) {
+        let b = x.to_vec();
+        let bnorm = norm(&b).max(f64::MIN_POSITIVE);
+        self.raw_solve(x);
+        let mut r = vec![0.0; x.len()];
+        let residual = |x: &[f64], r: &mut Vec<f64>| -> f64 {
+            a.mul_vec(x, r);
+            for (ri, bi) in r.iter_mut().zip(&b) {
+                *ri = bi - *ri;
+            }
+            norm(r) / bnorm
+        };
+        let mut res = residual(x, &mut r);
+        let mut refinements = 0;
+        while res > tolerance && refinements < self.options.max_refinements && res.is_finite() {
+            self.raw_solve(&mut r);
+            for (xi, d) in x.iter_mut().zip(&r) {
+                *xi += d;
+            }
+            refinements += 1;
+            res = residual(x, &mut r);
+        }
+        (res, refinements)
     }
 
     fn factorize_pivoting(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
@@ -806,28 +817,7 @@ impl LinearSolver for FaerLu {
         if matches!(self.active, Active::None) {
             return Err(LinearSolveError::Numeric("solve before a successful factorisation".into()));
         }
-        let n = rhs.len();
-        let b = rhs.to_vec();
-        let bnorm = norm(&b).max(f64::MIN_POSITIVE);
-        self.raw_solve(rhs);
-        let mut r = vec![0.0; n];
-        let residual = |x: &[f64], r: &mut Vec<f64>| -> f64 {
-            a.mul_vec(x, r);
-            for (ri, bi) in r.iter_mut().zip(&b) {
-                *ri = bi - *ri;
-            }
-            norm(r) / bnorm
-        };
-        let mut res = residual(rhs, &mut r);
-        let mut refinements = 0;
-        while res > self.options.refine_tolerance && refinements < self.options.max_refinements && res.is_finite() {
-            self.raw_solve(&mut r);
-            for (x, d) in rhs.iter_mut().zip(&r) {
-                *x += d;
-            }
-            refinements += 1;
-            res = residual(rhs, &mut r);
-        }
+        let (res, refinements) = self.refined_solve(a, rhs, self.options.refine_tolerance);
         if !res.is_finite() || rhs.iter().any(|x| !x.is_finite()) {
             return Err(LinearSolveError::NonFinite);
         }
