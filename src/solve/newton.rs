@@ -91,9 +91,9 @@ where
     let mut rhs = vec![0.0; x.len()];
     let mut report = NewtonReport::default();
     let mut r0 = None;
-    // Whether the solver's factorisation may serve the next iteration.
-    let mut reusable = false;
-    let mut first = true;
+    // Whether the solver's factorisation may serve the next iteration: at first, one it holds
+    // for this pattern (an earlier solve's).
+    let mut reusable = solver.holds_factorization_for(&k);
     let mut rhs_copy = Vec::new();
     loop {
         let t = std::time::Instant::now();
@@ -113,9 +113,6 @@ where
         }
         if report.iterations >= options.max_iterations {
             return Err(NewtonError::NotConverged { iterations: report.iterations, residual: r, tolerance: tol });
-        }
-        if std::mem::take(&mut first) {
-            reusable = solver.holds_factorization_for(&k);
         }
         let mut solved = false;
         // A reused factorisation must have contracted the residual well, or this step refactorises.
