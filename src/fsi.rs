@@ -418,13 +418,15 @@ impl<const D: usize> FsiDiscretization<D> {
         let ne = coupling.num_elements();
         let vel = &flow.layout.fields[0];
         let mut inactive_multiplier_dofs = Vec::new();
+        // Fluid velocity dofs held by Dirichlet conditions: the trace they leave free decides the
+        // trace-mode multipliers and the multiplier kernel.
+        let fixed: std::collections::HashSet<usize> = flow.dirichlet_dofs(&model.problem.fluid, 0.0)?.into_iter().map(|(d, _)| d).collect();
         if model.multiplier == MultiplierSpace::P1DiscontinuousTraceMode {
             if D != 2 {
                 return Err(FsiError::Multiplier("the trace-mode multiplier is implemented in 2D only".into()));
             }
             Self::trace_mode(&mut coupling, &adapted.gamma_f);
             // A (chain, component) whose trace has a fluid Dirichlet node has no free trace mode.
-            let fixed: std::collections::HashSet<usize> = flow.dirichlet_dofs(&model.problem.fluid, 0.0)?.into_iter().map(|(d, _)| d).collect();
             let first = fluid_dofs + solid_dofs + ne * D * D;
             let mut inactive = vec![false; coupling.num_chains * D];
             let nf = coupling.nf;
@@ -441,10 +443,7 @@ impl<const D: usize> FsiDiscretization<D> {
             }
             inactive_multiplier_dofs = (0..inactive.len()).filter(|&k| inactive[k]).map(|k| first + k).collect();
         }
-        let kernel = {
-            let fixed: std::collections::HashSet<usize> = flow.dirichlet_dofs(&model.problem.fluid, 0.0)?.into_iter().map(|(d, _)| d).collect();
-            multiplier_kernel(&coupling, &adapted.gamma_f, vel, &fixed)
-        };
+        let kernel = multiplier_kernel(&coupling, &adapted.gamma_f, vel, &fixed);
         let kernel_first = ne * D * D + coupling.num_chains * D;
         let multiplier_dofs = kernel_first + kernel.len();
         let (os, ol) = (fluid_dofs, fluid_dofs + solid_dofs);

@@ -151,7 +151,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
             write_speed_picture(&model, &st, &next.solid_x, &options.out_dir)?;
         }
         if k % ts.output_every == 0 || k == total {
-            write_surfaces_picture(&model, &st, &state.solid_x, k, &options.out_dir)?;
+            write_surfaces_picture(&st, k, &options.out_dir)?;
             series.add(r.time, "fluid", &fluid_grid(&st.disc.flow, fluid_x)?)?;
             series.add(r.time, "solid", &crate::solid_run::solid_grid(&model.solid, material.as_ref(), &next.solid_x)?)?;
             series.add(r.time, "gamma_f", &gamma_f_grid(&st.disc, &st.x)?)?;
@@ -222,20 +222,14 @@ fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, sol
         .map_err(|message| crate::output::OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
 }
 
-/// 3D: `pictures/gamma_step_NNNN.png`, gamma_s (at the start of step `k`, the position the fluid
+/// 3D: `pictures/gamma_step_NNNN.png`, gamma_s (at the start of step `k`, the surface the fluid
 /// mesh was adapted to) and gamma_f of step `k` (see [`crate::picture::write_surfaces_png`]).
-fn write_surfaces_picture<const D: usize>(
-    model: &FsiModel<D>,
-    st: &FsiStep<D>,
-    solid_x: &[f64],
-    k: usize,
-    out_dir: &std::path::Path,
-) -> Result<(), RunError> {
+fn write_surfaces_picture<const D: usize>(st: &FsiStep<D>, k: usize, out_dir: &std::path::Path) -> Result<(), RunError> {
     if D != 3 {
         return Ok(());
     }
     let lift = |p: &[f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
-    let surface = model.gamma_s(solid_x)?;
+    let surface = &st.disc.surface;
     let gamma_s: Vec<[[f64; 3]; 3]> = (0..surface.num_pieces()).map(|i| std::array::from_fn(|k| lift(&surface.corners(i)[k]))).collect();
     let points = &st.disc.flow.mesh.points;
     let gamma_f: Vec<[[f64; 3]; 3]> = st.disc.adapted.gamma_f.iter().map(|g| std::array::from_fn(|k| lift(&points[g.vertices[k]]))).collect();
