@@ -224,3 +224,27 @@ fn adapt_degenerate_placements() {
     }
     assert!(touched > 0);
 }
+
+/// A membrane bulging through a plane of mesh nodes (model problem 4 on a pipe with nodes at
+/// z = 2): a cap `z = 1.975 + b (1 - x^2 - y^2)` in a quarter pipe of 12 rings and 8 layers.
+/// Around the circle where the cap crosses z = 2, the nodes of that plane move a little onto the
+/// cap while the edges between them are cut far from their ends. New nodes on those edges made
+/// inverted and flat children; undoing the moves put new nodes next to the pinned nodes, whose
+/// slivers refused the neighbours' moves in turn (b = 0.086 is model problem 4 at t = 1.8, where
+/// this ended with cells of quality 3.6e-6 and a singular system). Dropping the cuts at moved ends
+/// instead keeps every cell touching a moved node above the quality threshold.
+#[test]
+fn a_surface_near_a_plane_of_nodes_leaves_no_slivers() {
+    let mesh = fdfsi_fem::generate::pipe_tetrahedra(1.0, 4.0, 12, 8, true);
+    let mut dropped = 0;
+    for b in [0.03, 0.05, 0.086, 0.1] {
+        let cap = patch(24, |x, y| [x, y, 1.975 + b * (1.0 - x * x - y * y)]);
+        let a = run(&mesh, &cap, 0.2, &format!("bulge {b}"));
+        let st = &a.stats;
+        assert!(st.min_quality > 0.01, "bulge {b}: worst cell {:.3e} ({st:?})", st.min_quality);
+        // The section's 222 triangles, each one facet or two (a quadrilateral cut).
+        assert!((222..=444).contains(&st.coupling_facets) && st.passes <= 3, "bulge {b}: {st:?}");
+        dropped += st.cuts_at_moved_ends;
+    }
+    assert!(dropped > 0, "the bulges cut edges with moved ends");
+}

@@ -21,12 +21,21 @@
 //! * **A node moves at most once.** A second request to move a node that has already moved, or
 //!   that lies on gamma_s already (touched), is dropped: after the first move the edge touches
 //!   gamma_s at that node (`skipped_cuts`).
+//! * **Cuts at moved ends** (`cuts_at_moved_ends`): all moves are decided before any node is
+//!   added. Where a new node on an edge with a moved end makes a bad cell (inverted, flat or of
+//!   poor quality, as below), the next pass drops that cut instead of undoing the move: the edge
+//!   touches gamma_s at its moved end. This happens where gamma_s runs nearly parallel to a plane
+//!   of nodes: the nodes move a little onto gamma_s while the edges between them are cut far from
+//!   their ends. Undoing the moves instead put new nodes next to the pinned nodes and refused
+//!   their neighbours' moves in turn (model problem 4 with nodes at z = 2: 452 refused moves,
+//!   cells of quality 3.6e-6, a singular system; now 133 moves, no new node, worst 0.040).
 //! * **Refused moves** (`refused_moves`) become a new node at `x_i` instead: a boundary vertex may
 //!   only move within the planes (lines) of all its boundary facets (tolerance `1e-12` relative),
 //!   so the domain never changes; and a move is undone when a cell touching the moved node (or one
 //!   of its children) would get a non-positive measure, a quality below
-//!   [`AdaptOptions::min_move_quality`], or all its vertices on gamma_s (a flat cell). Undoing
-//!   re-runs steps 2-3 with that node pinned, until no cell is refused.
+//!   [`AdaptOptions::min_move_quality`], or all its vertices on gamma_s (a flat cell), unless a cut
+//!   at a moved end is dropped instead (above). Undoing re-runs steps 2-3 with that node pinned,
+//!   until no cell is refused.
 //! * **gamma_s through a vertex / along an edge / in a face**: the vertex (edge's, face's vertices)
 //!   is on gamma_s as it is; the edges touching it there are not cut (`touched_vertices`,
 //!   `edges_in_surface`). A cut within `T_SNAP = 1e-12` (relative) of an end point snaps to it
@@ -161,6 +170,9 @@ pub struct AdaptStats {
     pub multi_cut_edges: usize,
     /// Second move requests dropped.
     pub skipped_cuts: usize,
+    /// Cuts dropped because an end of their edge moved onto gamma_s and their new node made a
+    /// bad cell with it.
+    pub cuts_at_moved_ends: usize,
     /// Cells with all vertices on gamma_s that were kept (no moved node to undo).
     pub flat_cells: usize,
     /// Facets with all vertices on gamma_s but not lying in it.
@@ -225,16 +237,19 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     check_eps_hat(opts.eps_hat)?;
     let cuts = find_cuts(bg, surface);
     let mut pinned: HashSet<usize> = HashSet::new();
+    let mut dropped: HashSet<usize> = HashSet::new();
     let mut passes = 0;
     let (plan, split) = loop {
         passes += 1;
-        let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned);
+        let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
         let split = subdivide_cells(bg, &plan, &cuts);
         let bad = refused_by_cells(bg, &plan, &cuts, &split, opts.min_move_quality);
-        if bad.is_empty() {
+        let (np, nd) = (pinned.len(), dropped.len());
+        pinned.extend(bad.pin);
+        dropped.extend(bad.drop);
+        if (pinned.len(), dropped.len()) == (np, nd) {
             break (plan, split);
         }
-        pinned.extend(bad);
     };
     let mut out = assemble(bg, &plan, &split);
     let on_surface = on_surface_flags(bg, &plan, &cuts);
@@ -252,6 +267,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.edges_in_surface = cuts.edges_in_surface;
     stats.multi_cut_edges = cuts.multi_cut_edges;
     stats.skipped_cuts = plan.skipped;
+    stats.cuts_at_moved_ends = plan.cuts_at_moved_ends;
     stats.flat_cells = split.flat_cells;
     stats.rejected_facets = rejected;
     stats.min_quality = split.min_quality;
@@ -276,6 +292,7 @@ struct Plan<const D: usize> {
     refused: usize,
     refused_boundary: usize,
     skipped: usize,
+    cuts_at_moved_ends: usize,
 }
 
 impl<const D: usize> Plan<D> {
@@ -290,8 +307,15 @@ impl<const D: usize> Plan<D> {
     }
 }
 
-/// Step 2 (see the module documentation for the order and the rules).
-fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64, pinned: &HashSet<usize>) -> Plan<D> {
+/// Step 2 (see the module documentation for the order and the rules). `pinned` nodes do not
+/// move; the cuts of `dropped` edges are dropped when an end of the edge moved.
+fn plan_moves<const D: usize>(
+    bg: &Background<D>,
+    cuts: &CutSet<D>,
+    eps_hat: f64,
+    pinned: &HashSet<usize>,
+    dropped: &HashSet<usize>,
+) -> Plan<D> {
     let mut order: Vec<usize> = (0..cuts.cuts.len()).collect();
     let near = |i: usize| {
         let c = &cuts.cuts[i];
@@ -300,6 +324,8 @@ fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64
     };
     order.sort_by(|&i, &j| near(i).total_cmp(&near(j)).then(cuts.cuts[i].edge.cmp(&cuts.cuts[j].edge)));
     let mut plan = Plan::default();
+    // Moves first, nearest cut first; the cuts that are not moves wait until all moves are known.
+    let mut unmoved = Vec::new();
     for i in order {
         let cut = cuts.cuts[i];
         let [a, b] = bg.topology.edges[cut.edge];
@@ -308,7 +334,7 @@ fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64
         } else if cut.t > 1.0 - eps_hat {
             b
         } else {
-            add_node(&mut plan, cut.edge, cut.x);
+            unmoved.push(i);
             continue;
         };
         if cuts.touched.binary_search(&v).is_ok() || plan.moved.contains_key(&v) {
@@ -316,9 +342,18 @@ fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64
         } else if pinned.contains(&v) || !boundary_move_ok(bg, v, &cut.x) {
             plan.refused += 1;
             plan.refused_boundary += !pinned.contains(&v) as usize;
-            add_node(&mut plan, cut.edge, cut.x);
+            unmoved.push(i);
         } else {
             plan.moved.insert(v, cut.x);
+        }
+    }
+    unmoved.sort_unstable();
+    for i in unmoved {
+        let cut = cuts.cuts[i];
+        if dropped.contains(&cut.edge) && bg.topology.edges[cut.edge].iter().any(|v| plan.moved.contains_key(v)) {
+            plan.cuts_at_moved_ends += 1;
+        } else {
+            add_node(&mut plan, cut.edge, cut.x);
         }
     }
     plan
@@ -435,18 +470,33 @@ fn split_order<const D: usize>(
     best.1
 }
 
-/// Moved nodes whose move must be undone: those of children that are inverted, of quality
-/// below `min_quality`, or flat (all vertices on gamma_s).
+/// What the next pass of steps 2-3 changes (see [`refused_by_cells`]).
+#[derive(Debug, Default)]
+struct Refusals {
+    /// Moved nodes whose move is undone.
+    pin: Vec<usize>,
+    /// Cut edges with a moved end whose cut is dropped.
+    drop: Vec<usize>,
+}
+
+/// The remedies for the children that are inverted, of quality below `min_quality`, or flat (all
+/// vertices on gamma_s) and touch a moved node: where such a child has a new node on an edge with
+/// a moved end, that edge's cut is dropped (the edge touches gamma_s at the moved end);
+/// otherwise the moves of the child's nodes are undone.
 fn refused_by_cells<const D: usize>(
     bg: &Background<D>,
     plan: &Plan<D>,
     cuts: &CutSet<D>,
     split: &Split,
     min_quality: f64,
-) -> Vec<usize> {
+) -> Refusals {
     let nv = bg.mesh.points.len();
     let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
-    let mut bad = Vec::new();
+    let mut edge_of_new_node = vec![0; plan.new_points.len()];
+    for (&e, &k) in &plan.new_node {
+        edge_of_new_node[k] = e;
+    }
+    let mut r = Refusals::default();
     for (_, ids, _) in &split.cells {
         for kid in ids {
             let moved: Vec<usize> = kid[..=D].iter().copied().filter(|g| plan.moved.contains_key(g)).collect();
@@ -454,18 +504,27 @@ fn refused_by_cells<const D: usize>(
                 continue;
             }
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
-            let q = simplex_quality(&v);
             let flat = kid[..=D].iter().all(|&g| on_surface(g));
-            let measure = simplex_measure(&v);
-            let acceptable = measure > 0.0 && q >= min_quality;
-            if !acceptable || flat {
-                bad.extend(moved);
+            if simplex_measure(&v) > 0.0 && simplex_quality(&v) >= min_quality && !flat {
+                continue;
+            }
+            let len = r.drop.len();
+            for &g in kid[..=D].iter().filter(|&&g| g >= nv) {
+                let e = edge_of_new_node[g - nv];
+                if bg.topology.edges[e].iter().any(|v| plan.moved.contains_key(v)) {
+                    r.drop.push(e);
+                }
+            }
+            if r.drop.len() == len {
+                r.pin.extend(moved);
             }
         }
     }
-    bad.sort_unstable();
-    bad.dedup();
-    bad
+    for list in [&mut r.pin, &mut r.drop] {
+        list.sort_unstable();
+        list.dedup();
+    }
+    r
 }
 
 /// The adapted mesh without gamma_f.
