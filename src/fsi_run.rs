@@ -22,7 +22,7 @@ use crate::output::{fluid_grid, gamma_f_grid, History};
 use crate::quantities::{evaluate_all, StepState};
 use crate::run::{build_mesh, flow_problem, RunError, RunObserver, RunOptions, RunSummary, Timings};
 use crate::solve::linear::{FaerLu, LinearSolver};
-use fdfsi_fem::adapt::AdaptOptions;
+use fdfsi_fem::adapt::{adapt_with, AdaptOptions};
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
 use fdfsi_fem::vtk::PvdSeries;
@@ -67,6 +67,24 @@ pub fn model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::
     let solid = crate::solid_run::problem::<D>(case, spec, false)?;
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
     Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(spec.multiplier))
+}
+
+/// The original fluid mesh adapted to the solid of a checkpoint written in `run_dir` (what the
+/// run's next step starts from), with gamma_f tagged.
+pub fn adapted_at<const D: usize>(
+    case: &Case,
+    fluid_mesh: Mesh<D>,
+    case_dir: &std::path::Path,
+    checkpoint: &Checkpoint,
+    run_dir: &std::path::Path,
+) -> Result<crate::adaptation::AdaptedFluid<D>, RunError> {
+    let model = model(case, &fluid_mesh, case_dir)?;
+    let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
+    let solid = model.current_solid_mesh(&restart.solid_x);
+    let surface = model.gamma_s(&restart.solid_x)?;
+    let mut adapted = adapt_with(&model.background, &surface, &model.problem.adapt).map_err(FsiError::from)?;
+    fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
+    Ok(crate::adaptation::AdaptedFluid { original: fluid_mesh, solid, surface, adapted })
 }
 
 fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {

@@ -49,9 +49,14 @@ enum Command {
     /// Adapt the case's fluid mesh to its solid (paper section 2.2.1) and write original.vtu,
     /// adapted.vtu, gamma_s.vtu, gamma_f.vtu and summary.json.
     Adapt {
-        case: String,
+        #[arg(required_unless_present = "at", conflicts_with = "at")]
+        case: Option<String>,
         #[arg(long, default_value = "out-adapt")]
         out: PathBuf,
+        /// Instead of a case: adapt an FSI run's fluid mesh to the solid of the checkpoint in
+        /// RUN_DIR (the mesh its next step starts from; to inspect a step that failed).
+        #[arg(long, value_name = "RUN_DIR")]
+        at: Option<PathBuf>,
     },
     /// Draw PNG plots of a run's results into DIR/plots: every history.csv column against time,
     /// trajectories of STEM_x/STEM_y column pairs, and the profiles.
@@ -200,10 +205,20 @@ fn main() -> Result<()> {
             let text = check_case(&c, &label, &dir)?;
             println!("{label}: ok\n{text}");
         }
-        Command::Adapt { case, out } => {
-            let (c, dir, label) = load_case(Some(&case))?;
-            c.validate(&label)?;
-            let s = fdfsi::run::adapt_case(&c, &dir, &out).with_context(|| format!("adapting {label}"))?;
+        Command::Adapt { case, out, at } => {
+            let (label, s) = match at {
+                Some(run_dir) => {
+                    let label = format!("{} (checkpoint)", run_dir.display());
+                    let s = fdfsi::run::adapt_checkpoint(&run_dir, &out).with_context(|| format!("adapting {label}"))?;
+                    (label, s)
+                }
+                None => {
+                    let (c, dir, label) = load_case(case.as_deref())?;
+                    c.validate(&label)?;
+                    let s = fdfsi::run::adapt_case(&c, &dir, &out).with_context(|| format!("adapting {label}"))?;
+                    (label, s)
+                }
+            };
             let st = &s.stats;
             println!(
                 "{label}: {} -> {} cells; {} cut edges, {} moved nodes, {} new nodes ({} moves refused), {} coupling facets",

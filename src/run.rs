@@ -291,6 +291,26 @@ pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<crate:
     })
 }
 
+/// `fdfsi adapt --at RUN_DIR`: the fluid mesh of an FSI run adapted to the solid of its
+/// checkpoint (the mesh the run's next step starts from), written like [`adapt_case`]. To look
+/// at the adaptation of a step that failed: the files show the cut cells, gamma_s and gamma_f,
+/// and `stats.min_quality` the worst cell.
+pub fn adapt_checkpoint(run_dir: &Path, out_dir: &Path) -> Result<crate::adaptation::AdaptSummary, RunError> {
+    use crate::adaptation::write_adapt_report;
+    let (case, options) = RunOptions::resume(run_dir)?;
+    let checkpoint = options.resume.as_ref().expect("resume options hold the checkpoint");
+    if !crate::fsi_run::is_fsi(&case) {
+        return Err(RunError::Case(CaseError::Invalid {
+            file: Checkpoint::path(run_dir).display().to_string(),
+            message: "`fdfsi adapt --at` needs the checkpoint of an FSI run (a case with a fluid mesh and a solid surface)".into(),
+        }));
+    }
+    Ok(match build_mesh(&case, &options.case_dir)? {
+        AnyMesh::D2(m) => write_adapt_report(&crate::fsi_run::adapted_at(&case, m, &options.case_dir, checkpoint, run_dir)?, out_dir)?,
+        AnyMesh::D3(m) => write_adapt_report(&crate::fsi_run::adapted_at(&case, m, &options.case_dir, checkpoint, run_dir)?, out_dir)?,
+    })
+}
+
 /// Runs a case; `log` receives one line per notable event.
 pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
     let t0 = Instant::now();

@@ -200,3 +200,38 @@ fn killed_run_resumes_to_the_same_history() {
     assert_outputs_whole(&killed);
     assert_same_history(&history(&full), &history(&killed), 1e-10);
 }
+
+/// `fdfsi adapt --at DIR` adapts the run's fluid mesh to the solid of its checkpoint: gamma_s
+/// lies on the deformed solid the run wrote at that step (not the step before), and gamma_f has the
+/// facets the run's next step used.
+#[test]
+fn adapt_at_a_checkpoint_is_the_next_steps_mesh() {
+    let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "model-problem-1").unwrap().1;
+    let text = text.replace("end = 18.0", "end = 0.15").replace("output_every = 10", "output_every = 1");
+    let case = Case::from_toml_str(&text, "test").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let options = RunOptions { checkpoint_every: Some(2), ..RunOptions::new(dir.path(), Path::new(env!("CARGO_MANIFEST_DIR")).join("cases")) };
+    run_case(&case, &options, &mut |_: &str| {}).unwrap();
+    assert_eq!(Checkpoint::read(dir.path()).unwrap().step, 2);
+    let s = fdfsi::run::adapt_checkpoint(dir.path(), &dir.path().join("adapt")).unwrap();
+    let h = history(dir.path());
+    let facets_col = std::fs::read_to_string(dir.path().join("history.csv")).unwrap().lines().next().unwrap().split(',').position(|c| c == "coupling_facets").unwrap();
+    assert_eq!(s.stats.coupling_facets as f64, h[2][facets_col], "step 3 was adapted to the solid after step 2");
+    let gamma_s = read_vtu(&dir.path().join("adapt/gamma_s.vtu")).unwrap().points;
+    let solid_at = |time: f64| {
+        let entries = read_pvd(&dir.path().join("solution.pvd")).unwrap();
+        let e = entries.iter().find(|e| e.name == "solid" && (e.time - time).abs() < 1e-9).unwrap_or_else(|| panic!("no solid at t = {time}: {entries:?}"));
+        read_vtu(&dir.path().join(&e.file)).unwrap().points
+    };
+    let distance = |p: &[f64; 3], pts: &[[f64; 3]]| pts.iter().map(|q| (0..3).map(|d| (p[d] - q[d]).powi(2)).sum::<f64>().sqrt()).fold(f64::INFINITY, f64::min);
+    let (at_step_2, at_step_1) = (solid_at(0.1), solid_at(0.05));
+    assert!(gamma_s.iter().all(|p| distance(p, &at_step_2) < 1e-12), "gamma_s lies on the solid of step 2");
+    let moved = gamma_s.iter().map(|p| distance(p, &at_step_1)).fold(0.0, f64::max);
+    assert!(moved > 1e-6, "the solid has moved since step 1: {moved:e}");
+    // A flow run's checkpoint has no solid.
+    let flow = tempfile::tempdir().unwrap();
+    let case = Case::from_toml_str(&channel_case(2), "test").unwrap();
+    run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(flow.path(), ".") }, &mut |_: &str| {}).unwrap();
+    let e = fdfsi::run::adapt_checkpoint(flow.path(), &flow.path().join("adapt")).unwrap_err().to_string();
+    assert!(e.contains("needs the checkpoint of an FSI run"), "{e}");
+}
