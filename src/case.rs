@@ -404,6 +404,34 @@ pub struct BoundarySpec {
 pub struct SolverSpec {
     #[serde(default)]
     pub newton: NewtonOptions,
+    #[serde(default)]
+    pub linear: LinearSpec,
+}
+
+/// Options of the sparse LU (`[solver.linear]`).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LinearSpec {
+    /// Threads of the LU's large dense blocks: 1 (default) = sequential, 0 = all cores.
+    #[serde(default = "one_thread")]
+    pub threads: usize,
+}
+
+fn one_thread() -> usize {
+    1
+}
+
+impl Default for LinearSpec {
+    fn default() -> Self {
+        LinearSpec { threads: 1 }
+    }
+}
+
+impl SolverSpec {
+    /// The LU of these options.
+    pub fn linear_solver(&self) -> crate::solve::linear::FaerLu {
+        crate::solve::linear::FaerLu::new(crate::solve::linear::LinearSolverOptions { threads: self.linear.threads, ..Default::default() })
+    }
 }
 
 /// What to write besides the fields.
@@ -826,6 +854,9 @@ impl Case {
         let n = &self.solver.newton;
         if n.max_iterations == 0 || !(n.abs_tol > 0.0) || !(n.rel_tol > 0.0) {
             problems.push("solver.newton: max_iterations >= 1 and positive tolerances required".into());
+        }
+        if self.solver.linear.threads > 1024 {
+            problems.push(format!("solver.linear: threads = {} (1 = sequential, 0 = all cores, at most 1024)", self.solver.linear.threads));
         }
         if problems.is_empty() {
             Ok(())

@@ -21,7 +21,7 @@ use crate::fsi::{step, FsiError, FsiModel, FsiProblem, FsiState, FsiStep};
 use crate::output::{fluid_grid, gamma_f_grid, History};
 use crate::quantities::{evaluate_all, StepState};
 use crate::run::{build_mesh, flow_problem, RunError, RunObserver, RunOptions, RunSummary, Timings};
-use crate::solve::linear::{FaerLu, LinearSolver};
+use crate::solve::linear::LinearSolver;
 use fdfsi_fem::adapt::{adapt_with, AdaptOptions};
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
@@ -97,7 +97,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let solid_probes = crate::solid_run::displacement_probes(case, &model.solid)?;
     let mut fluid_output = case.output.clone();
     fluid_output.probe.retain(|p| p.field != ProbeField::Displacement);
-    let mut lu = FaerLu::default();
+    let mut lu = case.solver.linear_solver();
     let total = crate::time::num_steps(ts.dt, ts.end);
     let (mut state, mut series, mut history, mut timings, mut iterations, mut residuals, first) = match &options.resume {
         None => (FsiState::at_rest(&model), PvdSeries::new(&options.out_dir, "solution"), None, Timings::default(), 0, Vec::new(), 1),

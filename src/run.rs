@@ -8,7 +8,6 @@ use crate::output::{fluid_grid, write_atomic, History, OutputError};
 use crate::physics::fluid::FluidParams;
 use crate::quantities::{evaluate_all, QuantityError, StepState};
 use crate::time::{solve_unsteady_from, TimeOptions};
-use crate::solve::linear::FaerLu;
 use fdfsi_fem::generate;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh, GmshError};
 use fdfsi_fem::mesh::{Mesh, Topology};
@@ -486,7 +485,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         disc.pattern.nnz(),
         discretize
     ));
-    let mut lu = FaerLu::default();
+    let mut lu = case.solver.linear_solver();
     let mut out = Outputs::new(case, options)?;
     let mut timings = Timings { discretize, ..Default::default() };
     let mut residual_norms = Vec::new();

@@ -19,7 +19,7 @@ use crate::physics::solid::{
 };
 use crate::run::{RunError, RunObserver, RunOptions, RunSummary, Timings};
 use crate::solid::{pressure_at, solve_quasi_static_with, LoadStepping, SolidDiscretization, SolidProblem};
-use crate::solve::linear::{FaerLu, LinearSolver};
+use crate::solve::linear::LinearSolver;
 use fdfsi_fem::vtk::{PvdSeries, UnstructuredGrid, VtkCellType};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -146,7 +146,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     let names: Vec<String> = probe_nodes.iter().map(|(n, _, _)| n.clone()).collect();
     let mut history = History::new(&options.out_dir.join("history.csv"), &names);
     let mut converged = 0usize;
-    let mut lu = FaerLu::default();
+    let mut lu = case.solver.linear_solver();
     let sol = solve_quasi_static_with(&disc, &problem, &stepping, &mut lu, &case.solver.newton, |rec, x| {
         converged += 1;
         let r = rec.newton.as_ref().expect("a converged increment has its Newton report");

@@ -49,11 +49,15 @@ pub struct LinearSolverOptions {
     pub max_refinements: usize,
     /// Fill-reducing ordering of the static supernodal LU ([`LuMethod::Auto`]).
     pub ordering: FillOrdering,
+    /// Threads of the dense kernels of the large supernodes (the separators at the top of the
+    /// elimination tree, where 3D factorisations spend most of their flops): 1 = sequential,
+    /// 0 = all cores.
+    pub threads: usize,
 }
 
 impl Default for LinearSolverOptions {
     fn default() -> Self {
-        LinearSolverOptions { refine_tolerance: 1e-12, fail_tolerance: 1e-6, max_refinements: 3, ordering: FillOrdering::default() }
+        LinearSolverOptions { refine_tolerance: 1e-12, fail_tolerance: 1e-6, max_refinements: 3, ordering: FillOrdering::default(), threads: 1 }
     }
 }
 
@@ -92,6 +96,9 @@ pub struct FactorStats {
     /// Floating-point operations of one numeric factorisation (dense LU of the diagonal blocks,
     /// the two triangular solves and the Schur-complement update of each supernode).
     pub flops: f64,
+    /// Of which in the supernodes large enough for threaded dense kernels
+    /// ([`LinearSolverOptions::threads`]).
+    pub threaded_flops: f64,
     /// Seconds spent in the fill-reducing ordering and in the whole symbolic analysis.
     pub ordering_seconds: f64,
     pub symbolic_seconds: f64,
@@ -323,12 +330,16 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
     let mut owner = vec![0usize; n];
     let (mut l_ptr, mut u_ptr) = (vec![0usize; nsup + 1], vec![0usize; nsup + 1]);
     let (mut max_r, mut max_k) = (0, 0);
-    let mut flops = 0.0f64;
+    let (mut flops, mut threaded_flops) = (0.0f64, 0.0f64);
     for s in 0..nsup {
         let k = sn_begin[s + 1] - sn_begin[s];
         let r = row_ptr[s + 1] - row_ptr[s];
         let (kf, rf) = (k as f64, r as f64);
-        flops += 2.0 / 3.0 * kf * kf * kf + 2.0 * kf * kf * rf + 2.0 * kf * rf * rf;
+        let f = 2.0 / 3.0 * kf * kf * kf + 2.0 * kf * kf * rf + 2.0 * kf * rf * rf;
+        flops += f;
+        if is_large_block(k, r) {
+            threaded_flops += f;
+        }
         owner[sn_begin[s]..sn_begin[s + 1]].fill(s);
         l_ptr[s + 1] = l_ptr[s] + (k + r) * k;
         u_ptr[s + 1] = u_ptr[s] + r * k;
@@ -374,8 +385,14 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
             };
         }
     }
-    let stats = FactorStats { ordering, supernodes: nsup, nnz_lu: len_val, flops, ordering_seconds, symbolic_seconds: t_start.elapsed().as_secs_f64() };
+    let stats = FactorStats { ordering, supernodes: nsup, nnz_lu: len_val, flops, threaded_flops, ordering_seconds, symbolic_seconds: t_start.elapsed().as_secs_f64() };
     Ok(StaticSymbolic { n, perm, sn_begin, row_ptr, rows, l_ptr, u_ptr, owner, scatter, len_val, max_r, max_k, stats })
+}
+
+/// Is a supernode of `k` columns and `r` off-diagonal rows worth threaded dense kernels (more
+/// than about 4M flops)?
+fn is_large_block(k: usize, r: usize) -> bool {
+    k * k * (k + r) + k * r * r > 1 << 22
 }
 
 impl StaticLu {
@@ -414,8 +431,7 @@ impl StaticLu {
             let rows = &sym.rows[sym.row_ptr[s]..sym.row_ptr[s + 1]];
             let r = rows.len();
             let (lo, uo) = (sym.l_ptr[s], sym.u_ptr[s]);
-            let big = k * k * (k + r) + k * r * r > 1 << 22;
-            let par_s = if big { par } else { Par::Seq };
+            let par_s = if is_large_block(k, r) { par } else { Par::Seq };
             {
                 let (lpart, upart) = val.split_at_mut(uo);
                 let lpanel = &mut lpart[lo..lo + (k + r) * k];
@@ -631,11 +647,14 @@ impl FaerLu {
         }
     }
 
-    fn par() -> Par {
-        // Sequential: on the 2-core reference machine (shared, loaded) faer's rayon kernels made
-        // both factorisations slower (faer LU numeric on 145k dofs 2.1 s seq vs 2.9 s rayon(2),
-        // static LU 1.6 s vs 1.9 s user time).
-        Par::Seq
+    fn par(&self) -> Par {
+        // Sequential by default: on the 2-core reference machine (shared, loaded) faer's rayon
+        // kernels made both factorisations of 2D systems slower (faer LU numeric on 145k dofs
+        // 2.1 s seq vs 2.9 s rayon(2), static LU 1.6 s vs 1.9 s user time).
+        match self.options.threads {
+            1 => Par::Seq,
+            n => Par::rayon(n),
+        }
     }
 
     /// Symbolic analysis of the static LU alone (ordering, supernodes, fill and flop count),
@@ -671,7 +690,7 @@ impl FaerLu {
     fn raw_solve(&self, x: &mut [f64]) {
         match self.active {
             Active::Static => self.static_lu.as_ref().expect("active").solve(x, &mut self.scratch.borrow_mut()),
-            Active::Pivoting => self.pivoting.as_ref().expect("active").solve(x, Self::par()),
+            Active::Pivoting => self.pivoting.as_ref().expect("active").solve(x, self.par()),
             Active::None => {}
         }
     }
@@ -724,7 +743,7 @@ impl FaerLu {
 
     fn factorize_pivoting(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
         let view = faer_view(a);
-        let par = Self::par();
+        let par = self.par();
         if self.pivoting.is_none() {
             self.pivoting = Some(PivotingLu::new(view, par)?);
             self.symbolic_count += 1;
@@ -789,7 +808,7 @@ impl LinearSolver for FaerLu {
             self.key = Some(key);
             self.symbolic_count += 1;
         }
-        let par = Self::par();
+        let par = self.par();
         if let Some(s) = self.static_lu.as_mut() {
             let static_result = s.factorize(a, par);
             if static_result.is_ok() {
@@ -1052,6 +1071,36 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The threaded dense kernels of the large supernodes give the sequential solution: 3D Stokes
+    /// on 4 x 4 x 4 cubes of P2+ tetrahedra (14 595 unknowns), whose top separators are large.
+    #[test]
+    fn threaded_large_blocks_give_the_sequential_solution() {
+        use crate::flow::FlowDiscretization;
+        use crate::physics::fluid::Formulation;
+        let problem = crate::verify::stokes_3d_problem();
+        let mesh = fdfsi_fem::generate::box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 4, 4, 4);
+        let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).unwrap();
+        let n = disc.num_dofs();
+        let mut x0 = vec![0.0; n];
+        let constrained = disc.impose_dirichlet(&problem, 0.0, &mut x0).unwrap();
+        let mut k = CscMatrix::zeros(&disc.pattern);
+        let mut rhs = vec![0.0; n];
+        disc.assemble_system(&problem, &x0, &vec![0.0; n], 0.0, &constrained, &mut k, &mut rhs).unwrap();
+        let mut sols = Vec::new();
+        for threads in [1, 2] {
+            let mut lu = FaerLu::new(LinearSolverOptions { threads, ..Default::default() });
+            lu.factorize(&k).unwrap();
+            let st = lu.factor_stats().expect("the static LU");
+            assert!(st.threaded_flops > 0.5 * st.flops, "large blocks hold most flops: {} of {}", st.threaded_flops, st.flops);
+            let mut x = rhs.clone();
+            let stats = lu.solve_in_place(&k, &mut x).unwrap();
+            assert!(stats.residual < 1e-12, "threads {threads}: residual {}", stats.residual);
+            sols.push(x);
+        }
+        let diff = norm(&sols[0].iter().zip(&sols[1]).map(|(p, q)| p - q).collect::<Vec<_>>());
+        assert!(diff <= 1e-10 * norm(&sols[0]), "threaded and sequential solutions differ by {diff:e}");
     }
 
     #[test]
