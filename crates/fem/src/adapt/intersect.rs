@@ -5,7 +5,8 @@
 //! pair (edge `ab`, piece) is classified with exact orientation predicates (`robust`):
 //!
 //! * **cut**: `a` and `b` lie strictly on opposite sides of the piece's line / plane and the
-//!   segment meets the closed piece; the point is `a + t (b - a)` with `t = o_a / (o_a - o_b)`
+//!   segment meets the closed piece, enlarged by `T_SNAP` times the lengths so that a side off
+//!   the domain boundary by round-off still meets the boundary's edges; the point is `a + t (b - a)` with `t = o_a / (o_a - o_b)`
 //!   (`o` the signed distances as orientation determinants). A cut at `t <= T_SNAP` (or
 //!   `t >= 1 - T_SNAP`) is within round-off of the end point: it is **snapped**, the end vertex is
 //!   treated as lying on gamma_s and the edge as touching it (counted).
@@ -19,7 +20,7 @@
 //! point closest to its first vertex `n1` (its smaller vertex number) and is counted.
 
 use super::background::Background;
-use super::geom::{collinear_point_in_segment, coplanar_point_in_triangle, lerp, orient, pad3};
+use super::geom::{collinear_point_in_segment, coplanar_point_in_triangle, dist2, lerp, orient, pad3};
 use super::surface::Surface;
 use rstar::AABB;
 
@@ -116,6 +117,18 @@ pub(crate) fn find_cuts<const D: usize>(bg: &Background<D>, surface: &Surface<D>
     CutSet { cuts, touched, multi_cut_edges, edges_in_surface: in_plane_edges.len(), snapped }
 }
 
+/// Round-off allowance of the side orientations in [`classify`]: an orientation of segment `ab`
+/// (length `ab`) with a piece's side (length `side`) is taken as zero below `T_SNAP` times
+/// `ab side max(ab, side)` (3D; `ab max(ab, side)` in 2D), i.e. when the segment passes within
+/// about `T_SNAP` of the lengths of the side's line. Without it a piece whose side lies on the
+/// domain boundary up to round-off (the clamped rim of model problem 4: midpoints of the wall's
+/// chords, off its plane by 1e-18) missed the wall edges through that side, and gamma_f had
+/// holes along the rim.
+fn side_tolerance<const D: usize>(ab: f64, side: f64) -> f64 {
+    let l = ab.max(side);
+    T_SNAP * l * if D == 3 { ab * side } else { ab }
+}
+
 /// Exact classification of edge `ab` against a flat piece (see the module documentation).
 fn classify<const D: usize>(a: &[f64; D], b: &[f64; D], c: &[[f64; D]; D]) -> Hit {
     let with = |x: &[f64; D]| -> [[f64; D]; 4] {
@@ -143,15 +156,22 @@ fn classify<const D: usize>(a: &[f64; D], b: &[f64; D], c: &[[f64; D]; D]) -> Hi
     }
     // The segment meets the closed piece iff, in 2D, the piece's end points are not strictly on
     // one side of line ab; in 3D, the orientations of line ab with the three sides of the
-    // triangle do not take both strict signs.
+    // triangle do not take both strict signs. "Strictly": beyond `T_SNAP` times the lengths
+    // (see `side_tolerance`), so a segment through a piece's side stays cut when that side is
+    // off by round-off.
+    let ab = dist2(a, b).sqrt();
     if D == 2 {
+        let tol = side_tolerance::<D>(ab, dist2(&c[0], &c[1]).sqrt());
         let (s1, s2) = (orient(&[*a, *b, c[0]]), orient(&[*a, *b, c[1]]));
-        if (s1 > 0.0 && s2 > 0.0) || (s1 < 0.0 && s2 < 0.0) {
+        if (s1 > tol && s2 > tol) || (s1 < -tol && s2 < -tol) {
             return Hit::Miss;
         }
     } else {
-        let s: [f64; 3] = std::array::from_fn(|k| orient(&[*a, *b, c[k], c[(k + 1) % D]]));
-        if s.iter().any(|&v| v > 0.0) && s.iter().any(|&v| v < 0.0) {
+        let s: [(f64, f64); 3] = std::array::from_fn(|k| {
+            let (p, q) = (c[k], c[(k + 1) % D]);
+            (orient(&[*a, *b, p, q]), side_tolerance::<D>(ab, dist2(&p, &q).sqrt()))
+        });
+        if s.iter().any(|&(v, tol)| v > tol) && s.iter().any(|&(v, tol)| v < -tol) {
             return Hit::Miss;
         }
     }
