@@ -6,8 +6,9 @@
 //!
 //! * **cut**: `a` and `b` lie strictly on opposite sides of the piece's line / plane and the
 //!   segment meets the closed piece, enlarged by `T_SNAP` times the lengths so that a side off
-//!   the domain boundary by round-off still meets the boundary's edges; the point is `a + t (b - a)` with `t = o_a / (o_a - o_b)`
-//!   (`o` the signed distances as orientation determinants). A cut at `t <= T_SNAP` (or
+//!   the domain boundary by round-off still meets the boundary's edges; the point is
+//!   `a + t (b - a)` with `t = o_a / (o_a - o_b)` (`o` the signed distances as orientation
+//!   determinants). A cut at `t <= T_SNAP` (or
 //!   `t >= 1 - T_SNAP`) is within round-off of the end point: it is **snapped**, the end vertex is
 //!   treated as lying on gamma_s and the edge as touching it (counted).
 //! * **touch**: exactly one end point lies on the piece's line / plane; it is on gamma_s when it
