@@ -112,9 +112,17 @@ pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path)
     let name = spec.surface.as_deref().ok_or_else(|| AdaptationError::Solid("solid.surface is not set".into()))?;
     let surface = Surface::from_mesh_boundary(&solid, name)?;
     let background = Background::new(&fluid)?;
-    let mut adapted = adapt_with(&background, &surface, &AdaptOptions::new(spec.eps_hat))?;
-    fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
-    Ok(AdaptedFluid { original: fluid, solid, surface, adapted })
+    Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat))?)
+}
+
+impl<const D: usize> AdaptedFluid<D> {
+    /// `original` (prepared as `background`) adapted to `surface`, the surface of `solid`, with
+    /// gamma_f tagged on the adapted mesh.
+    pub fn new(original: Mesh<D>, background: &Background<D>, solid: Mesh<D>, surface: Surface<D>, options: &AdaptOptions) -> Result<Self, AdaptError> {
+        let mut adapted = adapt_with(background, &surface, options)?;
+        fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
+        Ok(AdaptedFluid { original, solid, surface, adapted })
+    }
 }
 
 /// What `fdfsi adapt` writes to `summary.json`.

@@ -410,15 +410,10 @@ pub struct SolverSpec {
 
 /// Options of the sparse LU (`[solver.linear]`).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct LinearSpec {
     /// Threads of the LU's large dense blocks: 1 (default) = sequential, 0 = all cores.
-    #[serde(default = "one_thread")]
     pub threads: usize,
-}
-
-fn one_thread() -> usize {
-    1
 }
 
 impl Default for LinearSpec {

@@ -22,7 +22,7 @@ use crate::output::{fluid_grid, gamma_f_grid, History};
 use crate::quantities::{evaluate_all, StepState};
 use crate::run::{build_mesh, flow_problem, RunError, RunObserver, RunOptions, RunSummary, Timings};
 use crate::solve::linear::LinearSolver;
-use fdfsi_fem::adapt::{adapt_with, AdaptOptions};
+use fdfsi_fem::adapt::AdaptOptions;
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
 use fdfsi_fem::vtk::PvdSeries;
@@ -82,9 +82,8 @@ pub fn adapted_at<const D: usize>(
     let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
     let solid = model.current_solid_mesh(&restart.solid_x);
     let surface = model.gamma_s(&restart.solid_x)?;
-    let mut adapted = adapt_with(&model.background, &surface, &model.problem.adapt).map_err(FsiError::from)?;
-    fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
-    Ok(crate::adaptation::AdaptedFluid { original: fluid_mesh, solid, surface, adapted })
+    let adapted = crate::adaptation::AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt);
+    Ok(adapted.map_err(FsiError::from)?)
 }
 
 fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
