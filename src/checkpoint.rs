@@ -22,6 +22,7 @@ use crate::output::{write_atomic, OutputError};
 use crate::run::Timings;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 use thiserror::Error;
 
 /// File name of the checkpoint inside the output folder.
@@ -91,7 +92,19 @@ impl RestartState {
 pub struct Progress {
     pub newton_iterations: usize,
     pub residual_norms: Vec<f64>,
+    /// Phase times summed over the steps so far; `total` is the run's wall time up to the
+    /// checkpoint, over all its parts.
     pub timings: Timings,
+}
+
+impl Progress {
+    /// The totals after a step of a run part that began at `part_start`: `timings.total` holds the
+    /// wall time of the earlier parts (carried over restarts, 0 in a fresh run) and becomes that
+    /// plus this part's time so far.
+    pub fn after_step(newton_iterations: usize, residual_norms: &[f64], timings: &Timings, part_start: Instant) -> Progress {
+        let timings = Timings { total: timings.total + part_start.elapsed().as_secs_f64(), ..timings.clone() };
+        Progress { newton_iterations, residual_norms: residual_norms.to_vec(), timings }
+    }
 }
 
 /// A restart point: see the module documentation.

@@ -197,8 +197,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         last = values;
         state = next;
         options.after_step(case, k, state.time, || {
-            let progress = Progress { newton_iterations: iterations, residual_norms: residuals.clone(), timings: timings.clone() };
-            (RestartState::Fsi(state.to_restart()), progress)
+            (RestartState::Fsi(state.to_restart()), Progress::after_step(iterations, &residuals, &timings, t))
         })?;
         timings.output += out_t.elapsed().as_secs_f64() - out_seconds;
         obs.step(k, total, state.time);

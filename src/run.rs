@@ -196,6 +196,8 @@ pub struct Timings {
     pub solve: f64,
     /// Quantities, history, fields and checkpoints.
     pub output: f64,
+    /// Wall time of the whole run; for a resumed run, of all its parts (the phases, too, are
+    /// summed over the parts).
     pub total: f64,
 }
 
@@ -344,7 +346,8 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         summary.timings.mesh = mesh_seconds;
         summary
     };
-    summary.timings.total = t0.elapsed().as_secs_f64();
+    // A resumed run's summary carries the earlier parts' wall time in `total`.
+    summary.timings.total += t0.elapsed().as_secs_f64();
     if case.time.is_some() && summary.steps > 0 {
         summary.timings_per_step = Some(summary.timings.scaled(1.0 / summary.steps as f64));
     }
@@ -472,6 +475,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
 }
 
 fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let part_start = Instant::now();
     let problem = flow_problem(case, &mesh, &options.case_dir)?;
     let t = Instant::now();
     let cells = mesh.num_cells();
@@ -549,8 +553,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
                     let clock = Instant::now();
                     timings.output = out.seconds;
                     let r = options.after_step(case, rep.step, rep.time, || {
-                        let progress = Progress { newton_iterations, residual_norms: residual_norms.clone(), timings: timings.clone() };
-                        (RestartState::Flow { x: x.to_vec(), level: level.clone() }, progress)
+                        (RestartState::Flow { x: x.to_vec(), level: level.clone() }, Progress::after_step(newton_iterations, &residual_norms, &timings, part_start))
                     });
                     out.seconds += clock.elapsed().as_secs_f64();
                     r

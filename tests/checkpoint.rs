@@ -124,9 +124,16 @@ fn interrupted_and_resumed(case_text: &str, case_dir: &Path, stop_after: usize) 
     assert!(err.to_string().contains("fdfsi run --resume"), "{err}");
     assert_eq!(history(&parts).len(), if case.solid.is_some() { step } else { step + 1 });
     let (resumed_case, resume) = RunOptions::resume(&parts).unwrap();
-    assert_eq!(Checkpoint::read(&parts).unwrap().step, step);
-    run_case(&resumed_case, &resume, &mut |_: &str| {}).unwrap();
+    let checkpoint = Checkpoint::read(&parts).unwrap();
+    assert_eq!(checkpoint.step, step);
+    let summary = run_case(&resumed_case, &resume, &mut |_: &str| {}).unwrap();
     assert_outputs_whole(&parts);
+    // The summary's wall time covers both parts: at least the interrupted part's (which the
+    // checkpoint holds) and at least the phases summed over both parts.
+    let (before, t) = (checkpoint.progress.timings.total, &summary.timings);
+    assert!(before > 0.0 && t.total > before, "total {} after a first part of {before} s", t.total);
+    let phases = t.mesh + t.adapt + t.discretize + t.transfer + t.assemble + t.factorize + t.solve + t.output;
+    assert!(t.total >= phases, "total {} < phases {phases}", t.total);
     (history(&full), history(&parts), parts)
 }
 
