@@ -22,7 +22,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
-use fdfsi::flow::{FlowDiscretization, FlowProblem};
+use fdfsi::flow::{FlowDiscretization, FlowProblem, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -47,40 +47,32 @@ fn solver() -> FaerLu {
 struct System<const D: usize> {
     disc: FlowDiscretization<D>,
     problem: FlowProblem<D>,
+    /// The iterate the Jacobian is taken at.
     x: Vec<f64>,
-    x_old: Vec<f64>,
-    constrained: Vec<bool>,
 }
 
 impl<const D: usize> System<D> {
     fn new(disc: FlowDiscretization<D>, problem: FlowProblem<D>, newton_steps: usize) -> Self {
-        let n = disc.num_dofs();
-        let mut x = vec![0.0; n];
-        let constrained = disc.impose_dirichlet(&problem, 0.0, &mut x).expect("dirichlet dofs");
-        let mut s = System { disc, problem, x, x_old: vec![0.0; n], constrained };
-        let mut k = CscMatrix::zeros(&s.disc.pattern);
-        let mut rhs = vec![0.0; n];
+        let (system, mut x) = SteadySystem::new(&disc, &problem).expect("dirichlet dofs");
+        let mut k = CscMatrix::zeros(&disc.pattern);
+        let mut rhs = vec![0.0; x.len()];
         let mut lu = solver();
         for _ in 0..newton_steps {
-            s.assemble(&mut k, &mut rhs);
+            system.assemble(&x, &mut k, &mut rhs).expect("assembly");
             lu.factorize(&k).expect("factorisation");
             lu.solve_in_place(&k, &mut rhs).expect("solve");
-            s.x.iter_mut().zip(&rhs).for_each(|(a, b)| *a += b);
+            x.iter_mut().zip(&rhs).for_each(|(a, b)| *a += b);
         }
-        s
-    }
-
-    fn assemble(&self, k: &mut CscMatrix<'_>, rhs: &mut [f64]) {
-        k.values.iter_mut().for_each(|v| *v = 0.0);
-        rhs.iter_mut().for_each(|v| *v = 0.0);
-        self.disc.assemble_system(&self.problem, &self.x, &self.x_old, 0.0, &self.constrained, k, rhs).expect("assembly");
+        System { disc, problem, x }
     }
 
     fn bench(&self, c: &mut Criterion, name: &str) {
         let n = self.disc.num_dofs();
+        let (system, _) = SteadySystem::new(&self.disc, &self.problem).expect("dirichlet dofs");
+        let assemble = |k: &mut CscMatrix<'_>, rhs: &mut [f64]| system.assemble(&self.x, k, rhs).expect("assembly");
         let mut k = CscMatrix::zeros(&self.disc.pattern);
         let mut rhs = vec![0.0; n];
-        self.assemble(&mut k, &mut rhs);
+        assemble(&mut k, &mut rhs);
         let mut lu = solver();
         let t = Instant::now();
         lu.factorize(&k).expect("first factorisation");
@@ -100,7 +92,7 @@ impl<const D: usize> System<D> {
         group.sample_size(10);
         group.warm_up_time(Duration::from_millis(500));
         group.measurement_time(Duration::from_secs(5));
-        group.bench_function("assembly", |b| b.iter(|| self.assemble(&mut k, &mut rhs)));
+        group.bench_function("assembly", |b| b.iter(|| assemble(&mut k, &mut rhs)));
         group.bench_function("lu_numeric", |b| b.iter(|| lu.factorize(black_box(&k)).expect("factorisation")));
         group.bench_function("lu_solve", |b| {
             b.iter(|| {
@@ -110,7 +102,7 @@ impl<const D: usize> System<D> {
         });
         group.bench_function("newton_iteration", |b| {
             b.iter(|| {
-                self.assemble(&mut k, &mut rhs);
+                assemble(&mut k, &mut rhs);
                 lu.factorize(&k).expect("factorisation");
                 buf.copy_from_slice(&rhs);
                 black_box(lu.solve_in_place(&k, &mut buf).expect("solve"));

@@ -10,7 +10,7 @@
 //!
 //! One system and ordering per process, so `VmHWM` (peak resident memory) is theirs alone.
 use fdfsi::case::Case;
-use fdfsi::flow::{FlowDiscretization, FlowProblem};
+use fdfsi::flow::{FlowDiscretization, FlowProblem, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -46,16 +46,10 @@ fn run<const D: usize>(
     reps: usize,
 ) {
     let n = disc.num_dofs();
-    let mut x = vec![0.0; n];
-    let constrained = disc.impose_dirichlet(&problem, 0.0, &mut x).expect("dirichlet dofs");
-    let x_old = vec![0.0; n];
+    let (system, mut x) = SteadySystem::new(&disc, &problem).expect("dirichlet dofs");
     let mut k = CscMatrix::zeros(&disc.pattern);
     let mut rhs = vec![0.0; n];
-    let assemble = |x: &[f64], k: &mut CscMatrix<'_>, rhs: &mut [f64]| {
-        k.values.iter_mut().for_each(|v| *v = 0.0);
-        rhs.iter_mut().for_each(|v| *v = 0.0);
-        disc.assemble_system(&problem, x, &x_old, 0.0, &constrained, k, rhs).expect("assembly");
-    };
+    let assemble = |x: &[f64], k: &mut CscMatrix<'_>, rhs: &mut [f64]| system.assemble(x, k, rhs).expect("assembly");
     if reps == 0 {
         assemble(&x, &mut k, &mut rhs);
         let c0 = cpu_seconds();

@@ -318,20 +318,43 @@ impl FlowSolution {
     }
 }
 
-/// Solves the steady problem (`params.inv_dt` must be 0) with Newton from a zero initial guess.
+/// The Newton system of the steady problem at `t = 0`: `K(x) = dR/dx` and `-R(x)` for any
+/// iterate `x`, with the Dirichlet rows of [`FlowDiscretization::impose_dirichlet`].
+pub struct SteadySystem<'a, const D: usize> {
+    pub disc: &'a FlowDiscretization<D>,
+    pub problem: &'a FlowProblem<D>,
+    /// Dofs whose values the Dirichlet conditions fix.
+    pub constrained: Vec<bool>,
+    /// The previous time level of the unsteady assembly: unused at steady state (zero).
+    x_old: Vec<f64>,
+}
+
+impl<'a, const D: usize> SteadySystem<'a, D> {
+    /// The system and the starting iterate: the Dirichlet values, zero elsewhere.
+    pub fn new(disc: &'a FlowDiscretization<D>, problem: &'a FlowProblem<D>) -> Result<(Self, Vec<f64>), FlowError> {
+        let mut x = vec![0.0; disc.num_dofs()];
+        let constrained = disc.impose_dirichlet(problem, 0.0, &mut x)?;
+        Ok((SteadySystem { disc, problem, constrained, x_old: vec![0.0; x.len()] }, x))
+    }
+
+    /// Overwrites `k` with `K(x)` and `rhs` with `-R(x)`.
+    pub fn assemble(&self, x: &[f64], k: &mut CscMatrix<'_>, rhs: &mut [f64]) -> Result<(), AssemblyError> {
+        k.values.iter_mut().for_each(|v| *v = 0.0);
+        rhs.iter_mut().for_each(|v| *v = 0.0);
+        self.disc.assemble_system(self.problem, x, &self.x_old, 0.0, &self.constrained, k, rhs)
+    }
+}
+
+/// Solves the steady problem (`params.inv_dt` must be 0) with Newton from the Dirichlet values
+/// (zero elsewhere).
 pub fn solve_steady<const D: usize>(
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
 ) -> Result<FlowSolution, FlowError> {
-    let n = disc.num_dofs();
-    let mut x = vec![0.0; n];
-    let constrained = disc.impose_dirichlet(problem, 0.0, &mut x)?;
-    let x_old = vec![0.0; n];
-    let report = newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| {
-        disc.assemble_system(problem, x, &x_old, 0.0, &constrained, k, rhs)
-    })?;
+    let (system, mut x) = SteadySystem::new(disc, problem)?;
+    let report = newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs))?;
     if problem.pin_pressure {
         shift_pressure_to_zero_mean(disc, problem.formulation, &mut x)?;
     }

@@ -1082,12 +1082,10 @@ mod tests {
         let problem = crate::verify::stokes_3d_problem();
         let mesh = fdfsi_fem::generate::box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 4, 4, 4);
         let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).unwrap();
-        let n = disc.num_dofs();
-        let mut x0 = vec![0.0; n];
-        let constrained = disc.impose_dirichlet(&problem, 0.0, &mut x0).unwrap();
+        let (system, x0) = crate::flow::SteadySystem::new(&disc, &problem).unwrap();
         let mut k = CscMatrix::zeros(&disc.pattern);
-        let mut rhs = vec![0.0; n];
-        disc.assemble_system(&problem, &x0, &vec![0.0; n], 0.0, &constrained, &mut k, &mut rhs).unwrap();
+        let mut rhs = vec![0.0; x0.len()];
+        system.assemble(&x0, &mut k, &mut rhs).unwrap();
         let mut sols = Vec::new();
         for threads in [1, 2] {
             let mut lu = FaerLu::new(LinearSolverOptions { threads, ..Default::default() });
