@@ -283,20 +283,22 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         }
     }
     let ordering_seconds = t_order.elapsed().as_secs_f64();
-    // Sort key: regular dof -> (2 * position), zero-diagonal dof -> (2 * max neighbour position + 1);
-    // a zero-diagonal dof with zero-diagonal neighbours only (the unknowns that remove multiplier
-    // modes, `fsi::multiplier_kernel`) goes after everything (key 2 m + 1), after its neighbours.
-    let mut key = vec![0usize; n];
+    // Sort key: regular dof -> (2 * position), zero-diagonal dof -> (2 * max neighbour position + 1).
+    // A zero-diagonal dof with zero-diagonal neighbours only (an unknown `sigma` that removes a
+    // multiplier mode, `fsi::multiplier_kernel`) takes the largest key of its neighbours: it
+    // follows the last of them (ties sort by index, and these unknowns are numbered last).
+    let neighbours = |j: usize| p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().copied().filter(move |&i| i != j);
+    let mut key = vec![usize::MAX; n];
     for j in 0..n {
-        key[j] = if !zero[j] {
-            2 * pos[local[j]]
-        } else {
-            let last = p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().filter(|&&i| !zero[i]).map(|&i| pos[local[i]]).max();
-            match last {
-                Some(q) => 2 * q + 1,
-                None => 2 * m + 1,
-            }
-        };
+        if !zero[j] {
+            key[j] = 2 * pos[local[j]];
+        } else if let Some(q) = neighbours(j).filter(|&i| !zero[i]).map(|i| pos[local[i]]).max() {
+            key[j] = 2 * q + 1;
+        }
+    }
+    let mode_unknowns: Vec<usize> = (0..n).filter(|&j| key[j] == usize::MAX).collect();
+    for &j in &mode_unknowns {
+        key[j] = neighbours(j).map(|i| key[i]).filter(|&k| k != usize::MAX).max().unwrap_or(2 * m + 1);
     }
     let mut perm: Vec<usize> = (0..n).collect();
     perm.sort_by_key(|&j| (key[j], j));
@@ -315,16 +317,19 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         SymbolicCholeskyRaw::Supernodal(sn) => sn,
         SymbolicCholeskyRaw::Simplicial(_) => return Err(err("expected a supernodal structure".into())),
     };
-    let nsup = sn.n_supernodes();
-    let mut sn_begin: Vec<usize> = sn.supernode_begin().to_vec();
-    sn_begin.push(n);
+    let patterns: Vec<Vec<usize>> = (0..sn.n_supernodes()).map(|s| sn.supernode(s).pattern().to_vec()).collect();
+    let mut begin: Vec<usize> = sn.supernode_begin().to_vec();
+    begin.push(n);
+    // Each such unknown joins the supernode of the last multiplier it couples to (see
+    // `merge_supernodes`).
+    let mode_spans = mode_unknowns.iter().map(|&j| (neighbours(j).map(|i| perm_inv[i]).max().unwrap_or(perm_inv[j]).min(perm_inv[j]), perm_inv[j]));
+    let (sn_begin, supernode_rows) = merge_supernodes(&begin, &patterns, mode_spans);
+    let nsup = sn_begin.len() - 1;
     let mut row_ptr = Vec::with_capacity(nsup + 1);
     let mut rows = Vec::new();
     row_ptr.push(0);
-    for s in 0..nsup {
-        let mut r: Vec<usize> = sn.supernode(s).pattern().iter().copied().collect();
-        r.sort_unstable();
-        rows.extend_from_slice(&r);
+    for r in &supernode_rows {
+        rows.extend_from_slice(r);
         row_ptr.push(rows.len());
     }
     let mut owner = vec![0usize; n];
@@ -387,6 +392,46 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
     }
     let stats = FactorStats { ordering, supernodes: nsup, nnz_lu: len_val, flops, threaded_flops, ordering_seconds, symbolic_seconds: t_start.elapsed().as_secs_f64() };
     Ok(StaticSymbolic { n, perm, sn_begin, row_ptr, rows, l_ptr, u_ptr, owner, scatter, len_val, max_r, max_k, stats })
+}
+
+/// Merges consecutive supernodes (first columns `begin`, `nsup + 1` entries; off-diagonal rows
+/// `patterns`) so that each column span `(first, last)` of `spans` lies in one supernode; returns
+/// the new first columns and sorted off-diagonal rows.
+///
+/// The spans join each unknown `sigma` that removes a multiplier mode to the last multiplier it
+/// couples to (it follows that multiplier in the order, after at most a few others). On a mode `z` the pairing of the multipliers with the velocities (nearly) vanishes,
+/// so the Schur complement of the multipliers is (nearly) singular in the direction `z` until
+/// `sigma`, whose equation is `(M z) . lambda = 0`, is eliminated with them: in one diagonal
+/// block the partial pivoting finds the nonsingular `[S (M z); (M z)^T 0]`, in separate blocks
+/// the last multiplier of the mode had a zero pivot (model problem 4, fine mesh: 3e-16 against
+/// entries of 582). A merged supernode holds the union of its parts' rows (a dense diagonal block
+/// holds any fill among its columns), so any consecutive supernodes may merge.
+fn merge_supernodes(begin: &[usize], patterns: &[Vec<usize>], spans: impl Iterator<Item = (usize, usize)>) -> (Vec<usize>, Vec<Vec<usize>>) {
+    let nsup = patterns.len();
+    let n = begin[nsup];
+    let mut owner = vec![0usize; n];
+    for s in 0..nsup {
+        owner[begin[s]..begin[s + 1]].fill(s);
+    }
+    // joined[s]: supernode s continues into s + 1.
+    let mut joined = vec![false; nsup];
+    for (first, last) in spans {
+        joined[owner[first]..owner[last]].fill(true);
+    }
+    let (mut sn_begin, mut rows) = (vec![0usize], Vec::new());
+    let mut acc: Vec<usize> = Vec::new();
+    for s in 0..nsup {
+        acc.extend_from_slice(&patterns[s]);
+        if !joined[s] {
+            let end = begin[s + 1];
+            acc.retain(|&i| i >= end);
+            acc.sort_unstable();
+            acc.dedup();
+            rows.push(std::mem::take(&mut acc));
+            sn_begin.push(end);
+        }
+    }
+    (sn_begin, rows)
 }
 
 /// Is a supernode of `k` columns and `r` off-diagonal rows worth threaded dense kernels (more
@@ -1168,6 +1213,64 @@ mod tests {
         for i in 0..n {
             assert!((b[i] - x_exact[i]).abs() < 1e-10, "{i}: {} vs {}", b[i], x_exact[i]);
         }
+    }
+
+    #[test]
+    fn a_multiplier_mode_and_its_constraint_share_a_diagonal_block() {
+        // Two multipliers with the same pairing (the mode z = (1, -1) pairs with nothing, as the
+        // multiplier modes of a 3D FSI system pair with no velocity) and the unknown sigma with
+        // (M z) . lambda = 0: nonsingular, but eliminating both multipliers before sigma meets a
+        // zero pivot; the static LU must take sigma into their block instead of falling back.
+        let nr = 6;
+        let (m1, m2, m3, sigma) = (nr, nr + 1, nr + 2, nr + 3);
+        let n = nr + 4;
+        let mut cells: Vec<Vec<usize>> = (0..nr - 1).map(|i| vec![i, i + 1]).collect();
+        cells.push(vec![2, 3, m1, m2]);
+        cells.push(vec![4, 5, m3]);
+        cells.push(vec![m1, m2, sigma]);
+        let p = Pattern::from_cells(n, cells.len(), |c, b| {
+            b.clear();
+            b.extend_from_slice(&cells[c]);
+        });
+        let mut a = CscMatrix::zeros(&p);
+        let mut add = |i: usize, j: usize, v: f64| a.values[p.find(i, j).unwrap()] += v;
+        for i in 0..nr {
+            add(i, i, 4.0);
+            if i + 1 < nr {
+                add(i, i + 1, -1.0);
+                add(i + 1, i, -1.0);
+            }
+        }
+        for (m, d, w) in [(m1, 2, 1.0), (m1, 3, -0.5), (m2, 2, 1.0), (m2, 3, -0.5), (m3, 4, 0.7), (m3, 5, 0.3), (sigma, m1, 1.0), (sigma, m2, -1.0)] {
+            add(m, d, w);
+            add(d, m, w);
+        }
+        let x_exact: Vec<f64> = (0..n).map(|i| 1.0 + i as f64).collect();
+        let mut b = vec![0.0; n];
+        a.mul_vec(&x_exact, &mut b);
+        for ordering in [FillOrdering::NestedDissection, FillOrdering::Amd] {
+            let mut lu = FaerLu::new(LinearSolverOptions { ordering, ..Default::default() });
+            lu.factorize(&a).unwrap();
+            assert!(lu.factor_stats().is_some(), "{ordering:?}: the static LU is used, no fallback: {}", lu.describe());
+            let mut x = b.clone();
+            lu.solve_in_place(&a, &mut x).unwrap();
+            for i in 0..n {
+                assert!((x[i] - x_exact[i]).abs() < 1e-10, "{ordering:?} {i}: {} vs {}", x[i], x_exact[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn merged_supernodes_hold_the_union_of_their_rows() {
+        // Supernodes {0, 1} (rows 2, 5), {2} (rows 4, 5), {3} (row 4), {4, 5}: joining columns
+        // 1..=2 merges the first two, whose rows are then 4 and 5 (2 is inside).
+        let begin = [0, 2, 3, 4, 6];
+        let patterns = vec![vec![2, 5], vec![4, 5], vec![4], vec![]];
+        let (b, rows) = merge_supernodes(&begin, &patterns, [(1, 2)].into_iter());
+        assert_eq!(b, vec![0, 3, 4, 6]);
+        assert_eq!(rows, vec![vec![4, 5], vec![4], vec![]]);
+        let (b, _) = merge_supernodes(&begin, &patterns, std::iter::empty());
+        assert_eq!(b, begin.to_vec());
     }
 
     #[test]
