@@ -178,9 +178,12 @@ impl PivotingLu {
 /// nonzero-diagonal neighbours. For nested dissection the graph gets, per zero-diagonal dof, a
 /// star joining its nonzero-diagonal neighbours, so that they are never split by a separator and
 /// the dof's delayed elimination does not couple the two sides. Every leading block then is a
-/// saddle-point matrix `[K B^T; B 0]` whose constraint rows have all their couplings eliminated, nonsingular when `K`
-/// is (positive real) and `B` has full rank, so no pivot is structurally zero. Pivoting is
-/// partial inside each supernode's diagonal block only, so the structure is static.
+/// saddle-point matrix `[K B^T; B 0]` whose constraint rows have all their couplings eliminated,
+/// nonsingular when `K` is (positive real) and `B` has full rank, so no pivot is structurally
+/// zero. Where `B` lacks rank (the multiplier modes of an FSI system, which pair with no
+/// velocity), the unknown that constrains a mode shares the diagonal block of the mode's last
+/// multiplier ([`merge_supernodes`]). Pivoting is partial inside each supernode's diagonal block
+/// only, so the structure is static.
 struct StaticSymbolic {
     n: usize,
     /// `perm[new] = old`.
@@ -1172,16 +1175,12 @@ mod tests {
         assert!(err <= 1e-9 * norm(&x_exact));
     }
 
-    #[test]
-    fn a_constraint_on_multipliers_is_eliminated_after_them_by_the_static_lu() {
-        // [[A, B^T, 0], [B, 0, c], [0, c^T, 0]]: a chain of regular dofs, multipliers on pairs of
-        // them and one unknown coupled to the multipliers only (as the removed multiplier modes
-        // of an FSI system); it must come last, not first with its zero pivot.
-        let (nr, nm) = (6, 3);
-        let n = nr + nm + 1;
+    /// A chain of `nr` regular dofs (4 on the diagonal, -1 beside it) and unknowns `nr..n` with a
+    /// zero diagonal, joined by the symmetric `couplings` `(i, j, value)`; checks that the static
+    /// LU (no fallback to pivoting) solves it with each ordering.
+    fn assert_static_lu_solves_chain_saddle(nr: usize, n: usize, couplings: &[(usize, usize, f64)]) {
         let mut cells: Vec<Vec<usize>> = (0..nr - 1).map(|i| vec![i, i + 1]).collect();
-        cells.extend((0..nm).map(|k| vec![2 * k, 2 * k + 1, nr + k]));
-        cells.push((nr..n).collect());
+        cells.extend(couplings.iter().map(|&(i, j, _)| vec![i, j]));
         let p = Pattern::from_cells(n, cells.len(), |c, b| {
             b.clear();
             b.extend_from_slice(&cells[c]);
@@ -1195,55 +1194,9 @@ mod tests {
                 add(i + 1, i, -1.0);
             }
         }
-        for k in 0..nm {
-            for (d, w) in [(2 * k, 1.0), (2 * k + 1, -0.5)] {
-                add(d, nr + k, w);
-                add(nr + k, d, w);
-            }
-            add(nr + k, n - 1, 1.0 + k as f64);
-            add(n - 1, nr + k, 1.0 + k as f64);
-        }
-        let x_exact: Vec<f64> = (0..n).map(|i| 1.0 + i as f64).collect();
-        let mut b = vec![0.0; n];
-        a.mul_vec(&x_exact, &mut b);
-        let mut lu = FaerLu::default();
-        lu.factorize(&a).unwrap();
-        assert!(lu.factor_stats().is_some(), "the static LU is used, no fallback: {}", lu.describe());
-        lu.solve_in_place(&a, &mut b).unwrap();
-        for i in 0..n {
-            assert!((b[i] - x_exact[i]).abs() < 1e-10, "{i}: {} vs {}", b[i], x_exact[i]);
-        }
-    }
-
-    #[test]
-    fn a_multiplier_mode_and_its_constraint_share_a_diagonal_block() {
-        // Two multipliers with the same pairing (the mode z = (1, -1) pairs with nothing, as the
-        // multiplier modes of a 3D FSI system pair with no velocity) and the unknown sigma with
-        // (M z) . lambda = 0: nonsingular, but eliminating both multipliers before sigma meets a
-        // zero pivot; the static LU must take sigma into their block instead of falling back.
-        let nr = 6;
-        let (m1, m2, m3, sigma) = (nr, nr + 1, nr + 2, nr + 3);
-        let n = nr + 4;
-        let mut cells: Vec<Vec<usize>> = (0..nr - 1).map(|i| vec![i, i + 1]).collect();
-        cells.push(vec![2, 3, m1, m2]);
-        cells.push(vec![4, 5, m3]);
-        cells.push(vec![m1, m2, sigma]);
-        let p = Pattern::from_cells(n, cells.len(), |c, b| {
-            b.clear();
-            b.extend_from_slice(&cells[c]);
-        });
-        let mut a = CscMatrix::zeros(&p);
-        let mut add = |i: usize, j: usize, v: f64| a.values[p.find(i, j).unwrap()] += v;
-        for i in 0..nr {
-            add(i, i, 4.0);
-            if i + 1 < nr {
-                add(i, i + 1, -1.0);
-                add(i + 1, i, -1.0);
-            }
-        }
-        for (m, d, w) in [(m1, 2, 1.0), (m1, 3, -0.5), (m2, 2, 1.0), (m2, 3, -0.5), (m3, 4, 0.7), (m3, 5, 0.3), (sigma, m1, 1.0), (sigma, m2, -1.0)] {
-            add(m, d, w);
-            add(d, m, w);
+        for &(i, j, v) in couplings {
+            add(i, j, v);
+            add(j, i, v);
         }
         let x_exact: Vec<f64> = (0..n).map(|i| 1.0 + i as f64).collect();
         let mut b = vec![0.0; n];
@@ -1258,6 +1211,32 @@ mod tests {
                 assert!((x[i] - x_exact[i]).abs() < 1e-10, "{ordering:?} {i}: {} vs {}", x[i], x_exact[i]);
             }
         }
+    }
+
+    #[test]
+    fn a_constraint_on_multipliers_is_eliminated_after_them_by_the_static_lu() {
+        // [[A, B^T, 0], [B, 0, c], [0, c^T, 0]]: a chain of regular dofs, multipliers on pairs of
+        // them and one unknown coupled to the multipliers only (as the removed multiplier modes
+        // of an FSI system); it must come after them, not first with its zero pivot.
+        let (nr, nm) = (6, 3);
+        let n = nr + nm + 1;
+        let mut couplings = Vec::new();
+        for k in 0..nm {
+            couplings.extend([(2 * k, nr + k, 1.0), (2 * k + 1, nr + k, -0.5), (nr + k, n - 1, 1.0 + k as f64)]);
+        }
+        assert_static_lu_solves_chain_saddle(nr, n, &couplings);
+    }
+
+    #[test]
+    fn a_multiplier_mode_and_its_constraint_share_a_diagonal_block() {
+        // Two multipliers with the same pairing (the mode z = (1, -1) pairs with nothing, as the
+        // multiplier modes of a 3D FSI system pair with no velocity) and the unknown sigma with
+        // (M z) . lambda = 0: nonsingular, but eliminating both multipliers before sigma meets a
+        // zero pivot; the static LU must take sigma into their block instead of falling back.
+        let nr = 6;
+        let (m1, m2, m3, sigma) = (nr, nr + 1, nr + 2, nr + 3);
+        let couplings = [(m1, 2, 1.0), (m1, 3, -0.5), (m2, 2, 1.0), (m2, 3, -0.5), (m3, 4, 0.7), (m3, 5, 0.3), (sigma, m1, 1.0), (sigma, m2, -1.0)];
+        assert_static_lu_solves_chain_saddle(nr, nr + 4, &couplings);
     }
 
     #[test]
