@@ -35,7 +35,7 @@ use crate::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
 use crate::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
-use crate::solve::linear::LinearSolver;
+use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::adapt::{
     adapt_with, transfer_p2plus, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, Surface, GAMMA_F_REL_TOL,
@@ -81,6 +81,9 @@ pub enum FsiError {
     Unlocated { facet: usize, point: usize, x: Vec<f64>, reason: String },
     #[error(transparent)]
     Newton(#[from] NewtonError<FsiAssemblyError>),
+    /// A zero pivot, with the unknown it was met at described ([`FsiDiscretization::describe_unknown`]).
+    #[error("{source}; unknown {unknown} is {what}")]
+    SingularAt { unknown: usize, what: String, source: NewtonError<FsiAssemblyError> },
     #[error("restart: {0}")]
     Restart(String),
     #[error("multiplier space: {0}")]
@@ -744,6 +747,50 @@ impl<const D: usize> FsiDiscretization<D> {
         })
     }
 
+    /// What the global unknown `i` is, in words with a position (for error messages): a fluid
+    /// velocity component at a node, a fluid pressure dof of a cell, a solid displacement component
+    /// at a node (reference position) or a solid pressure dof, a multiplier component at a vertex
+    /// of a gamma_f facet, or the unknown that removes a multiplier mode.
+    pub fn describe_unknown(&self, model: &FsiModel<D>, i: usize) -> String {
+        const AXES: [&str; 3] = ["x", "y", "z"];
+        let at = |p: &[f64; D]| format!("({})", p.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", "));
+        let node_and_component = |f: &fdfsi_fem::dofs::Field, i: usize| ((i - f.offset) / f.components, (i - f.offset) % f.components);
+        let (os, ol) = (self.solid_offset(), self.multiplier_offset());
+        if i < os {
+            let (v, p) = (&self.flow.layout.fields[0], &self.flow.layout.fields[1]);
+            if v.range().contains(&i) {
+                let (node, a) = node_and_component(v, i);
+                return format!("the fluid velocity {} at {}", AXES[a], at(&self.flow.velocity_nodes[node]));
+            }
+            let (node, _) = node_and_component(p, i);
+            return format!("pressure dof {} of fluid cell {}", node % (D + 1), node / (D + 1));
+        }
+        if i < ol {
+            let f = model.solid.displacement_field();
+            if f.range().contains(&(i - os)) {
+                let (node, a) = node_and_component(f, i - os);
+                return format!("the solid displacement {} at reference position {}", AXES[a], at(&model.solid.nodes_x0[node]));
+            }
+            return format!("solid pressure unknown {}", i - os - f.num_dofs());
+        }
+        let (m, ne) = (i - ol, self.coupling.num_elements());
+        if m < ne * D * D {
+            let (e, k, a) = (m / (D * D), m / D % D, m % D);
+            let vertex = self.adapted.gamma_f[e].vertices[k];
+            return format!("the multiplier {} at vertex {k} of gamma_f facet {e}, {}", AXES[a], at(&self.adapted.mesh.points[vertex]));
+        }
+        let first_kernel = ne * D * D + self.coupling.num_chains * D;
+        if m < first_kernel {
+            return format!("the trace-mode multiplier {} of gamma_f chain {}", AXES[(m - ne * D * D) % D], (m - ne * D * D) / D);
+        }
+        let j = m - first_kernel;
+        let facet = self.kernel.get(j).and_then(|y| y.first()).map(|&(q, _)| q / (D * D));
+        match facet {
+            Some(e) => format!("the unknown removing multiplier mode {j} (around gamma_f facet {e})"),
+            None => format!("multiplier unknown {m}"),
+        }
+    }
+
     /// Force of the fluid on the body, `int_gamma_f lambda ds` (axisymmetric: times `2 pi`).
     pub fn multiplier_force(&self, x: &[f64], formulation: crate::physics::fluid::Formulation) -> [f64; D] {
         let c = &self.coupling;
@@ -1024,7 +1071,11 @@ pub fn step<const D: usize>(
         solid_target: target.as_deref(),
     };
     let clock = Instant::now();
-    let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs))?;
+    let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs))
+        .map_err(|e| match e {
+            NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => FsiError::SingularAt { unknown, what: disc.describe_unknown(model, unknown), source: e },
+            other => FsiError::Newton(other),
+        })?;
     for &(d, v) in &fixed {
         x[d] = v;
     }

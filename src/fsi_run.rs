@@ -117,7 +117,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     for k in first..=total {
         let dt = (ts.end - state.time).min(ts.dt);
         let (next, st) = step(&model, &state, dt, &mut lu, &case.solver.newton).map_err(|e| match e {
-            FsiError::Newton(n) => invalid(format!("step {k} (t = {:.6e}): {n}", state.time + dt)),
+            e @ (FsiError::Newton(_) | FsiError::SingularAt { .. }) => invalid(format!("step {k} (t = {:.6e}): {e}", state.time + dt)),
             other => RunError::Fsi(other),
         })?;
         let r = &st.report;

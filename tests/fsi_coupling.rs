@@ -220,3 +220,27 @@ type = "no-slip"
     let centre = model.current_solid_mesh(&state.solid_x).points.iter().filter(|p| p[1] == 0.0).map(|p| p[0]).fold(f64::MAX, f64::min);
     assert!(centre > 1.976, "centre at x = {centre}");
 }
+
+/// Error messages name the unknown of a zero pivot by field and position.
+#[test]
+fn unknowns_are_described_by_field_and_position() {
+    let model = tiny_model();
+    let base = vec![0.0; model.solid.num_dofs()];
+    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let (vel, pres) = (&disc.flow.layout.fields[0], &disc.flow.layout.fields[1]);
+    let x = disc.flow.velocity_nodes[3];
+    assert_eq!(disc.describe_unknown(&model, vel.dof(3, 1)), format!("the fluid velocity y at ({:.6}, {:.6})", x[0], x[1]));
+    assert_eq!(disc.describe_unknown(&model, pres.dof(2 * 3 + 1, 0)), "pressure dof 1 of fluid cell 2");
+    let sf = model.solid.displacement_field();
+    let x0 = model.solid.nodes_x0[5];
+    assert_eq!(
+        disc.describe_unknown(&model, disc.solid_offset() + sf.dof(5, 0)),
+        format!("the solid displacement x at reference position ({:.6}, {:.6})", x0[0], x0[1])
+    );
+    let e = disc.coupling.num_elements() - 1;
+    let v = disc.adapted.mesh.points[disc.adapted.gamma_f[e].vertices[1]];
+    assert_eq!(
+        disc.describe_unknown(&model, disc.multiplier_dof(e, 1, 0)),
+        format!("the multiplier x at vertex 1 of gamma_f facet {e}, ({:.6}, {:.6})", v[0], v[1])
+    );
+}

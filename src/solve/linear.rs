@@ -32,6 +32,10 @@ pub enum LinearSolveError {
     Symbolic(String),
     #[error("numeric LU factorisation failed (singular or ill-posed system: check boundary conditions): {0}")]
     Numeric(String),
+    /// The static LU met a pivot below `1e-2 eps` times the largest entry at `unknown` (the
+    /// caller's numbering), `step`-th in the elimination order.
+    #[error("numeric LU factorisation failed (singular or ill-posed system: check boundary conditions): zero pivot {pivot:.3e} (largest entry {largest:.3e}) in the static LU at unknown {unknown} (elimination step {step})")]
+    ZeroPivot { pivot: f64, largest: f64, unknown: usize, step: usize },
     #[error("linear solve is inaccurate: relative residual {residual:.3e} after {refinements} refinement steps (tolerance {tolerance:.1e})")]
     Inaccurate { residual: f64, refinements: usize, tolerance: f64 },
     #[error("the linear solve produced a non-finite value (NaN or infinity)")]
@@ -497,11 +501,7 @@ impl StaticLu {
                 for i in 0..k {
                     let piv = d[(i, i)];
                     if !(piv.abs() > tiny) || !piv.is_finite() {
-                        return Err(LinearSolveError::Numeric(format!(
-                            "zero pivot {piv:.3e} (largest entry {amax:.3e}) in the static LU at unknown {} (elimination step {})",
-                            sym.perm[b + i],
-                            b + i
-                        )));
+                        return Err(LinearSolveError::ZeroPivot { pivot: piv, largest: amax, unknown: sym.perm[b + i], step: b + i });
                     }
                 }
                 self.piv[b..e].copy_from_slice(&perm[..k]);
