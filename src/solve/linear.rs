@@ -106,6 +106,10 @@ pub struct FactorStats {
     /// Seconds spent in the fill-reducing ordering and in the whole symbolic analysis.
     pub ordering_seconds: f64,
     pub symbolic_seconds: f64,
+    /// Unknowns that remove multiplier modes (zero diagonal, zero-diagonal neighbours only), and
+    /// of those the ones in the supernode of their last multiplier ([`merge_supernodes`]).
+    pub mode_unknowns: usize,
+    pub mode_unknowns_joined: usize,
 }
 
 /// Statistics of the last solve.
@@ -124,11 +128,16 @@ pub trait LinearSolver {
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError>;
     /// Number of symbolic factorisations done so far.
     fn symbolic_factorizations(&self) -> usize;
-    /// Whether a factorisation of a matrix with the pattern of `a` is held (from an earlier
-    /// `factorize`), so that `solve_in_place` may use it as a preconditioner for `a`.
-    fn holds_factorization_for(&self, _a: &CscMatrix<'_>) -> bool {
+    /// Whether to try, before factorising `a`, the factorisation held from an earlier `factorize`
+    /// of a matrix with the pattern of `a` (as a preconditioner: `solve_in_place` refines against
+    /// `a`). A Newton solve asks once, at its start; the answer may weigh how such tries went
+    /// ([`LinearSolver::held_factorization_served`]).
+    fn offer_held_factorization(&mut self, _a: &CscMatrix<'_>) -> bool {
         false
     }
+    /// Reports whether the held factorisation that [`LinearSolver::offer_held_factorization`]
+    /// offered served (the solve reached its accuracy) or the matrix had to be factorised.
+    fn held_factorization_served(&mut self, _served: bool) {}
 }
 
 /// Which factorisation [`FaerLu`] uses.
@@ -292,8 +301,8 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
     let ordering_seconds = t_order.elapsed().as_secs_f64();
     // Sort key: regular dof -> (2 * position), zero-diagonal dof -> (2 * max neighbour position + 1).
     // A zero-diagonal dof with zero-diagonal neighbours only (an unknown `sigma` that removes a
-    // multiplier mode, `fsi::multiplier_kernel`) takes the largest key of its neighbours: it
-    // follows the last of them (ties sort by index, and these unknowns are numbered last).
+    // multiplier mode, `fsi::multiplier_kernel`) takes the largest key of its (other)
+    // neighbours: it follows the last of them (ties sort such unknowns after the others).
     let neighbours = |j: usize| p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().copied().filter(move |&i| i != j);
     let mut key = vec![usize::MAX; n];
     for j in 0..n {
@@ -303,12 +312,13 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
             key[j] = 2 * q + 1;
         }
     }
-    let mode_unknowns: Vec<usize> = (0..n).filter(|&j| key[j] == usize::MAX).collect();
+    let is_mode: Vec<bool> = key.iter().map(|&k| k == usize::MAX).collect();
+    let mode_unknowns: Vec<usize> = (0..n).filter(|&j| is_mode[j]).collect();
     for &j in &mode_unknowns {
-        key[j] = neighbours(j).map(|i| key[i]).filter(|&k| k != usize::MAX).max().unwrap_or(2 * m + 1);
+        key[j] = neighbours(j).filter(|&i| !is_mode[i]).map(|i| key[i]).max().unwrap_or(2 * m + 1);
     }
     let mut perm: Vec<usize> = (0..n).collect();
-    perm.sort_by_key(|&j| (key[j], j));
+    perm.sort_by_key(|&j| (key[j], is_mode[j], j));
     let mut perm_inv = vec![0usize; n];
     for (new, &old) in perm.iter().enumerate() {
         perm_inv[old] = new;
@@ -324,13 +334,22 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         SymbolicCholeskyRaw::Supernodal(sn) => sn,
         SymbolicCholeskyRaw::Simplicial(_) => return Err(err("expected a supernodal structure".into())),
     };
-    let patterns: Vec<Vec<usize>> = (0..sn.n_supernodes()).map(|s| sn.supernode(s).pattern().to_vec()).collect();
+    let patterns: Vec<Vec<usize>> = (0..sn.n_supernodes())
+        .map(|s| {
+            let mut r = sn.supernode(s).pattern().to_vec();
+            r.sort_unstable();
+            r
+        })
+        .collect();
     let mut begin: Vec<usize> = sn.supernode_begin().to_vec();
     begin.push(n);
     // Each such unknown joins the supernode of the last multiplier it couples to (see
     // `merge_supernodes`).
-    let mode_spans = mode_unknowns.iter().map(|&j| (neighbours(j).map(|i| perm_inv[i]).max().unwrap_or(perm_inv[j]).min(perm_inv[j]), perm_inv[j]));
-    let (sn_begin, supernode_rows) = merge_supernodes(&begin, &patterns, mode_spans);
+    let mode_spans: Vec<(usize, usize)> = mode_unknowns
+        .iter()
+        .map(|&j| (neighbours(j).filter(|&i| !is_mode[i]).map(|i| perm_inv[i]).max().unwrap_or(perm_inv[j]).min(perm_inv[j]), perm_inv[j]))
+        .collect();
+    let (sn_begin, supernode_rows) = merge_supernodes(&begin, &patterns, mode_spans.iter().copied());
     let nsup = sn_begin.len() - 1;
     let mut row_ptr = Vec::with_capacity(nsup + 1);
     let mut rows = Vec::new();
@@ -397,22 +416,40 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
             };
         }
     }
-    let stats = FactorStats { ordering, supernodes: nsup, nnz_lu: len_val, flops, threaded_flops, ordering_seconds, symbolic_seconds: t_start.elapsed().as_secs_f64() };
+    let mode_unknowns_joined = mode_spans.iter().filter(|&&(first, last)| owner[first] == owner[last]).count();
+    let stats = FactorStats {
+        ordering,
+        supernodes: nsup,
+        nnz_lu: len_val,
+        flops,
+        threaded_flops,
+        ordering_seconds,
+        symbolic_seconds: t_start.elapsed().as_secs_f64(),
+        mode_unknowns: mode_spans.len(),
+        mode_unknowns_joined,
+    };
     Ok(StaticSymbolic { n, perm, sn_begin, row_ptr, rows, l_ptr, u_ptr, owner, scatter, len_val, max_r, max_k, stats })
 }
 
-/// Merges consecutive supernodes (first columns `begin`, `nsup + 1` entries; off-diagonal rows
-/// `patterns`) so that each column span `(first, last)` of `spans` lies in one supernode; returns
-/// the new first columns and sorted off-diagonal rows.
+/// Merges consecutive supernodes (first columns `begin`, `nsup + 1` entries; sorted off-diagonal
+/// rows `patterns`) so that each column span `(first, last)` of `spans` lies in one supernode,
+/// where that is possible; returns the new first columns and sorted off-diagonal rows.
 ///
 /// The spans join each unknown `sigma` that removes a multiplier mode to the last multiplier it
-/// couples to (it follows that multiplier in the order, after at most a few others). On a mode `z` the pairing of the multipliers with the velocities (nearly) vanishes,
-/// so the Schur complement of the multipliers is (nearly) singular in the direction `z` until
-/// `sigma`, whose equation is `(M z) . lambda = 0`, is eliminated with them: in one diagonal
-/// block the partial pivoting finds the nonsingular `[S (M z); (M z)^T 0]`, in separate blocks
-/// the last multiplier of the mode had a zero pivot (model problem 4, fine mesh: 3e-16 against
-/// entries of 582). A merged supernode holds the union of its parts' rows (a dense diagonal block
-/// holds any fill among its columns), so any consecutive supernodes may merge.
+/// couples to (it follows that multiplier in the order, after at most a few others). On a mode `z`
+/// the pairing of the multipliers with the velocities (nearly) vanishes, so the Schur complement
+/// of the multipliers is (nearly) singular in the direction `z` until `sigma`, whose equation is
+/// `(M z) . lambda = 0`, is eliminated with them: in one diagonal block the partial pivoting
+/// finds the nonsingular `[S (M z); (M z)^T 0]`, in separate blocks the last multiplier of the
+/// mode had a zero pivot (model problem 4, fine mesh: 3e-16 against entries of 582). (All `D x D`
+/// multipliers of a gamma_f facet share a key, so the mode's last facet is in that block. Should
+/// a combination of several modes vanish on it, the zero pivot would come earlier.)
+///
+/// Supernode `s` joins `s + 1` only where its rows outside `s + 1`'s columns are rows of `s + 1`
+/// (as along a path of the elimination tree, which the columns between a multiplier and `sigma`
+/// form: they all follow the same regular dof): the merged block then has `s + 1`'s rows, and every
+/// update it makes lands inside the factor structure. Elsewhere merging would add update entries
+/// (zero, but outside the structure), so those spans stay split.
 fn merge_supernodes(begin: &[usize], patterns: &[Vec<usize>], spans: impl Iterator<Item = (usize, usize)>) -> (Vec<usize>, Vec<Vec<usize>>) {
     let nsup = patterns.len();
     let n = begin[nsup];
@@ -425,11 +462,12 @@ fn merge_supernodes(begin: &[usize], patterns: &[Vec<usize>], spans: impl Iterat
     for (first, last) in spans {
         joined[owner[first]..owner[last]].fill(true);
     }
+    let chain = |s: usize| patterns[s].iter().filter(|&&i| i >= begin[s + 2]).all(|i| patterns[s + 1].binary_search(i).is_ok());
     let (mut sn_begin, mut rows) = (vec![0usize], Vec::new());
     let mut acc: Vec<usize> = Vec::new();
     for s in 0..nsup {
         acc.extend_from_slice(&patterns[s]);
-        if !joined[s] {
+        if !(joined[s] && chain(s)) {
             let end = begin[s + 1];
             acc.retain(|&i| i >= end);
             acc.sort_unstable();
@@ -673,6 +711,10 @@ pub struct FaerLu {
     active: Active,
     symbolic_count: usize,
     scratch: std::cell::RefCell<Vec<f64>>,
+    /// Tries of a held factorisation that failed in a row, and offers still to decline
+    /// ([`LinearSolver::offer_held_factorization`]).
+    held_failures: u32,
+    held_declines: u32,
 }
 
 impl FaerLu {
@@ -692,6 +734,8 @@ impl FaerLu {
             active: Active::None,
             symbolic_count: 0,
             scratch: std::cell::RefCell::new(Vec::new()),
+            held_failures: 0,
+            held_declines: 0,
         }
     }
 
@@ -727,8 +771,8 @@ impl FaerLu {
             Active::Static => {
                 let s = &self.static_lu.as_ref().expect("active").sym.stats;
                 format!(
-                    "static supernodal LU ({:?} ordering): {} supernodes, nnz(L+U) {}, {:.3e} flops, ordering {:.3}s, symbolic {:.3}s",
-                    s.ordering, s.supernodes, s.nnz_lu, s.flops, s.ordering_seconds, s.symbolic_seconds
+                    "static supernodal LU ({:?} ordering): {} supernodes, nnz(L+U) {}, {:.3e} flops, ordering {:.3}s, symbolic {:.3}s; {} of {} mode unknowns in their last multiplier's supernode",
+                    s.ordering, s.supernodes, s.nnz_lu, s.flops, s.ordering_seconds, s.symbolic_seconds, s.mode_unknowns_joined, s.mode_unknowns
                 )
             }
             Active::Pivoting => "faer partial-pivoting LU (COLAMD)".into(),
@@ -898,8 +942,29 @@ impl LinearSolver for FaerLu {
         self.symbolic_count
     }
 
-    fn holds_factorization_for(&self, a: &CscMatrix<'_>) -> bool {
-        !matches!(self.active, Active::None) && self.key == Some(pattern_key(a.pattern))
+    /// Offers a held factorisation of the same pattern unless recent tries failed: after `k`
+    /// failures in a row the next `2^k - 1` offers (at most 31) are declined. In 3D FSI the
+    /// adapted mesh keeps its pattern in many steps but its values change too much near gamma_f
+    /// for the previous step's factors to serve (model problem 4: never), and each try cost a
+    /// few refinement solves.
+    fn offer_held_factorization(&mut self, a: &CscMatrix<'_>) -> bool {
+        if matches!(self.active, Active::None) || self.key != Some(pattern_key(a.pattern)) {
+            return false;
+        }
+        if self.held_declines > 0 {
+            self.held_declines -= 1;
+            return false;
+        }
+        true
+    }
+
+    fn held_factorization_served(&mut self, served: bool) {
+        if served {
+            self.held_failures = 0;
+        } else {
+            self.held_failures += 1;
+            self.held_declines = (1 << self.held_failures.min(5)) - 1;
+        }
     }
 }
 
@@ -1204,7 +1269,8 @@ mod tests {
         for ordering in [FillOrdering::NestedDissection, FillOrdering::Amd] {
             let mut lu = FaerLu::new(LinearSolverOptions { ordering, ..Default::default() });
             lu.factorize(&a).unwrap();
-            assert!(lu.factor_stats().is_some(), "{ordering:?}: the static LU is used, no fallback: {}", lu.describe());
+            let st = lu.factor_stats().unwrap_or_else(|| panic!("{ordering:?}: the static LU is used, no fallback: {}", lu.describe()));
+            assert_eq!(st.mode_unknowns_joined, st.mode_unknowns, "{ordering:?}: {}", lu.describe());
             let mut x = b.clone();
             lu.solve_in_place(&a, &mut x).unwrap();
             for i in 0..n {
@@ -1240,9 +1306,10 @@ mod tests {
     }
 
     #[test]
-    fn merged_supernodes_hold_the_union_of_their_rows() {
+    fn supernodes_merge_along_a_path_of_the_elimination_tree_only() {
         // Supernodes {0, 1} (rows 2, 5), {2} (rows 4, 5), {3} (row 4), {4, 5}: joining columns
-        // 1..=2 merges the first two, whose rows are then 4 and 5 (2 is inside).
+        // 1..=2 merges the first two (the first's rows beyond column 2 are rows of the second),
+        // whose rows are then 4 and 5.
         let begin = [0, 2, 3, 4, 6];
         let patterns = vec![vec![2, 5], vec![4, 5], vec![4], vec![]];
         let (b, rows) = merge_supernodes(&begin, &patterns, [(1, 2)].into_iter());
@@ -1250,6 +1317,10 @@ mod tests {
         assert_eq!(rows, vec![vec![4, 5], vec![4], vec![]]);
         let (b, _) = merge_supernodes(&begin, &patterns, std::iter::empty());
         assert_eq!(b, begin.to_vec());
+        // {2} and {3} are siblings ({2}'s row 5 is no row of {3}): joining 2..=3 is refused.
+        let (b, rows) = merge_supernodes(&begin, &patterns, [(2, 3)].into_iter());
+        assert_eq!(b, begin.to_vec());
+        assert_eq!(rows, patterns);
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //!
 //! With `reuse_factorization`, iterations after the first (and the first too, when the solver
 //! still holds a factorisation of a matrix with the same pattern, e.g. from the previous time
-//! step on an unchanged mesh) solve `K(x_k) dx = -R(x_k)` with the factors of an earlier `K` as a
+//! step on an unchanged mesh, and offers it: [`LinearSolver::offer_held_factorization`]) solve `K(x_k) dx = -R(x_k)` with the factors of an earlier `K` as a
 //! preconditioner: the linear solver's iterative refinement
 //! against the current `K` (see [`LinearSolver::solve_in_place`]) either reaches its accuracy
 //! (then the step is a Newton step up to that linear residual, and no numeric factorisation is
@@ -51,6 +51,9 @@ pub struct NewtonReport {
     pub update_norms: Vec<f64>,
     /// Numeric factorisations done (one per iteration without `reuse_factorization`).
     pub factorizations: usize,
+    /// Whether the factorisation held from an earlier solve was tried first and served (`None`:
+    /// not tried, see [`LinearSolver::offer_held_factorization`]).
+    pub held_factorization: Option<bool>,
     /// Seconds spent assembling, factorising and solving.
     pub assemble_seconds: f64,
     pub factorize_seconds: f64,
@@ -92,8 +95,9 @@ where
     let mut report = NewtonReport::default();
     let mut r0 = None;
     // Whether the solver's factorisation may serve the next iteration: at first, one it holds
-    // for this pattern (an earlier solve's).
-    let mut reusable = solver.holds_factorization_for(&k);
+    // for this pattern (an earlier solve's), if it offers it.
+    let mut reusable = options.reuse_factorization && solver.offer_held_factorization(&k);
+    let mut held_trial = reusable;
     let mut rhs_copy = Vec::new();
     loop {
         let t = std::time::Instant::now();
@@ -127,7 +131,12 @@ where
                 Err(_) => rhs.clone_from(&rhs_copy),
             }
             report.solve_seconds += t.elapsed().as_secs_f64();
+            if held_trial {
+                report.held_factorization = Some(solved);
+                solver.held_factorization_served(solved);
+            }
         }
+        held_trial = false;
         if !solved {
             let t = std::time::Instant::now();
             solver.factorize(&k)?;
@@ -195,6 +204,21 @@ mod tests {
     }
 
     #[test]
+    fn held_factorisations_that_fail_are_offered_less_often() {
+        // Solves from x = 3 and x = 0 in turn: the held factors (of the Jacobian at the last
+        // solve's start, 2 + 13.5 or 2 on the diagonal) do not serve the next. After k failures
+        // in a row the next 2^k - 1 solves factorise without trying.
+        let mut lu = FaerLu::default();
+        let mut tries = Vec::new();
+        for k in 0..8 {
+            let (_, r) = solve_chain_with(true, &mut lu, 1.0, vec![if k % 2 == 0 { 3.0 } else { 0.0 }; 40]);
+            tries.push(r.held_factorization);
+        }
+        let f = Some(false);
+        assert_eq!(tries, vec![None, f, None, f, None, None, None, f]);
+    }
+
+    #[test]
     fn a_held_factorisation_of_the_same_pattern_serves_the_next_solve() {
         // As the next time step on an unchanged mesh: a nearby system, same pattern.
         let mut lu = FaerLu::default();
@@ -202,6 +226,7 @@ mod tests {
         let (x, next) = solve_chain_with(true, &mut lu, 1.001, x1.clone());
         assert!(first.factorizations >= 1);
         assert_eq!(next.factorizations, 0, "the held factorisation preconditions the next solve");
+        assert_eq!(next.held_factorization, Some(true));
         let (full, _) = solve_chain_with(false, &mut FaerLu::default(), 1.001, x1);
         let diff = full.iter().zip(&x).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(diff < 1e-11, "{diff}");
