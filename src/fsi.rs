@@ -82,8 +82,8 @@ pub enum FsiError {
     #[error(transparent)]
     Newton(#[from] NewtonError<FsiAssemblyError>),
     /// A zero pivot, with the unknown it was met at described ([`FsiDiscretization::describe_unknown`]).
-    #[error("{source}; unknown {unknown} is {what}")]
-    SingularAt { unknown: usize, what: String, source: NewtonError<FsiAssemblyError> },
+    #[error("{error}; unknown {unknown} is {what}")]
+    SingularAt { unknown: usize, what: String, error: NewtonError<FsiAssemblyError> },
     #[error("restart: {0}")]
     Restart(String),
     #[error("multiplier space: {0}")]
@@ -706,7 +706,7 @@ impl<const D: usize> FsiDiscretization<D> {
             }
         }
         // The kernel of the multiplier space (see `kernel`).
-        let first = ol + self.multiplier_dofs - self.kernel.len();
+        let first = self.kernel_dof(0);
         for (j, y) in self.kernel.iter().enumerate() {
             let sj = first + j;
             let mut r = 0.0;
@@ -747,47 +747,58 @@ impl<const D: usize> FsiDiscretization<D> {
         })
     }
 
+    /// Global unknown `sigma_j` of the `j`-th removed multiplier mode (see [`Self::kernel`]).
+    pub fn kernel_dof(&self, j: usize) -> usize {
+        self.multiplier_offset() + self.multiplier_dofs - self.kernel.len() + j
+    }
+
     /// What the global unknown `i` is, in words with a position (for error messages): a fluid
     /// velocity component at a node, a fluid pressure dof of a cell, a solid displacement component
-    /// at a node (reference position) or a solid pressure dof, a multiplier component at a vertex
-    /// of a gamma_f facet, or the unknown that removes a multiplier mode.
+    /// at a node (reference position) or a solid pressure dof of a cell, a multiplier component at
+    /// a vertex of a gamma_f facet, a trace-mode multiplier, or the unknown that removes a
+    /// multiplier mode. Components are named `x, y, z`, or `z, r` when axisymmetric.
     pub fn describe_unknown(&self, model: &FsiModel<D>, i: usize) -> String {
-        const AXES: [&str; 3] = ["x", "y", "z"];
+        let axes: [&str; 3] = match model.problem.fluid.formulation {
+            crate::physics::fluid::Formulation::Axisymmetric => ["z", "r", "?"],
+            _ => ["x", "y", "z"],
+        };
         let at = |p: &[f64; D]| format!("({})", p.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", "));
         let node_and_component = |f: &fdfsi_fem::dofs::Field, i: usize| ((i - f.offset) / f.components, (i - f.offset) % f.components);
+        let cell_dof = |f: &fdfsi_fem::dofs::Field, i: usize, side: &str| {
+            let (node, _) = node_and_component(f, i);
+            format!("{side} pressure dof {} of cell {}", node % f.nodes.per_cell, node / f.nodes.per_cell)
+        };
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
         if i < os {
             let (v, p) = (&self.flow.layout.fields[0], &self.flow.layout.fields[1]);
             if v.range().contains(&i) {
                 let (node, a) = node_and_component(v, i);
-                return format!("the fluid velocity {} at {}", AXES[a], at(&self.flow.velocity_nodes[node]));
+                return format!("the fluid velocity {} at {}", axes[a], at(&self.flow.velocity_nodes[node]));
             }
-            let (node, _) = node_and_component(p, i);
-            return format!("pressure dof {} of fluid cell {}", node % (D + 1), node / (D + 1));
+            return cell_dof(p, i, "fluid");
         }
         if i < ol {
-            let f = model.solid.displacement_field();
-            if f.range().contains(&(i - os)) {
-                let (node, a) = node_and_component(f, i - os);
-                return format!("the solid displacement {} at reference position {}", AXES[a], at(&model.solid.nodes_x0[node]));
+            let fields = &model.solid.layout.fields;
+            if fields[0].range().contains(&(i - os)) {
+                let (node, a) = node_and_component(&fields[0], i - os);
+                return format!("the solid displacement {} at reference position {}", axes[a], at(&model.solid.nodes_x0[node]));
             }
-            return format!("solid pressure unknown {}", i - os - f.num_dofs());
+            return cell_dof(&fields[1], i - os, "solid");
         }
         let (m, ne) = (i - ol, self.coupling.num_elements());
         if m < ne * D * D {
             let (e, k, a) = (m / (D * D), m / D % D, m % D);
             let vertex = self.adapted.gamma_f[e].vertices[k];
-            return format!("the multiplier {} at vertex {k} of gamma_f facet {e}, {}", AXES[a], at(&self.adapted.mesh.points[vertex]));
+            return format!("the multiplier {} at vertex {k} of gamma_f facet {e}, {}", axes[a], at(&self.adapted.mesh.points[vertex]));
         }
-        let first_kernel = ne * D * D + self.coupling.num_chains * D;
-        if m < first_kernel {
-            return format!("the trace-mode multiplier {} of gamma_f chain {}", AXES[(m - ne * D * D) % D], (m - ne * D * D) / D);
+        if i < self.kernel_dof(0) {
+            let c = m - ne * D * D;
+            return format!("the trace-mode multiplier {} of gamma_f chain {}", axes[c % D], c / D);
         }
-        let j = m - first_kernel;
-        let facet = self.kernel.get(j).and_then(|y| y.first()).map(|&(q, _)| q / (D * D));
-        match facet {
-            Some(e) => format!("the unknown removing multiplier mode {j} (around gamma_f facet {e})"),
-            None => format!("multiplier unknown {m}"),
+        let j = i - self.kernel_dof(0);
+        match self.kernel.get(j).and_then(|y| y.first()) {
+            Some(&(q, _)) => format!("the unknown removing multiplier mode {j} (around gamma_f facet {})", q / (D * D)),
+            None => format!("out of range (the system has {} unknowns)", self.num_dofs()),
         }
     }
 
@@ -1073,7 +1084,7 @@ pub fn step<const D: usize>(
     let clock = Instant::now();
     let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs))
         .map_err(|e| match e {
-            NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => FsiError::SingularAt { unknown, what: disc.describe_unknown(model, unknown), source: e },
+            NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => FsiError::SingularAt { unknown, what: disc.describe_unknown(model, unknown), error: e },
             other => FsiError::Newton(other),
         })?;
     for &(d, v) in &fixed {

@@ -230,13 +230,16 @@ fn unknowns_are_described_by_field_and_position() {
     let (vel, pres) = (&disc.flow.layout.fields[0], &disc.flow.layout.fields[1]);
     let x = disc.flow.velocity_nodes[3];
     assert_eq!(disc.describe_unknown(&model, vel.dof(3, 1)), format!("the fluid velocity y at ({:.6}, {:.6})", x[0], x[1]));
-    assert_eq!(disc.describe_unknown(&model, pres.dof(2 * 3 + 1, 0)), "pressure dof 1 of fluid cell 2");
+    assert_eq!(disc.describe_unknown(&model, pres.dof(2 * 3 + 1, 0)), "fluid pressure dof 1 of cell 2");
     let sf = model.solid.displacement_field();
     let x0 = model.solid.nodes_x0[5];
     assert_eq!(
         disc.describe_unknown(&model, disc.solid_offset() + sf.dof(5, 0)),
         format!("the solid displacement x at reference position ({:.6}, {:.6})", x0[0], x0[1])
     );
+    let sp = &model.solid.layout.fields[1];
+    assert_eq!(disc.describe_unknown(&model, disc.solid_offset() + sp.dof(sp.nodes.per_cell + 2, 0)), "solid pressure dof 2 of cell 1");
+    assert!(disc.describe_unknown(&model, disc.num_dofs()).starts_with("out of range"));
     let e = disc.coupling.num_elements() - 1;
     let v = disc.adapted.mesh.points[disc.adapted.gamma_f[e].vertices[1]];
     assert_eq!(
