@@ -196,8 +196,11 @@ pub struct Timings {
     pub solve: f64,
     /// Quantities, history, fields and checkpoints.
     pub output: f64,
-    /// Wall time of the whole run; for a resumed run, of all its parts (the phases, too, are
-    /// summed over the parts).
+    /// Wall time of the whole run; for a resumed run, of all its parts (each earlier part counted
+    /// from the setup of its time loop: its case check and mesh reading, a few seconds, are not
+    /// carried). The step phases (adapt, transfer, assemble, factorize, solve, output, and an
+    /// FSI run's discretize) are summed over the parts; `mesh` and a flow run's `discretize` are
+    /// the last part's.
     pub total: f64,
 }
 

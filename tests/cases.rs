@@ -1,6 +1,7 @@
 //! Every case in `cases/` runs and reproduces its documented check (see each file's header).
 
 use fdfsi::case::Case;
+use fdfsi::checkpoint::Checkpoint;
 use fdfsi::run::{run_case, RunOptions, RunSummary, BUILTIN_CASES};
 use fdfsi::fem::vtk::{read_pvd, read_vtu};
 use std::path::{Path, PathBuf};
@@ -506,15 +507,20 @@ fn case_file(name: &str) -> (Case, PathBuf) {
 }
 
 /// The output folder of a long case run. With `FDFSI_LONG_RUNS=DIR` the case runs into
-/// `DIR/NAME` unless a finished run is there already (its `summary.json`), so runs made with
-/// `fdfsi run CASE --out DIR/NAME` (and resumed, if need be) are checked without running again.
+/// `DIR/NAME` with a checkpoint every step, resumes there if a checkpoint is there, and is not run
+/// again if a finished run is there (its `summary.json`; its `case.toml` must be the case's), so
+/// runs made with `fdfsi run CASE --out DIR/NAME` are checked without running again.
 fn long_run(name: &str) -> PathBuf {
     let Some(dir) = std::env::var_os("FDFSI_LONG_RUNS") else { return run(name).1 };
     let out = PathBuf::from(dir).join(name);
-    if !out.join("summary.json").exists() {
-        let (case, cases) = case_file(name);
-        run_case(&case, &RunOptions::new(out.clone(), cases), &mut |_: &str| {}).unwrap();
+    let (case, cases) = case_file(name);
+    if out.join("summary.json").exists() {
+        let used = Case::from_toml_str(&std::fs::read_to_string(out.join("case.toml")).unwrap(), "case.toml").unwrap();
+        assert_eq!(used.to_toml(), case.to_toml(), "{} was run with another case than cases/{name}.toml", out.display());
+        return out;
     }
+    let (case, options) = if Checkpoint::path(&out).exists() { RunOptions::resume(&out).unwrap() } else { (case, RunOptions::new(out.clone(), cases)) };
+    run_case(&case, &RunOptions { checkpoint_every: Some(1), ..options }, &mut |_: &str| {}).unwrap();
     out
 }
 
@@ -530,6 +536,7 @@ fn model_problem_4_follows_model_problem_3() {
     let out4f = long_run("model-problem-4-fine");
     let w3 = history_columns(&out3)["centre_displacement"].clone();
     for out in [&out4, &out4f] {
+        assert_eq!(history_columns(out)["time"].len(), 60, "{}: 60 steps", out.display());
         check_membrane_equilibrium(out, 2);
     }
     let w4 = history_columns(&out4)["centre_displacement"].clone();
