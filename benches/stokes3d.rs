@@ -33,6 +33,7 @@ use faer::sparse::linalg::lu::factorize_symbolic_lu;
 use faer::sparse::SymbolicSparseColMatRef;
 use fdfsi::flow::{flow_errors, ExactFlow, FlowDiscretization, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
+use fdfsi::run::peak_resident_mib;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi::verify::manufactured::{Manufactured, Stokes3d};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -75,12 +76,7 @@ fn sizes() -> Vec<usize> {
 
 /// Peak resident set size (`VmHWM`) of this process in KiB.
 fn vm_hwm_kib() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmHWM:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-        .unwrap_or(0)
+    (peak_resident_mib().unwrap_or(0.0) * 1024.0).round() as u64
 }
 
 fn mib(kib: u64) -> f64 {

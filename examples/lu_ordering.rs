@@ -19,16 +19,6 @@ use fdfsi_fem::sparse::CscMatrix;
 use std::path::Path;
 use std::time::Instant;
 
-fn vm_hwm_mib() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmHWM:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
-        .unwrap_or(0.0)
-        / 1024.0
-}
-
 /// CPU seconds of this process (all threads), from `/proc/self/stat` (10 ms resolution).
 fn cpu_seconds() -> f64 {
     let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
@@ -106,7 +96,7 @@ fn run<const D: usize>(
         solve,
         stats.residual,
         stats.refinements,
-        vm_hwm_mib(),
+        fdfsi::run::peak_resident_mib().unwrap_or(0.0),
         lu.describe(),
     );
 }

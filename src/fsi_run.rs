@@ -218,6 +218,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         quantities: last.into_iter().collect(),
         timings,
         timings_per_step: None,
+        peak_memory_mib: None,
     })
 }
 

@@ -189,8 +189,9 @@ fn main() -> Result<()> {
                 other => other.with_context(|| format!("running {label}"))?,
             };
             let t = &summary.timings;
+            let memory = summary.peak_memory_mib.map(|m| format!(", peak memory {m:.0} MiB")).unwrap_or_default();
             log(&format!(
-                "done in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s); results in {}",
+                "done in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s{memory}); results in {}",
                 t.total,
                 t.adapt,
                 t.assemble,

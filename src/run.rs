@@ -221,6 +221,18 @@ pub struct RunSummary {
     /// `timings` divided by the number of steps (time-dependent runs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub timings_per_step: Option<Timings>,
+    /// Peak resident memory of the process, MiB ([`peak_resident_mib`]; for a resumed run, of
+    /// its last part). Absent where the system does not report it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_memory_mib: Option<f64>,
+}
+
+/// Peak resident memory (`VmHWM` of `/proc/self/status`) of this process in MiB; `None` where
+/// the system has no such file (not Linux).
+pub fn peak_resident_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib: f64 = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?.trim().trim_end_matches("kB").trim().parse().ok()?;
+    Some(kib / 1024.0)
 }
 
 /// Parses and validates a case and checks everything that needs no solve (see
@@ -354,6 +366,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     if case.time.is_some() && summary.steps > 0 {
         summary.timings_per_step = Some(summary.timings.scaled(1.0 / summary.steps as f64));
     }
+    summary.peak_memory_mib = peak_resident_mib();
     let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
     write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
     // The results are written: a failing plot is reported, not an error of the run.
@@ -606,6 +619,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         quantities: out.last.into_iter().collect(),
         timings,
         timings_per_step: None,
+        peak_memory_mib: None,
     })
 }
 

@@ -197,6 +197,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         quantities,
         timings,
         timings_per_step: None,
+        peak_memory_mib: None,
     })
 }
 

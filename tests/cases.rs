@@ -76,6 +76,10 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     assert!(history.starts_with("step,time,newton_iterations,residual,"));
     let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert!(summary["quantities"]["centre_velocity"].as_f64().is_some());
+    if cfg!(target_os = "linux") {
+        let mib = summary["peak_memory_mib"].as_f64().expect("peak memory on Linux");
+        assert!(mib > 1.0 && mib < 1e6, "peak memory {mib} MiB");
+    }
     assert!(out.join("case.toml").exists());
     // Wall shear stress on the bottom wall: eta du/dy = 6 eta U / H = 6 in the fully developed
     // part, pointing downstream (+x, the direction of increasing s on the bottom wall).
