@@ -74,13 +74,9 @@ fn sizes() -> Vec<usize> {
     }
 }
 
-/// Peak resident set size (`VmHWM`) of this process in KiB.
-fn vm_hwm_kib() -> u64 {
-    (peak_resident_mib().unwrap_or(0.0) * 1024.0).round() as u64
-}
-
-fn mib(kib: u64) -> f64 {
-    kib as f64 / 1024.0
+/// Peak resident set size (`VmHWM`) of this process in MiB (0 where not reported).
+fn vm_hwm_mib() -> f64 {
+    peak_resident_mib().unwrap_or(0.0)
 }
 
 /// faer's partial-pivoting symbolic LU of `pattern`, as `FaerLu` builds it for
@@ -105,11 +101,11 @@ fn stokes3d(c: &mut Criterion) {
     group.warm_up_time(Duration::from_millis(500));
     group.measurement_time(Duration::from_secs(3));
 
-    let start_hwm = vm_hwm_kib();
-    eprintln!("[stokes3d] LU method {method:?}; VmHWM at start: {:.1} MiB", mib(start_hwm));
+    let start_hwm = vm_hwm_mib();
+    eprintln!("[stokes3d] LU method {method:?}; VmHWM at start: {:.1} MiB", start_hwm);
     let mut prev_hwm = start_hwm;
     for n in sizes() {
-        let hwm_before = vm_hwm_kib();
+        let hwm_before = vm_hwm_mib();
         // --- Setup (not timed by criterion) ---
         let t = Instant::now();
         let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n);
@@ -156,7 +152,7 @@ fn stokes3d(c: &mut Criterion) {
         let (u, g, p) = (|x: &[f64; 3]| exact.velocity(x), |x: &[f64; 3]| exact.gradient(x), |x: &[f64; 3]| exact.pressure(x));
         let errs = flow_errors(&disc, Formulation::ThreeD, &sol, &ExactFlow { velocity: &u, gradient: &g, pressure: &p }, 8)
             .expect("errors");
-        let hwm_setup = vm_hwm_kib();
+        let hwm_setup = vm_hwm_mib();
 
         eprintln!(
             "[stokes3d] n={n}: cells={cells} dofs={ndofs} nnz={nnz} (nnz/dof {:.1}) constrained={} setup(build)={:.3}s \
@@ -179,9 +175,9 @@ fn stokes3d(c: &mut Criterion) {
         );
         eprintln!(
             "[stokes3d] n={n}: VmHWM before={:.1} MiB, after setup+assembly+first LU+solve={:.1} MiB (growth {:.1} MiB)",
-            mib(hwm_before),
-            mib(hwm_setup),
-            mib(hwm_setup.saturating_sub(hwm_before)),
+            hwm_before,
+            hwm_setup,
+            (hwm_setup - hwm_before).max(0.0),
         );
 
         // --- (a) assembly into the reused matrix, zeroed inside the iteration ---
@@ -207,13 +203,13 @@ fn stokes3d(c: &mut Criterion) {
             })
         });
 
-        let hwm_after = vm_hwm_kib();
+        let hwm_after = vm_hwm_mib();
         eprintln!(
             "[stokes3d] n={n}: symbolic_factorizations={} ; VmHWM after the benchmark loops={:.1} MiB \
              (growth over previous size's peak {:.1} MiB)",
             lu.symbolic_factorizations(),
-            mib(hwm_after),
-            mib(hwm_after.saturating_sub(prev_hwm)),
+            hwm_after,
+            (hwm_after - prev_hwm).max(0.0),
         );
         prev_hwm = hwm_after;
     }

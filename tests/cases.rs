@@ -21,6 +21,11 @@ fn run_with(name: &str, edit: impl FnOnce(&mut Case)) -> (RunSummary, PathBuf) {
     (summary, out)
 }
 
+/// `out/summary.json`, parsed.
+fn summary_json(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
+}
+
 fn q(s: &RunSummary, name: &str) -> f64 {
     *s.quantities.get(name).unwrap_or_else(|| panic!("quantity {name} missing"))
 }
@@ -74,7 +79,7 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     assert_eq!(grid.cell_array("pressure").unwrap().values.len(), s.cells);
     let history = std::fs::read_to_string(out.join("history.csv")).unwrap();
     assert!(history.starts_with("step,time,newton_iterations,residual,"));
-    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let summary = summary_json(&out);
     assert!(summary["quantities"]["centre_velocity"].as_f64().is_some());
     if cfg!(target_os = "linux") {
         let mib = summary["peak_memory_mib"].as_f64().expect("peak memory on Linux");
@@ -390,7 +395,7 @@ fn profile_values(out: &Path, name: &str) -> Vec<f64> {
 /// gamma_f facet. Returns the history.
 fn check_membrane_equilibrium(out: &Path, axial: usize) -> std::collections::BTreeMap<String, Vec<f64>> {
     let h = history_columns(out);
-    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let summary = summary_json(out);
     let q = |name: &str| summary["quantities"][name].as_f64().unwrap_or_else(|| panic!("quantity {name} missing"));
     let applied = q("applied_traction");
     assert!((applied - 1.0).abs() < 1e-12, "the traction is held at 1 after the rise: {applied}");

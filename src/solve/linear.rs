@@ -349,7 +349,7 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         .iter()
         .map(|&j| (neighbours(j).filter(|&i| !is_mode[i]).map(|i| perm_inv[i]).max().unwrap_or(perm_inv[j]).min(perm_inv[j]), perm_inv[j]))
         .collect();
-    let (sn_begin, supernode_rows) = merge_supernodes(&begin, &patterns, mode_spans.iter().copied());
+    let (sn_begin, supernode_rows) = merge_supernodes(&begin, &patterns, &mode_spans);
     let nsup = sn_begin.len() - 1;
     let mut row_ptr = Vec::with_capacity(nsup + 1);
     let mut rows = Vec::new();
@@ -450,7 +450,7 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
 /// form: they all follow the same regular dof): the merged block then has `s + 1`'s rows, and every
 /// update it makes lands inside the factor structure. Elsewhere merging would add update entries
 /// (zero, but outside the structure), so those spans stay split.
-fn merge_supernodes(begin: &[usize], patterns: &[Vec<usize>], spans: impl Iterator<Item = (usize, usize)>) -> (Vec<usize>, Vec<Vec<usize>>) {
+fn merge_supernodes(begin: &[usize], patterns: &[Vec<usize>], spans: &[(usize, usize)]) -> (Vec<usize>, Vec<Vec<usize>>) {
     let nsup = patterns.len();
     let n = begin[nsup];
     let mut owner = vec![0usize; n];
@@ -459,7 +459,7 @@ fn merge_supernodes(begin: &[usize], patterns: &[Vec<usize>], spans: impl Iterat
     }
     // joined[s]: supernode s continues into s + 1.
     let mut joined = vec![false; nsup];
-    for (first, last) in spans {
+    for &(first, last) in spans {
         joined[owner[first]..owner[last]].fill(true);
     }
     let chain = |s: usize| patterns[s].iter().filter(|&&i| i >= begin[s + 2]).all(|i| patterns[s + 1].binary_search(i).is_ok());
@@ -1312,13 +1312,13 @@ mod tests {
         // whose rows are then 4 and 5.
         let begin = [0, 2, 3, 4, 6];
         let patterns = vec![vec![2, 5], vec![4, 5], vec![4], vec![]];
-        let (b, rows) = merge_supernodes(&begin, &patterns, [(1, 2)].into_iter());
+        let (b, rows) = merge_supernodes(&begin, &patterns, &[(1, 2)]);
         assert_eq!(b, vec![0, 3, 4, 6]);
         assert_eq!(rows, vec![vec![4, 5], vec![4], vec![]]);
-        let (b, _) = merge_supernodes(&begin, &patterns, std::iter::empty());
+        let (b, _) = merge_supernodes(&begin, &patterns, &[]);
         assert_eq!(b, begin.to_vec());
         // {2} and {3} are siblings ({2}'s row 5 is no row of {3}): joining 2..=3 is refused.
-        let (b, rows) = merge_supernodes(&begin, &patterns, [(2, 3)].into_iter());
+        let (b, rows) = merge_supernodes(&begin, &patterns, &[(2, 3)]);
         assert_eq!(b, begin.to_vec());
         assert_eq!(rows, patterns);
     }

@@ -7,8 +7,9 @@
 //!
 //! With `reuse_factorization`, iterations after the first (and the first too, when the solver
 //! still holds a factorisation of a matrix with the same pattern, e.g. from the previous time
-//! step on an unchanged mesh, and offers it: [`LinearSolver::offer_held_factorization`]) solve `K(x_k) dx = -R(x_k)` with the factors of an earlier `K` as a
-//! preconditioner: the linear solver's iterative refinement
+//! step on an unchanged mesh, and offers it: [`LinearSolver::offer_held_factorization`]) solve
+//! `K(x_k) dx = -R(x_k)` with the factors of an earlier `K` as a preconditioner: the linear
+//! solver's iterative refinement
 //! against the current `K` (see [`LinearSolver::solve_in_place`]) either reaches its accuracy
 //! (then the step is a Newton step up to that linear residual, and no numeric factorisation is
 //! paid) or fails, and `K(x_k)` is factorised after all. An iteration whose residual is not at
