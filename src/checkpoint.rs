@@ -8,7 +8,8 @@
 //! - the state: for a flow run the solution `x^k` and, for BDF2, `x^{k-1}`; for an FSI run the
 //!   solid displacement, deformation gradients and velocity, the fluid velocity and the solid
 //!   position its (adapted) mesh was built for;
-//! - the run's running totals (Newton iterations, residuals, phase timings) for `summary.json`.
+//! - the run's running totals (Newton iterations, residuals, phase timings) for `summary.json`;
+//! - the builds of fdfsi that ran it so far (see [`crate::provenance`]).
 //!
 //! Floating-point values are written in their shortest round-trip decimal form and read back
 //! exactly (serde_json's `float_roundtrip`), so a resumed run repeats the arithmetic of an
@@ -121,6 +122,10 @@ pub struct Checkpoint {
     pub time: f64,
     pub state: RestartState,
     pub progress: Progress,
+    /// The builds of fdfsi that ran the steps so far, oldest first (absent in checkpoints of
+    /// builds before provenance was recorded).
+    #[serde(default)]
+    pub builds: Vec<crate::provenance::Build>,
 }
 
 impl Checkpoint {
@@ -208,11 +213,13 @@ mod tests {
                 level: crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) },
             },
             progress: Progress { newton_iterations: 7, residual_norms: vec![1e-11], timings: Timings::default() },
+            builds: vec![crate::provenance::Build::current()],
         };
         c.write(dir.path()).unwrap();
         let back = Checkpoint::read(dir.path()).unwrap();
         let (x, level) = back.flow_state(dir.path(), awkward.len()).unwrap();
         assert_eq!(x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), awkward.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        assert_eq!(back.builds, c.builds);
         assert_eq!(level, crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) });
         let e = back.flow_state(dir.path(), 5).unwrap_err().to_string();
         assert!(e.contains("holds 6 values for the solution but the case has 5"), "{e}");

@@ -219,6 +219,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         timings,
         timings_per_step: None,
         peak_memory_mib: None,
+        provenance: None,
     })
 }
 

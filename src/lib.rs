@@ -26,3 +26,4 @@ pub mod fsi_run;
 pub mod check;
 pub mod checkpoint;
 pub mod plot;
+pub mod provenance;

@@ -168,7 +168,8 @@ impl RunOptions {
         if stop || due {
             let (state, progress) = state();
             let case_dir = std::path::absolute(&self.case_dir).unwrap_or_else(|_| self.case_dir.clone());
-            let c = Checkpoint { version: CHECKPOINT_VERSION, case: case.to_toml(), case_dir, step, time, state, progress };
+            let builds = crate::provenance::builds_so_far(self.resume.as_ref().map_or(&[], |c| &c.builds));
+            let c = Checkpoint { version: CHECKPOINT_VERSION, case: case.to_toml(), case_dir, step, time, state, progress, builds };
             c.write(&self.out_dir)?;
         }
         if stop {
@@ -225,6 +226,9 @@ pub struct RunSummary {
     /// its last part). Absent where the system does not report it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_memory_mib: Option<f64>,
+    /// The code and case behind the results ([`crate::provenance`]); filled by [`run_case`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<crate::provenance::Provenance>,
 }
 
 /// Peak resident memory (`VmHWM` of `/proc/self/status`) of this process in MiB; `None` where
@@ -367,6 +371,8 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         summary.timings_per_step = Some(summary.timings.scaled(1.0 / summary.steps as f64));
     }
     summary.peak_memory_mib = peak_resident_mib();
+    let earlier = options.resume.as_ref().map_or(&[][..], |c| &c.builds);
+    summary.provenance = Some(crate::provenance::Provenance::of_run(&case.to_toml(), earlier));
     let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
     write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
     // The results are written: a failing plot is reported, not an error of the run.
@@ -620,6 +626,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
         timings,
         timings_per_step: None,
         peak_memory_mib: None,
+        provenance: None,
     })
 }
 

@@ -198,6 +198,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         timings,
         timings_per_step: None,
         peak_memory_mib: None,
+        provenance: None,
     })
 }
 

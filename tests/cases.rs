@@ -86,6 +86,15 @@ fn channel_stokes_is_poiseuille_mid_channel() {
         assert!(mib > 1.0 && mib < 1e6, "peak memory {mib} MiB");
     }
     assert!(out.join("case.toml").exists());
+    // Provenance: the code (version, commit, modified, profile) and the case that made the run.
+    let p = &summary["provenance"];
+    assert_eq!(p["fdfsi_version"].as_str(), Some(env!("CARGO_PKG_VERSION")));
+    let commit = p["git_commit"].as_str().expect("git_commit");
+    assert!(commit == "unknown" || (commit.len() == 40 && commit.chars().all(|c| c.is_ascii_hexdigit())), "{commit}");
+    assert!(p["git_modified"].is_boolean() && p["earlier_parts"].as_array().is_some_and(Vec::is_empty), "{p}");
+    assert_eq!(p["build_profile"].as_str(), Some(if cfg!(debug_assertions) { "debug" } else { "release" }));
+    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
+    assert_eq!(p["case_sha256"].as_str(), Some(fdfsi::provenance::sha256_hex(case_text.as_bytes()).as_str()));
     // Wall shear stress on the bottom wall: eta du/dy = 6 eta U / H = 6 in the fully developed
     // part, pointing downstream (+x, the direction of increasing s on the bottom wall).
     let wss = std::fs::read_to_string(out.join("profiles/wss_bottom.csv")).unwrap();
