@@ -16,7 +16,10 @@ fn run_with(name: &str, edit: impl FnOnce(&mut Case)) -> (RunSummary, PathBuf) {
     let file = dir.join(format!("{name}.toml"));
     let mut case = Case::read(&file).unwrap();
     edit(&mut case);
-    let out = std::env::temp_dir().join(format!("fdfsi-test-{name}-{}", std::process::id()));
+    // A folder per call: tests running the same case at once must not share one.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let out = std::env::temp_dir().join(format!("fdfsi-test-{name}-{}-{call}", std::process::id()));
     let summary = run_case(&case, &RunOptions::new(out.clone(), dir), &mut |_: &str| {}).unwrap();
     (summary, out)
 }
@@ -140,11 +143,34 @@ fn cylinder_on_curved_gmsh_mesh_conserves_mass() {
 #[test]
 fn schaefer_turek_2d1_matches_the_benchmark() {
     let (s, _) = run("schaefer-turek-2d1");
-    let rel = |name: &str, reference: f64| (q(&s, name) - reference).abs() / reference.abs();
-    // Tolerances of the benchmark issue: drag 0.1 %, lift 2 %, pressure difference 0.5 %.
-    assert!(rel("drag_coefficient", 5.57953523384) < 1e-3, "drag {}", q(&s, "drag_coefficient"));
-    assert!(rel("lift_coefficient", 0.010618948146) < 2e-2, "lift {}", q(&s, "lift_coefficient"));
-    assert!(rel("pressure_difference", 0.11752016697) < 5e-3, "dp {}", q(&s, "pressure_difference"));
+    // Independent references (John & Matthies 2001, the digits the case header cites). README:
+    // drag error 1.2e-5, lift 0.12 %, pressure difference 0.29 %; held at 3e-5, 0.5 %, 0.5 %.
+    const DRAG: f64 = 5.57953523384;
+    let rel = |s: &RunSummary, name: &str, reference: f64| (q(s, name) - reference).abs() / reference.abs();
+    println!(
+        "2D-1 medium: {} dofs, drag {:.7} ({:.2e}), lift {:.7} ({:.2e}), dp {:.6} ({:.2e})",
+        s.dofs["total"],
+        q(&s, "drag_coefficient"),
+        rel(&s, "drag_coefficient", DRAG),
+        q(&s, "lift_coefficient"),
+        rel(&s, "lift_coefficient", 0.010618948146),
+        q(&s, "pressure_difference"),
+        rel(&s, "pressure_difference", 0.11752016697)
+    );
+    assert_eq!(s.dofs["total"], 144_788, "the medium mesh's dofs (README)");
+    assert!(rel(&s, "drag_coefficient", DRAG) < 3e-5, "drag {}", q(&s, "drag_coefficient"));
+    assert!(rel(&s, "lift_coefficient", 0.010618948146) < 5e-3, "lift {}", q(&s, "lift_coefficient"));
+    assert!(rel(&s, "pressure_difference", 0.11752016697) < 5e-3, "dp {}", q(&s, "pressure_difference"));
+    // Regression values (fdfsi at 2ad5061), to catch drift below the benchmark's precision.
+    for (name, value) in [("drag_coefficient", 5.579470), ("lift_coefficient", 0.0106317), ("pressure_difference", 0.117865)] {
+        assert!((q(&s, name) - value).abs() < 1e-6 * value.abs().max(1.0), "{name} {} moved from {value}", q(&s, name));
+    }
+    // The coarse mesh (36 596 dofs; drag error 9.1e-5) is less accurate: the drag tolerance above
+    // tells it apart.
+    let (coarse, _) = run_with("schaefer-turek-2d1", |c| c.mesh = Some(fdfsi::case::MeshSpec::Gmsh { file: "../meshes/dfg2d-coarse.msh".into() }));
+    let coarse_drag = rel(&coarse, "drag_coefficient", DRAG);
+    println!("2D-1 coarse: {} dofs, drag {:.7} ({coarse_drag:.2e})", coarse.dofs["total"], q(&coarse, "drag_coefficient"));
+    assert!(coarse_drag > 3e-5, "{coarse_drag}");
     // Newton converges quadratically: the last residual drops far below the square of the one
     // before it times a modest constant.
     let r = &s.residual_norms;
@@ -182,7 +208,8 @@ fn womersley_matches_the_bessel_solution_over_a_period() {
     }
     assert!(rows >= 200, "{rows} rows in the last period");
     println!("Womersley: max error over the last period / centreline amplitude = {worst:.3e}");
-    assert!(worst < 0.01, "{worst}");
+    // Independent reference: the Bessel solution. README: 0.11 % (measured 1.108e-3).
+    assert!(worst < 2e-3, "{worst}");
 }
 
 #[test]
@@ -233,12 +260,13 @@ fn cylinder_re100_starts_up_cleanly() {
 }
 
 #[test]
-fn cook_membrane_tip_displacement_is_near_the_published_value() {
+fn cook_membrane_tip_displacement_is_the_regression_value() {
     let (s, out) = run("cook-membrane");
-    // Published converged values are about 6.9 mm (EXACT-SOLUTIONS.md 1.6); Q2/P1disc does not
-    // lock, so 8 x 8 cells are within 1.5 %.
+    // Regression value (fdfsi at 2ad5061): 6.889 mm on 8 x 8 cells. No published converged value
+    // for these parameters was found (EXACT-SOLUTIONS.md 1.6); the convergence on 2-16 cells per
+    // side and the locking of displacement-only Q2 are tests/solid_stepping.rs.
     let tip = q(&s, "tip_displacement_y");
-    assert!((tip - 6.9).abs() < 0.1, "{tip}");
+    assert!((tip - 6.889).abs() < 5e-4, "{tip}");
     let entries = read_pvd(&out.join("solution.pvd")).unwrap();
     assert_eq!(entries[0].name, "solid");
     let grid = read_vtu(&entries[0].resolve(&out.join("solution.pvd"))).unwrap();
@@ -303,7 +331,11 @@ fn model_problem_2_fsi_force_matches_the_dirichlet_twin() {
     let g = [q(&twin, "plate_force_x"), q(&twin, "plate_force_y")];
     let diff = ((f[0] - g[0]).powi(2) + (f[1] - g[1]).powi(2)).sqrt() / (g[0].powi(2) + g[1].powi(2)).sqrt();
     println!("model problem 2: FSI force {f:?}, twin {g:?}, relative difference {diff:.3e}");
-    assert!(diff < 0.01, "{diff}");
+    // README: within 3e-6 of the twin (measured 2.7e-6; the meshes differ slightly, see the case
+    // header); held at 3e-5. The force itself, (1.18620, -0.84511), is a regression value (fdfsi
+    // at 2ad5061).
+    assert!(diff < 3e-5, "{diff}");
+    assert!((f[0] - 1.18620).abs() < 1e-5 && (f[1] + 0.84511).abs() < 1e-5, "{f:?}");
     assert!((q(&fsi, "inlet_flux") + q(&fsi, "outlet_flux")).abs() < 1e-10);
     assert_eq!(fsi.steps, 12);
     assert!(q(&fsi, "coupling_facets") > 5.0);
@@ -347,13 +379,16 @@ fn history_columns(out: &Path) -> std::collections::BTreeMap<String, Vec<f64>> {
     cols
 }
 
-/// Model problem 1 checks on a history: flux in = flux out every step, and the slab moved.
+/// Model problem 1 checks on a history: flux in = flux out every step (README: to 3e-15, round-off
+/// of fluxes of 0.2-1; held at 3e-14) and 3-4 Newton iterations in every step.
 fn check_model_problem_1(out: &Path, steps: usize) -> std::collections::BTreeMap<String, Vec<f64>> {
     let h = history_columns(out);
     assert_eq!(h["step"].len(), steps);
     for (k, (i, o)) in h["inlet_flux"].iter().zip(&h["outlet_flux"]).enumerate() {
-        assert!((i + o).abs() < 1e-10, "step {}: flux in {i}, out {o}", k + 1);
+        assert!((i + o).abs() < 3e-14, "step {}: flux in {i}, out {o}", k + 1);
     }
+    let its = &h["newton_iterations"];
+    assert!(its.iter().all(|n| (3.0..=4.0).contains(n)), "3-4 Newton iterations per step: {its:?}");
     h
 }
 
@@ -369,25 +404,33 @@ fn model_problem_1_first_steps_move_the_slab_and_conserve_volume() {
     assert!(out.join("speed.png").exists() && out.join("plots/trajectory_tip_displacement.png").exists());
 }
 
-/// The whole case (4.5 periods; about 10 minutes): no failed step, a large motion, and the tip
-/// path of the last full period repeats the one before within 2 % (L2 over the period).
+/// The whole case (4.5 periods; about 10 minutes): no failed step (360 rows), 3-4 Newton
+/// iterations and flux in = flux out every step, the tip's largest excursion (0.34 downstream,
+/// 0.13 up), and the tip path of period 4 repeating period 3 to 1.3 % (L2 over the period; 3.0 %
+/// at the worst instant). The excursion and repeat values are regression values (fdfsi at
+/// 2ad5061), held to their printed digits. With `FDFSI_LONG_RUNS` (see [`long_run`]) a finished
+/// run is checked without running again.
 #[test]
 #[ignore = "about 10 minutes; run with --ignored"]
 fn model_problem_1_motion_is_periodic() {
-    let (s, out) = run("model-problem-1");
-    assert_eq!(s.steps, 360);
+    let out = long_run("model-problem-1");
     let h = check_model_problem_1(&out, 360);
+    assert_eq!(summary_json(&out)["dofs"]["total"].as_u64(), Some(29_781), "dofs at the last step (README)");
     let (x, y) = (&h["tip_displacement_x"], &h["tip_displacement_y"]);
     let period = 80;
     let max_x = x.iter().fold(0.0f64, |m, v| m.max(*v));
     let max_y = y.iter().fold(0.0f64, |m, v| m.max(*v));
-    assert!(max_x > 0.25 && max_y > 0.08, "large rotation: tip moves ({max_x}, {max_y})");
+    println!("model problem 1: the tip moves up to {max_x:.4} downstream and {max_y:.4} up");
+    assert!((max_x - 0.34).abs() < 0.006 && (max_y - 0.13).abs() < 0.006, "tip excursion ({max_x}, {max_y})");
     let (a, b) = (2 * period, 3 * period); // periods 3 and 4
     let num: f64 = (0..period).map(|i| (x[a + i] - x[b + i]).powi(2) + (y[a + i] - y[b + i]).powi(2)).sum();
     let den: f64 = (0..period).map(|i| x[b + i].powi(2) + y[b + i].powi(2)).sum();
     let repeat = (num / den).sqrt();
-    println!("model problem 1: tip path of period 4 vs period 3: {repeat:.4} (L2, relative)");
-    assert!(repeat < 0.02, "{repeat}");
+    let scale = (den / period as f64).sqrt();
+    let worst = (0..period).map(|i| ((x[a + i] - x[b + i]).powi(2) + (y[a + i] - y[b + i]).powi(2)).sqrt()).fold(0.0f64, f64::max) / scale;
+    println!("model problem 1: tip path of period 4 vs period 3: {repeat:.4} (L2, relative), {worst:.4} at the worst instant");
+    assert!((repeat - 0.013).abs() < 0.001, "{repeat}");
+    assert!((worst - 0.030).abs() < 0.002, "{worst}");
 }
 
 /// The values of a profile CSV (last column).
@@ -396,13 +439,26 @@ fn profile_values(out: &Path, name: &str) -> Vec<f64> {
     text.lines().skip(1).map(|l| l.rsplit(',').next().unwrap().parse().unwrap()).collect()
 }
 
+/// What a membrane run (model problems 3 and 4) claims of its equilibrium at t = 6, as fractions
+/// of the applied traction 1 (README and the case headers; measured values of that run).
+struct EquilibriumClaims {
+    /// |upstream pressure - 1| and |downstream pressure|.
+    pressures: [f64; 2],
+    /// The last max fluid speed over its peak.
+    speed: f64,
+    /// The largest |p - 1| and |p| in the cells upstream and downstream of gamma_f.
+    sides: [f64; 2],
+    /// The largest |lambda - p n| at the vertices of gamma_f (a discretisation error, O(h)).
+    traction: f64,
+}
+
 /// Model problems 3 and 4 at equilibrium: the upstream pressure is the applied traction and the
-/// downstream one zero (within 1 % of it), the fluid is at rest (speed below 1e-3 of its peak)
-/// and the pressure jumps exactly on gamma_f: the cells on either side of it hold their side's
-/// pressure within 1 % (no smearing). The multiplier, the traction on the membrane, is `p n` (`n`
-/// the facet normal, its `axial` component positive) within 5 % of `p` at every vertex of every
-/// gamma_f facet. Returns the history.
-fn check_membrane_equilibrium(out: &Path, axial: usize) -> std::collections::BTreeMap<String, Vec<f64>> {
+/// downstream one zero, the fluid is at rest and the pressure jumps exactly on gamma_f: the cells
+/// on either side of it hold their side's pressure (no smearing). The multiplier, the traction on
+/// the membrane, is `p n` (`n` the facet normal, its `axial` component positive) at every vertex
+/// of every gamma_f facet. The round-off-like claims (pressures, speed, sides) are held at 10
+/// times the claim, the traction (a discretisation error) at 1.25 times. Returns the history.
+fn check_membrane_equilibrium(out: &Path, axial: usize, claims: &EquilibriumClaims) -> std::collections::BTreeMap<String, Vec<f64>> {
     let h = history_columns(out);
     let summary = summary_json(out);
     let q = |name: &str| summary["quantities"][name].as_f64().unwrap_or_else(|| panic!("quantity {name} missing"));
@@ -410,19 +466,19 @@ fn check_membrane_equilibrium(out: &Path, axial: usize) -> std::collections::BTr
     assert!((applied - 1.0).abs() < 1e-12, "the traction is held at 1 after the rise: {applied}");
     let (up, down) = (q("upstream_pressure"), q("downstream_pressure"));
     println!("equilibrium: upstream pressure {up:.8}, downstream {down:.3e}, applied {applied}");
-    assert!((up - applied).abs() < 0.01 * applied, "upstream pressure {up}");
-    assert!(down.abs() < 0.01 * applied, "downstream pressure {down}");
+    assert!((up - applied).abs() < 10.0 * claims.pressures[0] * applied, "upstream pressure {up}");
+    assert!(down.abs() < 10.0 * claims.pressures[1] * applied, "downstream pressure {down}");
     let speed = &h["max_fluid_speed"];
     let peak = speed.iter().fold(0.0f64, |m, v| m.max(*v));
     let last = *speed.last().unwrap();
     println!("max fluid speed: peak {peak:.4e}, last {last:.4e} ({:.2e} of the peak)", last / peak);
-    assert!(peak > 0.01 && last < 1e-3 * peak, "speed {last} of peak {peak}");
-    for (side, value) in [("pressure_upstream_side", applied), ("pressure_downstream_side", 0.0)] {
+    assert!(peak > 0.01 && last < 10.0 * claims.speed * peak, "speed {last} of peak {peak}");
+    for ((side, value), claim) in [("pressure_upstream_side", applied), ("pressure_downstream_side", 0.0)].into_iter().zip(claims.sides) {
         let p = profile_values(out, side);
         assert!(p.len() > 10, "{side}: {} points", p.len());
         let worst = p.iter().map(|v| (v - value).abs()).fold(0.0f64, f64::max);
         println!("{side}: {} points, max |p - {value}| = {worst:.3e}", p.len());
-        assert!(worst < 0.01 * applied, "{side}: pressure smeared across gamma_f by {worst}");
+        assert!(worst < 10.0 * claim * applied, "{side}: pressure smeared across gamma_f by {worst}");
     }
     let entries = read_pvd(&out.join("solution.pvd")).unwrap();
     let last = entries.iter().rev().find(|e| e.name == "gamma_f").unwrap();
@@ -447,7 +503,7 @@ fn check_membrane_equilibrium(out: &Path, axial: usize) -> std::collections::BTr
         }
     }
     println!("multiplier on gamma_f: max |lambda - p n| = {dev:.3e}");
-    assert!(dev < 0.05 * applied, "the traction on gamma_f is not p n: {dev}");
+    assert!(dev < 1.25 * claims.traction * applied, "the traction on gamma_f is not p n: {dev}");
     h
 }
 
@@ -455,12 +511,36 @@ fn check_membrane_equilibrium(out: &Path, axial: usize) -> std::collections::BTr
 fn model_problem_3_reaches_equilibrium_with_the_pressure_jump_on_gamma_f() {
     let (s, out) = run("model-problem-3");
     assert_eq!(s.steps, 60);
-    let h = check_membrane_equilibrium(&out, 0);
+    assert_eq!(s.dofs["total"], 7_927, "README");
+    let h = check_membrane_equilibrium(&out, 0, &MODEL_PROBLEM_3);
     // Overdamped: the membrane bulges downstream monotonically (to round-off at the end).
     let w = &h["centre_displacement"];
     assert!(w.windows(2).all(|p| p[1] > p[0] - 1e-9), "{w:?}");
-    assert!(*w.last().unwrap() > 0.05, "centre displacement {}", w.last().unwrap());
+    // Regression value (fdfsi at 2ad5061), the reference of every model problem 4 comparison.
+    assert!((w.last().unwrap() - 0.104689).abs() < 2e-6, "centre displacement {}", w.last().unwrap());
     assert!(out.join("plots/centre_displacement.png").exists());
+}
+
+/// README and cases/model-problem-3.toml: upstream 1 - 1e-8, downstream 1.1e-8, speed 5.8e-6 of
+/// its peak, the cells on both sides 1 and 0 to 8e-6, the traction p n to 1.2e-2.
+const MODEL_PROBLEM_3: EquilibriumClaims = EquilibriumClaims { pressures: [1.1e-8, 1.1e-8], speed: 5.8e-6, sides: [8e-6, 8e-6], traction: 1.2e-2 };
+
+/// Model problem 3 on a mesh twice as fine (80 x 20 fluid cells, 20 membrane cells): the
+/// equilibrium centre displacement moves by less than 1e-4 of itself (0.104689 -> 0.104680, a
+/// regression value of fdfsi at 2ad5061): the axisymmetric reference of model problem 4 is
+/// converged far below the 3D gaps (0.26 %, 0.10 %).
+#[test]
+fn model_problem_3_centre_displacement_is_converged_in_the_mesh() {
+    use fdfsi::case::{MeshSpec, SolidMeshSpec};
+    let (_, out) = run_with("model-problem-3", |c| {
+        c.mesh = Some(MeshSpec::Rectangle { x: [0.0, 4.0], y: [0.0, 1.0], n: [80, 20] });
+        let solid = c.solid.as_mut().unwrap();
+        solid.mesh = SolidMeshSpec::Rectangle { x: [1.975, 2.025], y: [0.0, 1.0], n: [1, 20] };
+    });
+    let w = *history_columns(&out)["centre_displacement"].last().unwrap();
+    println!("model problem 3, fine mesh: centre displacement {w:.7}");
+    assert!((w - 0.104680).abs() < 2e-6, "{w}");
+    assert!((w - 0.104689).abs() < 1e-4 * w);
 }
 
 #[test]
@@ -495,7 +575,7 @@ fn model_problem_4_coarse_first_steps_seal_the_pipe_and_bulge_the_membrane() {
 
 #[test]
 fn model_problem_4_fine_mesh_seals_the_pipe_at_rest() {
-    // The run takes about an hour (model_problem_4_follows_model_problem_3 below); CI checks
+    // The run takes about 2.5 hours (model_problem_4_follows_model_problem_3 below); CI checks
     // the case: meshes, the adaptation at t = 0, the dofs.
     let (case, dir) = case_file("model-problem-4-fine");
     let summary = fdfsi::check::check(&case, "model-problem-4-fine.toml", &dir).unwrap();
@@ -519,16 +599,52 @@ fn model_problem_4_fine_mesh_seals_the_pipe_at_rest() {
     assert!((a.gamma_f_measure - a.gamma_s_measure).abs() < 1e-12, "gamma_f {} vs gamma_s {}", a.gamma_f_measure, a.gamma_s_measure);
 }
 
+#[test]
+fn model_problem_4_has_the_papers_cell_counts() {
+    // README: 3 600 P2+ tetrahedra and 84 Q2 hexahedra (the paper: 3 600 and 80).
+    let (case, dir) = case_file("model-problem-4");
+    let summary = fdfsi::check::check(&case, "model-problem-4.toml", &dir).unwrap();
+    assert!(summary.description.contains("3600 cells") && summary.description.contains("84 cells"), "{}", summary.description);
+}
+
 fn case_file(name: &str) -> (Case, PathBuf) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     (Case::read(&dir.join(format!("{name}.toml"))).unwrap(), dir)
 }
 
+/// The paths whose content decides a run's numbers: the code, the meshes, the locked
+/// dependencies (the case is compared on its own; a case header's comments do not count).
+const CODE_PATHS: &[&str] = &["src", "crates", "meshes", "Cargo.toml", "Cargo.lock", "build.rs"];
+
+/// Refuses a finished run made by other code than the code under test: every build in its
+/// `summary.json` provenance (the one that finished it and those of earlier parts) must be of a
+/// known commit, unmodified, whose [`CODE_PATHS`] equal this checkout's (`git diff` of the commit
+/// against the working tree).
+fn assert_made_by_this_code(out: &Path) {
+    let summary = summary_json(out);
+    let p: fdfsi::provenance::Provenance = serde_json::from_value(summary["provenance"].clone())
+        .unwrap_or_else(|e| panic!("{}: summary.json has no provenance ({e}): made before 2ad5061; move it away to run again", out.display()));
+    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
+    assert_eq!(p.case_sha256, fdfsi::provenance::sha256_hex(case_text.as_bytes()), "{}: case.toml changed after the run", out.display());
+    for b in p.builds() {
+        assert!(b.is_reproducible(), "{}: made by a build of modified source ({b:?}); move it away to run again", out.display());
+        let same = std::process::Command::new("git")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["diff", "--quiet", &b.git_commit, "--"])
+            .args(CODE_PATHS)
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false);
+        assert!(same, "{}: made by commit {} whose code differs from this checkout's; move it away to run again", out.display(), b.git_commit);
+    }
+}
+
 /// The output folder of a long case run. With `FDFSI_LONG_RUNS=DIR` the case runs into
 /// `DIR/NAME` with a checkpoint every step, resumes there if a checkpoint is there, and is not run
 /// again if a finished run is there (its `summary.json`; its `case.toml` must be the case's up to
-/// `[solver.linear]`, which changes only round-off), so runs made with
-/// `fdfsi run CASE --out DIR/NAME` are checked without running again.
+/// `[solver.linear]`, which changes only round-off, and its provenance this code, see
+/// [`assert_made_by_this_code`]), so runs made with `fdfsi run CASE --out DIR/NAME` are checked
+/// without running again.
 fn long_run(name: &str) -> PathBuf {
     let Some(dir) = std::env::var_os("FDFSI_LONG_RUNS") else { return run(name).1 };
     let out = PathBuf::from(dir).join(name);
@@ -537,6 +653,7 @@ fn long_run(name: &str) -> PathBuf {
         let mut used = Case::from_toml_str(&std::fs::read_to_string(out.join("case.toml")).unwrap(), "case.toml").unwrap();
         used.solver.linear = case.solver.linear.clone();
         assert_eq!(used.to_toml(), case.to_toml(), "{} was run with another case than cases/{name}.toml", out.display());
+        assert_made_by_this_code(&out);
         return out;
     }
     let (case, options) = if Checkpoint::path(&out).exists() { RunOptions::resume(&out).unwrap() } else { (case, RunOptions::new(out.clone(), cases)) };
@@ -544,9 +661,20 @@ fn long_run(name: &str) -> PathBuf {
     out
 }
 
-/// The centre displacement of model problem 4 follows model problem 3 on the fine 3D mesh (5 %
-/// of the final value over the whole transient), and the equilibrium positions of the two 3D
-/// meshes converge towards the axisymmetric one. About three hours: run with --ignored (and
+/// cases/model-problem-4.toml: upstream 1 - 1.1e-7, downstream 9e-8, speed 2.4e-5 of its peak,
+/// the cells on both sides of gamma_f within 4.8e-4, the traction p n to 8.7e-3.
+const MODEL_PROBLEM_4: EquilibriumClaims = EquilibriumClaims { pressures: [1.1e-7, 9e-8], speed: 2.4e-5, sides: [4.8e-4, 4.8e-4], traction: 8.7e-3 };
+
+/// README and cases/model-problem-4-fine.toml: upstream 1 - 6e-7, downstream 9e-7, speed 6.9e-5
+/// of its peak, the cells on both sides 1 and 0 to 3.3e-4 / 3.9e-4, the traction p n to 9.1e-3.
+const MODEL_PROBLEM_4_FINE: EquilibriumClaims = EquilibriumClaims { pressures: [6e-7, 9e-7], speed: 6.9e-5, sides: [3.3e-4, 3.9e-4], traction: 9.1e-3 };
+
+/// The centre displacement of model problem 4 follows model problem 3 (README: within 0.53 % of
+/// the final value over the whole transient on the paper's mesh, 0.89 % on the fine one), the
+/// equilibrium positions of the two 3D meshes (0.10442 and 0.104584, gaps 0.26 % and 0.10 %)
+/// converge towards the axisymmetric one, and both meet their equilibrium claims. The gaps and
+/// positions are regression values (the coarse mesh: fdfsi at 2ad5061; the fine one: at
+/// 86935e3), held to their printed digits. About three hours: run with --ignored (and
 /// `FDFSI_LONG_RUNS`, see [`long_run`], to check finished runs).
 #[test]
 #[ignore = "about three hours; run with --ignored"]
@@ -555,9 +683,10 @@ fn model_problem_4_follows_model_problem_3() {
     let out4 = long_run("model-problem-4");
     let out4f = long_run("model-problem-4-fine");
     let w3 = history_columns(&out3)["centre_displacement"].clone();
-    for out in [&out4, &out4f] {
+    for (out, claims, dofs) in [(&out4, &MODEL_PROBLEM_4, 75_018), (&out4f, &MODEL_PROBLEM_4_FINE, 143_922)] {
         assert_eq!(history_columns(out)["time"].len(), 60, "{}: 60 steps", out.display());
-        check_membrane_equilibrium(out, 2);
+        assert_eq!(summary_json(out)["dofs"]["total"].as_u64(), Some(dofs), "{}: dofs at the last step", out.display());
+        check_membrane_equilibrium(out, 2, claims);
     }
     let w4 = history_columns(&out4)["centre_displacement"].clone();
     let w4f = history_columns(&out4f)["centre_displacement"].clone();
@@ -571,6 +700,43 @@ fn model_problem_4_follows_model_problem_3() {
         w4f.last().unwrap(),
         worst(&w4f)
     );
-    assert!(worst(&w4f) < 0.05, "fine 3D mesh vs axisymmetric over the transient: {}", worst(&w4f));
+    assert!((worst(&w4) - 0.0053).abs() < 0.0003, "3D vs axisymmetric over the transient: {}", worst(&w4));
+    assert!((worst(&w4f) - 0.0089).abs() < 0.0003, "fine 3D mesh vs axisymmetric over the transient: {}", worst(&w4f));
+    assert!((w4.last().unwrap() - 0.10442).abs() < 1e-5 && (w4f.last().unwrap() - 0.104584).abs() < 2e-6, "equilibria {} {}", w4.last().unwrap(), w4f.last().unwrap());
+    assert!((gap - 0.0026).abs() < 0.0001 && (gap_fine - 0.0010).abs() < 0.0001, "gaps {gap} {gap_fine}");
     assert!(gap_fine < gap, "refinement closes the equilibrium gap: {gap} -> {gap_fine}");
+}
+
+/// Upward zero crossings of `v - mean(v)` (linear interpolation in `t`).
+fn upward_crossings(t: &[f64], v: &[f64]) -> Vec<f64> {
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    (1..v.len()).filter(|&i| v[i - 1] < mean && v[i] >= mean).map(|i| t[i - 1] + (t[i] - t[i - 1]) * (mean - v[i - 1]) / (v[i] - v[i - 1])).collect()
+}
+
+/// Schaefer-Turek 2D-2 (Re = 100) over t in [5, 8], eight shedding periods, on the coarse mesh
+/// (BENCHMARKS.md). Independent reference (Schaefer & Turek 1996): Strouhal number 0.295-0.305,
+/// met. The maximum drag (3.2174) and lift (0.954) are regression values (fdfsi at 2ad5061) that
+/// lie *below* the reference ranges 3.22-3.24 and 0.99-1.01 on this mesh and time step (0.08 %
+/// and 3.6 % below their lower ends): asserted as regression values, not as agreement.
+#[test]
+#[ignore = "about 15 minutes; run with --ignored"]
+fn cylinder_re100_sheds_at_the_benchmark_strouhal_number() {
+    let out = long_run("cylinder-re100");
+    let h = history_columns(&out);
+    assert_eq!(h["time"].len(), 801, "the initial state and 800 steps");
+    let from = h["time"].iter().position(|&t| t >= 5.0 - 1e-9).unwrap();
+    let (t, cd, cl) = (&h["time"][from..], &h["drag_coefficient"][from..], &h["lift_coefficient"][from..]);
+    let up = upward_crossings(t, cl);
+    let period = (up.last().unwrap() - up[0]) / (up.len() - 1) as f64;
+    // St = f D / U_mean with D = 0.1, U_mean = 1.
+    let strouhal = 0.1 / period;
+    let cd_max = cd.iter().fold(f64::MIN, |m, v| m.max(*v));
+    let cl_max = cl.iter().fold(f64::MIN, |m, v| m.max(*v));
+    let cl_min = cl.iter().fold(f64::MAX, |m, v| m.min(*v));
+    println!("Re = 100: {} periods, period {period:.4}, St {strouhal:.4}, max drag {cd_max:.4}, lift {cl_min:.3} .. {cl_max:.3}", up.len() - 1);
+    assert!(up.len() >= 8, "{up:?}");
+    assert!((0.295..=0.305).contains(&strouhal), "Strouhal number {strouhal}");
+    assert!((strouhal - 0.2982).abs() < 2e-4, "Strouhal number {strouhal} (regression 0.2982)");
+    assert!((cd_max - 3.2174).abs() < 2e-4, "max drag {cd_max} (regression 3.2174)");
+    assert!((cl_max - 0.954).abs() < 2e-3 && (cl_min + 0.991).abs() < 2e-3, "lift {cl_min} .. {cl_max} (regression -0.991 .. 0.954)");
 }
