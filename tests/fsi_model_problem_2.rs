@@ -299,8 +299,14 @@ fn model_problem_2(nx: usize, ny: usize, multiplier: MultiplierSpace) -> Outcome
 fn model_problem_2_paper_multiplier_force_and_free_trace_converge_shear_does_not() {
     let coarse = model_problem_2(64, 16, MultiplierSpace::P1Discontinuous);
     let fine = model_problem_2(128, 32, MultiplierSpace::P1Discontinuous);
-    for o in [&coarse, &fine] {
-        assert!(o.force_rel < 0.01, "force differs by {:.3e}", o.force_rel);
+    // Regression values (fdfsi at 2ad5061; README, cases/model-problem-2.toml and the table
+    // above): force 2.6e-3 / 5.8e-4, shear stress 28 % / 12 % and 21 % / 12 % (the two faces, on
+    // the two meshes), held to their printed digits.
+    for (o, force, wss) in [(&coarse, 2.6e-3, [0.276, 0.118]), (&fine, 5.8e-4, [0.208, 0.118])] {
+        assert!((o.force_rel - force).abs() < 0.05 * force, "force differs by {:.3e}, not {force:.1e}", o.force_rel);
+        for side in 0..2 {
+            assert!((o.wss_rel[side] - wss[side]).abs() < 0.006, "wall shear stress differences {:?}, not {wss:?}", o.wss_rel);
+        }
     }
     // The force difference and the free trace's amplitude are O(h): halving h at least halves
     // them (measured 4.4x and 2.2x).
@@ -313,16 +319,19 @@ fn model_problem_2_paper_multiplier_force_and_free_trace_converge_shear_does_not
     }
 }
 
+/// README: with the trace-mode multiplier the force and the wall shear stress on both faces
+/// match the Dirichlet twin to 2e-9 (measured at most 1.6e-9, the steady-state tolerance, on both
+/// meshes); held at 2e-8. Independent reference: the twin, a separate pure-fluid solve.
 #[test]
-fn model_problem_2_trace_mode_multiplier_matches_the_dirichlet_twin_wall_shear_within_3_percent() {
+fn model_problem_2_trace_mode_multiplier_matches_the_dirichlet_twin_to_2e_9() {
     for (nx, ny) in [(64, 16), (128, 32)] {
         let o = model_problem_2(nx, ny, MultiplierSpace::P1DiscontinuousTraceMode);
         // The stiff plate is at rest: the fully controlled trace must vanish like the twin's
-        // Dirichlet nodes (to the steady-state tolerance, relative velocity change < 1e-7).
-        assert!(o.trace_max < 1e-6, "{nx}x{ny}: |u_f| on gamma_f = {:e}", o.trace_max);
-        assert!(o.force_rel < 0.01, "{nx}x{ny}: force differs by {:.3e}", o.force_rel);
+        // Dirichlet nodes (measured 3.6e-14 and 1.2e-13: round-off).
+        assert!(o.trace_max < 1e-12, "{nx}x{ny}: |u_f| on gamma_f = {:e}", o.trace_max);
+        assert!(o.force_rel < 2e-8, "{nx}x{ny}: force differs by {:.3e}", o.force_rel);
         for side in 0..2 {
-            assert!(o.wss_rel[side] < 0.03, "{nx}x{ny}: wall shear stress differs by {:?}", o.wss_rel);
+            assert!(o.wss_rel[side] < 2e-8, "{nx}x{ny}: wall shear stress differs by {:?}", o.wss_rel);
         }
     }
 }
