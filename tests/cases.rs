@@ -689,8 +689,8 @@ const MODEL_PROBLEM_4_FINE: EquilibriumClaims = EquilibriumClaims { pressures: [
 /// equilibrium positions of the two 3D meshes (0.10442 and 0.104584, gaps 0.26 % and 0.10 %)
 /// converge towards the axisymmetric one, and both meet their equilibrium claims. The gaps and
 /// positions are regression values (the coarse mesh: fdfsi at 2ad5061; the fine one: at
-/// 86935e3), held to their printed digits. About three hours: run with --ignored (and
-/// `FDFSI_LONG_RUNS`, see [`long_run`], to check finished runs).
+/// 86935e3), held to their printed digits. About three hours (the fine run 2.5, the coarse one
+/// 0.5): run with --ignored (and `FDFSI_LONG_RUNS`, see [`long_run`], to check finished runs).
 #[test]
 #[ignore = "about three hours; run with --ignored"]
 fn model_problem_4_follows_model_problem_3() {

@@ -127,3 +127,23 @@ fn every_field_the_parser_accepts_is_documented() {
     }
     assert!(missing.is_empty(), "fields the parser accepts but README's case-file reference does not document: {missing:?}");
 }
+
+/// Every shipped case's header says what `tests/cases.rs` checks (a `# Check` line), as the
+/// README's table of built-in cases promises.
+#[test]
+fn every_case_header_has_a_checks_line() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let header: Vec<&str> = text.lines().take_while(|l| l.starts_with('#')).collect();
+        assert!(
+            header.iter().any(|l| l.starts_with("# Check") && l.contains("tests/")),
+            "{}: the header has no '# Check(s) (tests/...)' line",
+            path.display()
+        );
+    }
+}
