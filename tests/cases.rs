@@ -29,6 +29,15 @@ fn summary_json(out: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
 }
 
+/// `summary.json` records the code and the case that made the run (every kind of run: flow in
+/// `channel_stokes_is_poiseuille_mid_channel`, solid, FSI).
+fn assert_has_provenance(out: &Path) {
+    let p: fdfsi::provenance::Provenance = serde_json::from_value(summary_json(out)["provenance"].clone()).expect("provenance in summary.json");
+    assert_eq!(p.build, fdfsi::provenance::Build::current());
+    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
+    assert_eq!(p.case_sha256, fdfsi::provenance::sha256_hex(case_text.as_bytes()));
+}
+
 fn q(s: &RunSummary, name: &str) -> f64 {
     *s.quantities.get(name).unwrap_or_else(|| panic!("quantity {name} missing"))
 }
@@ -279,6 +288,7 @@ fn cook_membrane_tip_displacement_is_the_regression_value() {
     // side and the locking of displacement-only Q2 are tests/solid_stepping.rs.
     let tip = q(&s, "tip_displacement_y");
     assert!((tip - 6.889).abs() < 5e-4, "{tip}");
+    assert_has_provenance(&out);
     let entries = read_pvd(&out.join("solution.pvd")).unwrap();
     assert_eq!(entries[0].name, "solid");
     let grid = read_vtu(&entries[0].resolve(&out.join("solution.pvd"))).unwrap();
@@ -350,6 +360,7 @@ fn model_problem_2_fsi_force_matches_the_dirichlet_twin() {
     // at 2ad5061).
     assert!(diff < 3e-5, "{diff}");
     assert!((f[0] - 1.18620).abs() < 1e-5 && (f[1] + 0.84511).abs() < 1e-5, "{f:?}");
+    assert_has_provenance(&out);
     assert!((q(&fsi, "inlet_flux") + q(&fsi, "outlet_flux")).abs() < 1e-10);
     assert_eq!(fsi.steps, 12);
     assert!(q(&fsi, "coupling_facets") > 5.0);

@@ -328,7 +328,7 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
     let n = ne * D * D;
     let mut gram = faer::Mat::<f64>::zeros(n, n);
     let mut rows: std::collections::HashMap<usize, Vec<(usize, f64)>> = Default::default();
-    for e in 0..ne {
+    for (e, size) in area.iter().enumerate() {
         let cell = vel.nodes.cell(c.fluid_cell[e]);
         for q in points(e) {
             for (i, &node) in cell.iter().enumerate() {
@@ -336,7 +336,7 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
                     let dof = vel.dof(node, a);
                     if !fixed.contains(&dof) {
                         let row = rows.entry(dof).or_default();
-                        row.extend((0..D).map(|k| ((e * D + k) * D + a, c.weight[q] * c.phi_f[q * nf + i] * c.mu[q * D + k] / area[e])));
+                        row.extend((0..D).map(|k| ((e * D + k) * D + a, c.weight[q] * c.phi_f[q * nf + i] * c.mu[q * D + k] / size)));
                     }
                 }
             }

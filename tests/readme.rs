@@ -147,3 +147,36 @@ fn every_case_header_has_a_checks_line() {
         );
     }
 }
+
+/// The numbers the tests hold (tests/cases.rs and the others assert each of them, as an
+/// independent reference or a regression value) as they are printed in README.md and in the
+/// case's header: when a value moves, its test fails, and this test fails until the README and
+/// the header print the new value.
+const PUBLISHED: &[(&str, &[&str])] = &[
+    ("schaefer-turek-2d1", &["144 788", "5.579470", "0.0106317", "0.117865", "1.2e-5"]),
+    ("womersley-axisymmetric", &["0.11 %"]),
+    ("cylinder-re100", &["0.2982", "3.2174", "0.954"]),
+    ("model-problem-1", &["0.34 downstream", "0.12 up", "1.6 %", "4.4 %", "3e-15", "29 679"]),
+    ("model-problem-2", &["2e-9", "2.6e-3", "28 %"]),
+    ("model-problem-3", &["0.104689", "0.104680", "7 927", "1.2e-2"]),
+    ("model-problem-4", &["0.10442", "0.53 %", "0.26 %", "75 018"]),
+    ("model-problem-4-fine", &["0.104584", "0.89 %", "0.10 %", "143 922", "6.9e-5", "3.3e-4", "3.9e-4"]),
+    ("cook-membrane", &["6.889"]),
+];
+
+#[test]
+fn published_numbers_appear_in_the_readme_and_the_case_headers() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    for (case, numbers) in PUBLISHED {
+        let text = std::fs::read_to_string(root.join("cases").join(format!("{case}.toml"))).unwrap();
+        let header: String = text.lines().take_while(|l| l.starts_with('#')).collect::<Vec<_>>().join(" ");
+        // The header wraps lines: compare with runs of spaces and '#' folded to one space.
+        let fold = |s: &str| s.replace('#', " ").split_whitespace().collect::<Vec<_>>().join(" ");
+        let (header, readme) = (fold(&header), fold(&readme));
+        for n in *numbers {
+            assert!(readme.contains(n), "README.md does not print {n} ({case})");
+            assert!(header.contains(n), "cases/{case}.toml's header does not print {n}");
+        }
+    }
+}
