@@ -170,6 +170,30 @@ fn fsi_run_with_reused_factorisations_resumes_to_round_off() {
     assert_same_history(&full, &parts, 1e-12);
 }
 
+/// A run resumed by another build records it: the checkpoint lists the builds that ran the steps
+/// so far, and summary.json's provenance names the earlier parts' other builds.
+#[test]
+fn a_resumed_run_names_the_builds_of_its_earlier_parts() {
+    use fdfsi::provenance::Build;
+    let case = Case::from_toml_str(&channel_case(4), "test").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let flag = Arc::new(AtomicBool::new(false));
+    let options = RunOptions { checkpoint_every: Some(1000), stop: Some(flag.clone()), ..RunOptions::new(dir.path(), ".") };
+    assert!(run_case(&case, &options, &mut StopAt { at: 1, flag }).is_err());
+    let mut checkpoint = Checkpoint::read(dir.path()).unwrap();
+    assert_eq!(checkpoint.builds, vec![Build::current()]);
+    // As if an older build had run the first part.
+    let older = Build { git_commit: "0123456789abcdef0123456789abcdef01234567".into(), ..Build::current() };
+    checkpoint.builds = vec![older.clone()];
+    checkpoint.write(dir.path()).unwrap();
+    let (case, resume) = RunOptions::resume(dir.path()).unwrap();
+    let summary = run_case(&case, &resume, &mut |_: &str| {}).unwrap();
+    let p = summary.provenance.unwrap();
+    assert_eq!((p.build, p.earlier_parts), (Build::current(), vec![older]));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["provenance"]["earlier_parts"][0]["git_commit"], "0123456789abcdef0123456789abcdef01234567");
+}
+
 #[test]
 fn resume_refuses_a_changed_case() {
     let case = Case::from_toml_str(&channel_case(2), "test").unwrap();

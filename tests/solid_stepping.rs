@@ -34,7 +34,7 @@ fn updated_lagrangian_stepping_ends_in_the_total_lagrangian_state() {
     let f_ul = ul.f_qp.as_ref().unwrap();
     let df = f_tl.iter().zip(f_ul).flat_map(|(a, b)| (0..3).flat_map(move |i| (0..3).map(move |j| (a[i][j] - b[i][j]).abs()))).fold(0.0, f64::max);
     println!("bending: TL {} increments, UL {} increments; max |x_TL - x_UL| = {d:.2e}, max |F_TL - F_UL| = {df:.2e}", tl.steps.len(), ul.steps.len());
-    // README: the same state to 6e-15 (measured 6.7e-15 in x, 4.9e-15 in F): round-off, held at
+    // README: the same state to 7e-15 (measured 6.7e-15 in x, 4.9e-15 in F): round-off, held at
     // 6e-14.
     assert!(d < 6e-14, "UL and TL differ by {d:.3e}");
     assert!(df < 6e-14, "F of UL and TL differ by {df:.3e}");
