@@ -1,11 +1,13 @@
 //! Convergence of P2+/P1disc Stokes on manufactured solutions (the same code `fdfsi verify`
 //! runs): velocity L2 rate >= 2.8, H1 >= 1.8, pressure L2 >= 1.8, and the discrete divergence
-//! zero on every cell (to 8e-14). Independent references: the manufactured solutions and the
+//! zero on every cell (to 10 times the round-off README prints). Independent references: the manufactured solutions and the
 //! element's orders.
 
 use fdfsi::verify::{self, Effort, StokesRun};
 
-fn check(run: &StokesRun) {
+/// Checks the rates and that the largest |int_K div u_h| is within 10 times `divergence` (the value
+/// README.md prints for the first three meshes).
+fn check(run: &StokesRun, divergence: f64) {
     for s in &run.studies {
         let min = match s.quantity.as_str() {
             "velocity_l2" => 2.8,
@@ -14,25 +16,24 @@ fn check(run: &StokesRun) {
         println!("{} {}: errors {:?} rate {:.3}", s.name, s.quantity, s.errors, s.observed_rate);
         assert!(s.observed_rate >= min, "{} {}: rate {:.3} < {min}", s.name, s.quantity, s.observed_rate);
     }
-    // README: the largest |int_K div u_h| is 8.6e-15 (plane), 1.7e-14 (axisymmetric), 3.1e-14
-    // (3D) on the `fdfsi verify --full` meshes; round-off, held here at 8e-14.
+    // Round-off: README prints 8.6e-15 (plane), 5.3e-15 (axisymmetric), 7.2e-15 (3D).
     println!("{}: max |int_K div u_h| = {:.3e}", run.studies[0].name, run.max_cell_divergence);
-    assert!(run.max_cell_divergence < 8e-14, "cell divergence {:.3e}", run.max_cell_divergence);
+    assert!(run.max_cell_divergence < 10.0 * divergence, "cell divergence {:.3e}", run.max_cell_divergence);
 }
 
 #[test]
 fn stokes_plane_converges_at_optimal_rates() {
-    check(&verify::stokes_plane(Effort::Quick).unwrap());
+    check(&verify::stokes_plane(Effort::Quick).unwrap(), 8.6e-15);
 }
 
 #[test]
 fn stokes_axisymmetric_converges_at_optimal_rates() {
-    check(&verify::stokes_axisymmetric(Effort::Quick).unwrap());
+    check(&verify::stokes_axisymmetric(Effort::Quick).unwrap(), 5.3e-15);
 }
 
 #[test]
 fn stokes_3d_converges_at_optimal_rates() {
-    check(&verify::stokes_3d(Effort::Quick).unwrap());
+    check(&verify::stokes_3d(Effort::Quick).unwrap(), 7.2e-15);
 }
 
 #[test]
