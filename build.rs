@@ -2,13 +2,14 @@
 //! result (`summary.json`'s `provenance`, see `src/provenance.rs`).
 //!
 //! Sets `FDFSI_GIT_COMMIT` (the commit checked out, or `unknown` outside a git checkout),
-//! `FDFSI_GIT_MODIFIED` (`true` when the source paths below differ from that commit, untracked
+//! `FDFSI_GIT_MODIFIED` (`true` when the code paths below differ from that commit, untracked
 //! files included) and `FDFSI_BUILD_PROFILE` (cargo's `PROFILE`: `release` or `debug`).
 use std::process::Command;
 
-/// The paths whose content decides the binary's results: the code, the built-in cases and meshes,
-/// the locked dependencies.
-const SOURCE_PATHS: &[&str] = &["src", "crates", "cases", "meshes", "Cargo.toml", "Cargo.lock", "build.rs"];
+/// The paths whose content decides the binary's results: the code, the meshes, the locked
+/// dependencies (a case is recorded by its own hash, so `cases/` is left out; the long-run tests
+/// in `tests/cases.rs` compare the same paths).
+const SOURCE_PATHS: &[&str] = &["src", "crates", "meshes", "Cargo.toml", "Cargo.lock", "build.rs"];
 
 fn git(args: &[&str]) -> Option<String> {
     let out = Command::new("git").args(args).output().ok()?;
@@ -19,8 +20,9 @@ fn main() {
     for path in SOURCE_PATHS {
         println!("cargo:rerun-if-changed={path}");
     }
-    // A new commit or a change of the index (git add) changes what the source is compared with.
-    for what in ["HEAD", "index", "packed-refs"] {
+    // A new commit changes what the code is compared with (a change of the code itself reruns
+    // the script through the paths above).
+    for what in ["HEAD", "packed-refs"] {
         if let Some(p) = git(&["rev-parse", "--git-path", what]) {
             println!("cargo:rerun-if-changed={p}");
         }

@@ -122,9 +122,10 @@ pub struct Checkpoint {
     pub time: f64,
     pub state: RestartState,
     pub progress: Progress,
-    /// The builds of fdfsi that ran the steps so far, oldest first (absent in checkpoints of
-    /// builds before provenance was recorded).
-    #[serde(default)]
+    /// The builds of fdfsi that ran the steps so far, oldest first. A checkpoint written before
+    /// builds were recorded reads as one unknown build ([`crate::provenance::Build::unknown`]), so
+    /// that a run resumed from it is not taken for one made by known code.
+    #[serde(default = "crate::provenance::Build::unknown_parts")]
     pub builds: Vec<crate::provenance::Build>,
 }
 

@@ -1,8 +1,8 @@
 //! Which code and which case made a result.
 //!
 //! Every `summary.json` carries a `provenance` object: the fdfsi version, the git commit the
-//! binary was built from and whether its source (`src`, `crates`, `cases`, `meshes`, the cargo
-//! files; see `build.rs`) differed from that commit, the build profile, and the SHA-256 of the
+//! binary was built from and whether its code (`src`, `crates`, `meshes`, the cargo files and
+//! `build.rs`; see `build.rs`) differed from that commit, the build profile, and the SHA-256 of the
 //! case as used (`case.toml`). A run resumed from a checkpoint also lists the builds that wrote
 //! its earlier parts, so a result made partly by older code is recognisable:
 //!
@@ -45,6 +45,16 @@ impl Build {
             git_modified: env!("FDFSI_GIT_MODIFIED") == "true",
             build_profile: env!("FDFSI_BUILD_PROFILE").into(),
         }
+    }
+
+    /// A build of which nothing is known (it wrote a checkpoint before builds were recorded).
+    pub fn unknown() -> Build {
+        Build { fdfsi_version: "unknown".into(), git_commit: "unknown".into(), git_modified: false, build_profile: "unknown".into() }
+    }
+
+    /// The builds of a run's earlier parts when nothing is known of them: one unknown build.
+    pub fn unknown_parts() -> Vec<Build> {
+        vec![Build::unknown()]
     }
 
     /// True when the build is of a known, unmodified commit, i.e. its source can be recovered.
@@ -126,12 +136,13 @@ mod tests {
     fn a_build_is_listed_once_per_run() {
         let older = Build { git_commit: "0".repeat(40), ..Build::current() };
         assert_eq!(builds_so_far(&[]), vec![Build::current()]);
-        assert_eq!(builds_so_far(&[older.clone()]), vec![older.clone(), Build::current()]);
+        assert_eq!(builds_so_far(std::slice::from_ref(&older)), vec![older.clone(), Build::current()]);
         assert_eq!(builds_so_far(&[older.clone(), Build::current()]), vec![older.clone(), Build::current()]);
         let p = Provenance::of_run("title = \"t\"\n", &[]);
         assert_eq!(p.builds().count(), 1);
         let resumed = Provenance::of_run("", &[older.clone(), Build::current(), older.clone()]);
         assert_eq!(resumed.earlier_parts, vec![older.clone()]);
+        assert!(!Build::unknown().is_reproducible());
         let json = serde_json::to_value(&p).unwrap();
         assert!(json["git_commit"].is_string() && json["case_sha256"].as_str().unwrap().len() == 64, "{json}");
     }

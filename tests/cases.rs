@@ -649,7 +649,8 @@ fn case_file(name: &str) -> (Case, PathBuf) {
 }
 
 /// The paths whose content decides a run's numbers: the code, the meshes, the locked
-/// dependencies (the case is compared on its own; a case header's comments do not count).
+/// dependencies (the case is compared on its own; a case header's comments do not count). The
+/// same as `build.rs`'s, which decide `git_modified`.
 const CODE_PATHS: &[&str] = &["src", "crates", "meshes", "Cargo.toml", "Cargo.lock", "build.rs"];
 
 /// Refuses a run made by other code than the code under test: every build in `builds` (of a

@@ -192,6 +192,13 @@ fn a_resumed_run_names_the_builds_of_its_earlier_parts() {
     assert_eq!((p.build, p.earlier_parts), (Build::current(), vec![older]));
     let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap()).unwrap();
     assert_eq!(json["provenance"]["earlier_parts"][0]["git_commit"], "0123456789abcdef0123456789abcdef01234567");
+    // A checkpoint written before builds were recorded reads as one unknown build.
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(Checkpoint::path(dir.path())).unwrap()).unwrap();
+    json.as_object_mut().unwrap().remove("builds");
+    std::fs::write(Checkpoint::path(dir.path()), json.to_string()).unwrap();
+    let old = Checkpoint::read(dir.path()).unwrap();
+    assert_eq!(old.builds, vec![Build::unknown()]);
+    assert!(!old.builds[0].is_reproducible());
 }
 
 #[test]
