@@ -21,14 +21,11 @@ fn main() {
         println!("cargo:rerun-if-changed={path}");
     }
     // A new commit changes what the code is compared with (a change of the code itself reruns
-    // the script through the paths above).
-    for what in ["HEAD", "packed-refs"] {
-        if let Some(p) = git(&["rev-parse", "--git-path", what]) {
-            println!("cargo:rerun-if-changed={p}");
-        }
-    }
-    if let Some(head_ref) = git(&["symbolic-ref", "-q", "HEAD"]) {
-        if let Some(p) = git(&["rev-parse", "--git-path", &head_ref]) {
+    // the script through the paths above): HEAD, and the branch refs (loose in `refs/heads`, a
+    // folder whose files cargo scans, or packed). Only paths that exist are watched: cargo reruns
+    // the script on every build for a missing one (`packed-refs` is absent until git packs refs).
+    for what in ["HEAD", "refs/heads", "packed-refs"] {
+        if let Some(p) = git(&["rev-parse", "--git-path", what]).filter(|p| std::path::Path::new(p).exists()) {
             println!("cargo:rerun-if-changed={p}");
         }
     }
