@@ -29,13 +29,19 @@ fn summary_json(out: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap()
 }
 
+/// The provenance in `out/summary.json`, checked to name the run's `case.toml` by its hash.
+fn provenance(out: &Path) -> fdfsi::provenance::Provenance {
+    let p: fdfsi::provenance::Provenance = serde_json::from_value(summary_json(out)["provenance"].clone())
+        .unwrap_or_else(|e| panic!("{}: summary.json has no provenance ({e}): made before 2ad5061; move it away to run again", out.display()));
+    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
+    assert_eq!(p.case_sha256, fdfsi::provenance::sha256_hex(case_text.as_bytes()), "{}: case.toml changed after the run", out.display());
+    p
+}
+
 /// `summary.json` records the code and the case that made the run (every kind of run: flow in
 /// `channel_stokes_is_poiseuille_mid_channel`, solid, FSI).
 fn assert_has_provenance(out: &Path) {
-    let p: fdfsi::provenance::Provenance = serde_json::from_value(summary_json(out)["provenance"].clone()).expect("provenance in summary.json");
-    assert_eq!(p.build, fdfsi::provenance::Build::current());
-    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
-    assert_eq!(p.case_sha256, fdfsi::provenance::sha256_hex(case_text.as_bytes()));
+    assert_eq!(provenance(out).build, fdfsi::provenance::Build::current());
 }
 
 fn q(s: &RunSummary, name: &str) -> f64 {
@@ -105,8 +111,7 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     assert!(commit == "unknown" || (commit.len() == 40 && commit.chars().all(|c| c.is_ascii_hexdigit())), "{commit}");
     assert!(p["git_modified"].is_boolean() && p["earlier_parts"].as_array().is_some_and(Vec::is_empty), "{p}");
     assert_eq!(p["build_profile"].as_str(), Some(if cfg!(debug_assertions) { "debug" } else { "release" }));
-    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
-    assert_eq!(p["case_sha256"].as_str(), Some(fdfsi::provenance::sha256_hex(case_text.as_bytes()).as_str()));
+    assert_has_provenance(&out);
     // Wall shear stress on the bottom wall: eta du/dy = 6 eta U / H = 6 in the fully developed
     // part, pointing downstream (+x, the direction of increasing s on the bottom wall).
     let wss = std::fs::read_to_string(out.join("profiles/wss_bottom.csv")).unwrap();
@@ -450,20 +455,19 @@ fn model_problem_1_motion_is_periodic() {
     let max_y = y.iter().fold(0.0f64, |m, v| m.max(*v));
     println!("model problem 1: the tip moves up to {max_x:.4} downstream and {max_y:.4} up");
     assert!((max_x - 0.34).abs() < 0.006 && (max_y - 0.12).abs() < 0.006, "tip excursion ({max_x}, {max_y})");
+    // The tip path of the period from step `a` against the one from step `b` (relative L2).
+    let differ = |a: usize, b: usize| {
+        let num: f64 = (0..period).map(|i| (x[a + i] - x[b + i]).powi(2) + (y[a + i] - y[b + i]).powi(2)).sum();
+        (num / (0..period).map(|i| x[b + i].powi(2) + y[b + i].powi(2)).sum::<f64>()).sqrt()
+    };
     let (a, b) = (2 * period, 3 * period); // periods 3 and 4
-    let num: f64 = (0..period).map(|i| (x[a + i] - x[b + i]).powi(2) + (y[a + i] - y[b + i]).powi(2)).sum();
-    let den: f64 = (0..period).map(|i| x[b + i].powi(2) + y[b + i].powi(2)).sum();
-    let repeat = (num / den).sqrt();
+    let repeat = differ(a, b);
     let excursion = (0..period).map(|i| x[b + i].hypot(y[b + i])).fold(0.0f64, f64::max);
     let worst = (0..period).map(|i| (x[a + i] - x[b + i]).hypot(y[a + i] - y[b + i])).fold(0.0f64, f64::max) / excursion;
     println!("model problem 1: tip path of period 4 vs period 3: {repeat:.4} (L2, relative), {worst:.4} at the worst instant");
     assert!((repeat - 0.016).abs() < 0.001, "{repeat}");
     assert!((worst - 0.044).abs() < 0.002, "{worst}");
     // The start from rest: periods 2 and 3 differ by 1.9 %, periods 1 and 2 by 10 %.
-    let differ = |a: usize, b: usize| {
-        let num: f64 = (0..period).map(|i| (x[a + i] - x[b + i]).powi(2) + (y[a + i] - y[b + i]).powi(2)).sum();
-        (num / (0..period).map(|i| x[b + i].powi(2) + y[b + i].powi(2)).sum::<f64>()).sqrt()
-    };
     let (d23, d12) = (differ(period, 2 * period), differ(0, period));
     println!("model problem 1: periods 2 vs 3 {d23:.4}, 1 vs 2 {d12:.4}");
     assert!((d23 - 0.019).abs() < 0.001 && (d12 - 0.10).abs() < 0.006, "{d23} {d12}");
@@ -674,12 +678,7 @@ fn assert_builds_are_this_code<'a>(out: &Path, builds: impl IntoIterator<Item = 
 /// Refuses a finished run made by other code (see [`assert_builds_are_this_code`]) or whose
 /// `case.toml` changed after it.
 fn assert_made_by_this_code(out: &Path) {
-    let summary = summary_json(out);
-    let p: fdfsi::provenance::Provenance = serde_json::from_value(summary["provenance"].clone())
-        .unwrap_or_else(|e| panic!("{}: summary.json has no provenance ({e}): made before 2ad5061; move it away to run again", out.display()));
-    let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
-    assert_eq!(p.case_sha256, fdfsi::provenance::sha256_hex(case_text.as_bytes()), "{}: case.toml changed after the run", out.display());
-    assert_builds_are_this_code(out, p.builds());
+    assert_builds_are_this_code(out, provenance(out).builds());
 }
 
 /// The output folder of a long case run. With `FDFSI_LONG_RUNS=DIR` the case runs into
