@@ -21,10 +21,10 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
 use fdfsi::fem::gmsh::AnyMesh;
+use fdfsi::fem::mesh::Mesh;
 use fdfsi::fsi::{step, FsiModel, FsiState};
 use fdfsi::run::{build_mesh, BUILTIN_CASES};
 use fdfsi::solve::linear::FaerLu;
-use fdfsi::fem::mesh::Mesh;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;

@@ -125,10 +125,7 @@ fn stokes3d(c: &mut Criterion) {
 
         let faer_symbolic = if method == LuMethod::Pivoting {
             let t: Vec<Duration> = (0..3).map(|_| time_faer_symbolic(&disc.pattern)).collect();
-            format!(
-                " faer_symbolic_lu(min of 3)={:.3}s",
-                t.iter().min().copied().unwrap_or_default().as_secs_f64()
-            )
+            format!(" faer_symbolic_lu(min of 3)={:.3}s", t.iter().min().copied().unwrap_or_default().as_secs_f64())
         } else {
             String::new()
         };
@@ -150,8 +147,7 @@ fn stokes3d(c: &mut Criterion) {
         let first_solve = t.elapsed();
         let sol: Vec<f64> = x.iter().zip(&dx).map(|(a, b)| a + b).collect();
         let (u, g, p) = (|x: &[f64; 3]| exact.velocity(x), |x: &[f64; 3]| exact.gradient(x), |x: &[f64; 3]| exact.pressure(x));
-        let errs = flow_errors(&disc, Formulation::ThreeD, &sol, &ExactFlow { velocity: &u, gradient: &g, pressure: &p }, 8)
-            .expect("errors");
+        let errs = flow_errors(&disc, Formulation::ThreeD, &sol, &ExactFlow { velocity: &u, gradient: &g, pressure: &p }, 8).expect("errors");
         let hwm_setup = vm_hwm_mib();
 
         eprintln!(
@@ -189,9 +185,7 @@ fn stokes3d(c: &mut Criterion) {
         });
 
         // --- (b) numeric LU (symbolic cached) ---
-        group.bench_with_input(BenchmarkId::new("lu_numeric", n), &n, |b, _| {
-            b.iter(|| lu.factorize(black_box(&k)).expect("factorisation"))
-        });
+        group.bench_with_input(BenchmarkId::new("lu_numeric", n), &n, |b, _| b.iter(|| lu.factorize(black_box(&k)).expect("factorisation")));
         assert_eq!(lu.symbolic_factorizations(), 1, "the symbolic factorisation must be reused");
 
         // --- (c) one solve with the factorisation ---

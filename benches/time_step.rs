@@ -21,9 +21,9 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
-use fdfsi::flow::{FlowDiscretization, FlowProblem};
 use fdfsi::fem::gmsh::AnyMesh;
 use fdfsi::fem::mesh::Mesh;
+use fdfsi::flow::{FlowDiscretization, FlowProblem};
 use fdfsi::run::{build_mesh, flow_problem};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;

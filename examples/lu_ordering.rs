@@ -27,14 +27,7 @@ fn cpu_seconds() -> f64 {
     (tick(11) + tick(12)) / 100.0
 }
 
-fn run<const D: usize>(
-    name: &str,
-    disc: FlowDiscretization<D>,
-    problem: FlowProblem<D>,
-    newton_steps: usize,
-    ordering: FillOrdering,
-    reps: usize,
-) {
+fn run<const D: usize>(name: &str, disc: FlowDiscretization<D>, problem: FlowProblem<D>, newton_steps: usize, ordering: FillOrdering, reps: usize) {
     let n = disc.num_dofs();
     let (system, mut x) = SteadySystem::new(&disc, &problem).expect("dirichlet dofs");
     let mut k = CscMatrix::zeros(&disc.pattern);

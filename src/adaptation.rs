@@ -45,9 +45,7 @@ pub enum AdaptationError {
 /// Builds the solid mesh of a case at its placed position.
 pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<Mesh<D>, AdaptationError> {
     let any = match &solid.mesh {
-        SolidMeshSpec::Rectangle { x, y, n } => {
-            AnyMesh::D2(generate::rectangle_quads(x[0], x[1], y[0], y[1], n[0], n[1], GeometryOrder::Quadratic))
-        }
+        SolidMeshSpec::Rectangle { x, y, n } => AnyMesh::D2(generate::rectangle_quads(x[0], x[1], y[0], y[1], n[0], n[1], GeometryOrder::Quadratic)),
         SolidMeshSpec::Quadrilateral { corners: c, n } => {
             // Bilinear image of the unit square: x(s, t) = sum of corners times (1-s)(1-t), s(1-t), st, (1-s)t.
             let mut m = generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, n[0], n[1], GeometryOrder::Quadratic);
@@ -118,7 +116,13 @@ pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path)
 impl<const D: usize> AdaptedFluid<D> {
     /// `original` (prepared as `background`) adapted to `surface`, the surface of `solid`, with
     /// gamma_f tagged on the adapted mesh.
-    pub fn new(original: Mesh<D>, background: &Background<D>, solid: Mesh<D>, surface: Surface<D>, options: &AdaptOptions) -> Result<Self, AdaptError> {
+    pub fn new(
+        original: Mesh<D>,
+        background: &Background<D>,
+        solid: Mesh<D>,
+        surface: Surface<D>,
+        options: &AdaptOptions,
+    ) -> Result<Self, AdaptError> {
         let mut adapted = adapt_with(background, &surface, options)?;
         fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
         Ok(AdaptedFluid { original, solid, surface, adapted })

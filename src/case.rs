@@ -279,7 +279,11 @@ pub enum TimeFunction {
     /// `min(t / duration, 1)`; `duration > 0`.
     Ramp { duration: f64 },
     /// `sin(2 pi t / period + phase)`; `period > 0`.
-    Sine { period: f64, #[serde(default)] phase: f64 },
+    Sine {
+        period: f64,
+        #[serde(default)]
+        phase: f64,
+    },
     /// `sin(pi t / (2 rise))` for `t < rise`, then 1 (the first quarter of a sine, then held);
     /// `rise > 0`.
     QuarterSineHold { rise: f64 },
@@ -300,14 +304,27 @@ pub enum MeshSpec {
     /// Channel `[0, length] x [0, height]`, x-spacing fine in the middle and coarse towards both
     /// ends (`grading` = ratio of the largest to the smallest cell, 1 = uniform). Boundaries
     /// `inlet`, `outlet`, `bottom`, `top`. `length`, `height`, `grading` > 0.
-    Channel { length: f64, height: f64, n: [usize; 2], #[serde(default = "one")] grading: f64 },
+    Channel {
+        length: f64,
+        height: f64,
+        n: [usize; 2],
+        #[serde(default = "one")]
+        grading: f64,
+    },
     /// Box `[x0,x1] x [y0,y1] x [z0,z1]`, each hexahedral cell split into six tetrahedra.
     /// Boundaries `xmin`, `xmax`, `ymin`, `ymax`, `zmin`, `zmax`.
     Box { x: [f64; 2], y: [f64; 2], z: [f64; 2], n: [usize; 3] },
     /// Circular pipe along z of straight-sided tetrahedra (or a quarter with symmetry planes).
     /// Boundaries `inlet` (z = 0), `outlet`, `wall`, and `symmetry_x`, `symmetry_y` when quarter.
     /// `radius`, `length` > 0; `n_radial`, `n_axial` >= 1.
-    Pipe { radius: f64, length: f64, n_radial: usize, n_axial: usize, #[serde(default)] quarter: bool },
+    Pipe {
+        radius: f64,
+        length: f64,
+        n_radial: usize,
+        n_axial: usize,
+        #[serde(default)]
+        quarter: bool,
+    },
     /// A Gmsh MSH 4.1 file (path relative to the case file); boundary and region names are its
     /// physical names. Second-order (curved) triangles and tetrahedra are used isoparametrically.
     Gmsh { file: PathBuf },
@@ -832,15 +849,15 @@ impl Case {
             }
             let steps = t.end / t.dt;
             if t.dt > 0.0 && t.end > 0.0 && t.end.is_finite() && steps > MAX_STEPS as f64 {
-                problems.push(format!(
-                    "time.end / time.dt = {steps:.3e} steps, more than the {MAX_STEPS} allowed (dt = {:e}, end = {})",
-                    t.dt, t.end
-                ));
+                problems
+                    .push(format!("time.end / time.dt = {steps:.3e} steps, more than the {MAX_STEPS} allowed (dt = {:e}, end = {})", t.dt, t.end));
             }
         }
         for b in &self.boundary {
             match &b.time_function {
-                Some(TimeFunction::Ramp { duration: v }) | Some(TimeFunction::Sine { period: v, .. }) | Some(TimeFunction::QuarterSineHold { rise: v }) => {
+                Some(TimeFunction::Ramp { duration: v })
+                | Some(TimeFunction::Sine { period: v, .. })
+                | Some(TimeFunction::QuarterSineHold { rise: v }) => {
                     positive(*v, &format!("boundary '{}': time_function duration/period/rise", b.name), &mut problems)
                 }
                 _ => {}
@@ -871,9 +888,7 @@ pub const MAX_GENERATED_CELLS: usize = 100_000_000;
 fn intervals(table: &str, axes: &[(&str, &[f64; 2])], problems: &mut Vec<String>) {
     for (name, [lo, hi]) in axes {
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {
-            problems.push(format!(
-                "{table}.{name} = [{lo}, {hi}] must be an increasing interval [lo, hi] of finite numbers"
-            ));
+            problems.push(format!("{table}.{name} = [{lo}, {hi}] must be an increasing interval [lo, hi] of finite numbers"));
         }
     }
 }
@@ -1039,8 +1054,8 @@ const VARIABLES: [&str; 5] = ["x", "y", "z", "r", "t"];
 
 /// The functions of exmex's default `f64` operators (besides the infix `min`, `max`, `atan2`).
 const FUNCTIONS: [&str; 26] = [
-    "abs", "signum", "sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh",
-    "floor", "round", "ceil", "trunc", "fract", "exp", "sqrt", "cbrt", "ln", "log", "log2", "log10",
+    "abs", "signum", "sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh", "floor", "round", "ceil",
+    "trunc", "fract", "exp", "sqrt", "cbrt", "ln", "log", "log2", "log10",
 ];
 
 /// The first name followed by `(` that is not a known function.
@@ -1077,17 +1092,15 @@ impl Expr {
             Scalar::Number(v) => Ok(Expr { kind: ExprKind::Constant(*v) }),
             Scalar::Expression(text) => {
                 let expr = exmex::parse::<f64>(text).map_err(|e| match unknown_function(text) {
-                    Some(f) => format!(
-                        "cannot parse expression \"{text}\": unknown function `{f}` (known: {})",
-                        FUNCTIONS.join(", ")
-                    ),
+                    Some(f) => format!("cannot parse expression \"{text}\": unknown function `{f}` (known: {})", FUNCTIONS.join(", ")),
                     None => format!("cannot parse expression \"{text}\": {e}"),
                 })?;
                 let mut slots = Vec::new();
                 for name in expr.var_names() {
-                    let k = VARIABLES.iter().position(|v| v == name).ok_or_else(|| {
-                        format!("expression \"{text}\": unknown variable `{name}` (use x, y, z, r, t)")
-                    })?;
+                    let k = VARIABLES
+                        .iter()
+                        .position(|v| v == name)
+                        .ok_or_else(|| format!("expression \"{text}\": unknown variable `{name}` (use x, y, z, r, t)"))?;
                     slots.push(k);
                 }
                 Ok(Expr { kind: ExprKind::Compiled { expr: Arc::new(expr), slots } })
@@ -1102,7 +1115,13 @@ impl Expr {
         match &self.kind {
             ExprKind::Constant(v) => *v,
             ExprKind::Compiled { expr, slots } => {
-                let all = [x.first().copied().unwrap_or(0.0), x.get(1).copied().unwrap_or(0.0), x.get(2).copied().unwrap_or(0.0), x.get(1).copied().unwrap_or(0.0), t];
+                let all = [
+                    x.first().copied().unwrap_or(0.0),
+                    x.get(1).copied().unwrap_or(0.0),
+                    x.get(2).copied().unwrap_or(0.0),
+                    x.get(1).copied().unwrap_or(0.0),
+                    t,
+                ];
                 let mut vals = [0.0; 5];
                 for (i, &k) in slots.iter().enumerate() {
                     vals[i] = all[k];
@@ -1179,9 +1198,7 @@ value = ["4*y*(1-y)", 0]
         assert!(e.contains("line 3, column 1") && e.contains("integer `-2`, expected a whole number >= 0"), "{e}");
         let e = Case::from_toml_str(&GOOD.replace("density = 1.0", "density ="), "b.toml").unwrap_err().to_string();
         assert!(e.contains("`density` has no value after `=`"), "{e}");
-        let e = Case::from_toml_str(&GOOD.replace("[physics]", "[physics]\nformulation = \"3d\""), "b.toml")
-            .unwrap_err()
-            .to_string();
+        let e = Case::from_toml_str(&GOOD.replace("[physics]", "[physics]\nformulation = \"3d\""), "b.toml").unwrap_err().to_string();
         assert!(e.contains("duplicate key `formulation`"), "{e}");
     }
 

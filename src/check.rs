@@ -128,8 +128,7 @@ impl Ctx<'_> {
     fn check_tables(&self) -> Result<(), RunError> {
         for b in &self.case.boundary {
             if let Some(f @ TimeFunction::Table { .. }) = &b.time_function {
-                TimeFn::load(f, self.dir)
-                    .map_err(|e| self.invalid(format!("boundary '{}': time_function table: {e}", b.name)))?;
+                TimeFn::load(f, self.dir).map_err(|e| self.invalid(format!("boundary '{}': time_function table: {e}", b.name)))?;
             }
         }
         Ok(())
@@ -146,9 +145,7 @@ impl Ctx<'_> {
         if known.iter().any(|k| k == name) {
             return Ok(());
         }
-        let hint = crate::case::nearest_name(known.iter().map(String::as_str), name)
-            .map(|n| format!(" (did you mean `{n}`?)"))
-            .unwrap_or_default();
+        let hint = crate::case::nearest_name(known.iter().map(String::as_str), name).map(|n| format!(" (did you mean `{n}`?)")).unwrap_or_default();
         let list = if known.is_empty() { "none".to_string() } else { known.join(", ") };
         Err(self.invalid(format!("{what}: {whose} has no boundary '{name}'{hint}; its boundaries: {list}")))
     }
@@ -160,20 +157,14 @@ impl Ctx<'_> {
     /// The placed solid mesh; `solid.surface` and the `[[solid.boundary]]` names must be its
     /// boundaries.
     fn solid_mesh<const D: usize>(&self, spec: &SolidSpec) -> Result<Mesh<D>, RunError> {
-        let mesh = crate::adaptation::solid_mesh::<D>(spec, self.dir)
-            .map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
+        let mesh = crate::adaptation::solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
         let names: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
         if let Some(s) = &spec.surface {
             self.known_name(&names, s, &format!("solid.surface = \"{s}\""), "the solid mesh")?;
         }
         if spec.model != crate::case::SolidModel::Fixed {
             for b in &spec.boundary {
-                self.known_name(
-                    &names,
-                    &b.name,
-                    &format!("[[solid.boundary]] name = \"{}\"", b.name),
-                    "the solid mesh",
-                )?;
+                self.known_name(&names, &b.name, &format!("[[solid.boundary]] name = \"{}\"", b.name), "the solid mesh")?;
             }
         }
         Ok(mesh)
@@ -211,10 +202,7 @@ impl Ctx<'_> {
     fn with_fluid<const D: usize>(&self, mesh: Mesh<D>) -> Result<CheckSummary, RunError> {
         let case = self.case;
         if !matches!(mesh.cell_type, ReferenceCell::Triangle | ReferenceCell::Tetrahedron) {
-            return Err(self.invalid(format!(
-                "[mesh]: fluid meshes must be triangles (2D) or tetrahedra (3D), got {:?} cells",
-                mesh.cell_type
-            )));
+            return Err(self.invalid(format!("[mesh]: fluid meshes must be triangles (2D) or tetrahedra (3D), got {:?} cells", mesh.cell_type)));
         }
         let fsi = is_fsi(case);
         let own: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
@@ -243,8 +231,7 @@ impl Ctx<'_> {
         let cells = mesh.num_cells();
         let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.domain.len() + case.output.combination.len();
         if let (true, Some((spec, solid_mesh))) = (fsi, solid) {
-            let surface =
-                spec.surface.clone().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
+            let surface = spec.surface.clone().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
             let fluid = flow_problem(case, &mesh, self.dir)?;
             let solid = crate::solid_run::problem::<D>(case, spec, false)?;
             let material = solid.material.name();
@@ -252,8 +239,7 @@ impl Ctx<'_> {
             let model = FsiModel::new(problem, &mesh, solid_mesh)?;
             let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()])?;
             self.probes_inside(&disc.flow.mesh)?;
-            let mut dofs: Vec<(String, usize)> =
-                disc.flow.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect();
+            let mut dofs: Vec<(String, usize)> = disc.flow.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect();
             dofs.extend(model.solid.layout.fields.iter().map(|f| (format!("solid {}", f.name), f.num_dofs())));
             dofs.push(("multiplier".into(), disc.multiplier_dofs));
             let ts = case.time.as_ref().ok_or_else(|| self.invalid("an FSI run needs a [time] table".into()))?;
@@ -290,10 +276,7 @@ impl Ctx<'_> {
         let disc = FlowDiscretization::build(adapted, case.physics.formulation)?;
         let dofs = with_total(disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect());
         let solid_text = match &case.solid {
-            Some(s) => format!(
-                "; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells",
-                s.surface.as_deref().unwrap_or("?")
-            ),
+            Some(s) => format!("; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells", s.surface.as_deref().unwrap_or("?")),
             None => String::new(),
         };
         let description = format!(
@@ -399,12 +382,10 @@ fn point_text(x: &[f64]) -> String {
     format!("({})", parts.join(", "))
 }
 
-
 /// Size of an inline-binary VTU file: base64 of the coordinates, the connectivity, offsets and
 /// types, `point_values` Float64 values per point and `cell_values` per cell, plus the XML.
 fn vtu_bytes(points: usize, cells: usize, nodes_per_cell: usize, point_values: usize, cell_values: usize) -> u64 {
-    let raw = points as u64 * (3 + point_values as u64) * 8
-        + cells as u64 * (nodes_per_cell as u64 * 8 + 9 + cell_values as u64 * 8);
+    let raw = points as u64 * (3 + point_values as u64) * 8 + cells as u64 * (nodes_per_cell as u64 * 8 + 9 + cell_values as u64 * 8);
     raw * 4 / 3 + 2000
 }
 

@@ -137,10 +137,8 @@ impl Checkpoint {
 
     /// Writes the checkpoint into `out_dir` (atomically).
     pub fn write(&self, out_dir: &Path) -> Result<(), CheckpointError> {
-        let text = serde_json::to_string(self).map_err(|e| CheckpointError::Invalid {
-            path: Self::path(out_dir).display().to_string(),
-            message: e.to_string(),
-        })?;
+        let text = serde_json::to_string(self)
+            .map_err(|e| CheckpointError::Invalid { path: Self::path(out_dir).display().to_string(), message: e.to_string() })?;
         Ok(write_atomic(&Self::path(out_dir), text.as_bytes())?)
     }
 
@@ -183,7 +181,9 @@ impl Checkpoint {
         match &self.state {
             RestartState::Fsi(s) => {
                 let base = s.fluid.as_ref().map_or(solid_dofs, |f| f.solid_base.len());
-                for (what, found) in [("the solid displacement", s.solid_x.len()), ("the solid velocity", s.solid_v.len()), ("the fluid's solid position", base)] {
+                for (what, found) in
+                    [("the solid displacement", s.solid_x.len()), ("the solid velocity", s.solid_v.len()), ("the fluid's solid position", base)]
+                {
                     if found != solid_dofs {
                         return Err(CheckpointError::Size { path, what, found, expected: solid_dofs });
                     }

@@ -160,13 +160,7 @@ impl<const D: usize> FlowDiscretization<D> {
 
     /// Fresh facet values.
     pub fn facet_values(&self) -> FacetValues<D> {
-        FacetValues::new(
-            self.mesh.cell_type,
-            &self.facet_points,
-            &self.facet_weights,
-            &self.velocity_element,
-            &self.geometry_element,
-        )
+        FacetValues::new(self.mesh.cell_type, &self.facet_points, &self.facet_weights, &self.velocity_element, &self.geometry_element)
     }
 
     /// Sets the Dirichlet values at time `t` in `x` and returns which dofs they constrain (the
@@ -296,7 +290,6 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 }
 
-
 /// A flow solution on a discretisation: the global vector in the layout's numbering.
 #[derive(Clone, Debug)]
 pub struct FlowSolution {
@@ -362,11 +355,7 @@ pub fn solve_steady<const D: usize>(
 }
 
 /// Adds a constant to the pressure so that its (weighted) mean over the domain is zero.
-fn shift_pressure_to_zero_mean<const D: usize>(
-    disc: &FlowDiscretization<D>,
-    formulation: Formulation,
-    x: &mut [f64],
-) -> Result<(), FlowError> {
+fn shift_pressure_to_zero_mean<const D: usize>(disc: &FlowDiscretization<D>, formulation: Formulation, x: &mut [f64]) -> Result<(), FlowError> {
     let mut cv = disc.cell_values(disc.cell_rule.clone());
     let mut coords = Vec::new();
     let (mut int_p, mut vol) = (0.0, 0.0);

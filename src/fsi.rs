@@ -273,7 +273,12 @@ impl<const D: usize> FsiState<D> {
                         vel.num_dofs()
                     )));
                 }
-                Some(FluidSnapshot { solid_base: f.solid_base.clone(), mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: f.velocity.clone() })
+                Some(FluidSnapshot {
+                    solid_base: f.solid_base.clone(),
+                    mesh: disc.flow.mesh.clone(),
+                    nodes: vel.nodes.clone(),
+                    velocity: f.velocity.clone(),
+                })
             }
         };
         Ok(FsiState { time, solid_x: r.solid_x.clone(), solid_f: r.solid_f.clone(), solid_v: r.solid_v.clone(), fluid })
@@ -515,10 +520,12 @@ impl<const D: usize> FsiDiscretization<D> {
     /// Fills the trace function orthogonal to P1 (`1 - 6s + 6s^2`, `s = mu_1`) at every coupling
     /// point and the connected chains of gamma_f (facets sharing a vertex), 2D.
     fn trace_mode(c: &mut CouplingElements<D>, gamma_f: &[GammaFacet<D>]) {
-        c.mode = (0..c.num_points()).map(|q| {
-            let s = c.mu[q * D + 1];
-            1.0 - 6.0 * s + 6.0 * s * s
-        }).collect();
+        c.mode = (0..c.num_points())
+            .map(|q| {
+                let s = c.mu[q * D + 1];
+                1.0 - 6.0 * s + 6.0 * s * s
+            })
+            .collect();
         (c.chain, c.num_chains) = connected_pieces(gamma_f);
     }
 
@@ -544,9 +551,9 @@ impl<const D: usize> FsiDiscretization<D> {
             let cell_vertices: Vec<[f64; D]> = flow.mesh.cell_vertices(fc).iter().map(|&v| flow.mesh.points[v]).collect();
             let corners: [[f64; D]; D] = g.vertices.map(|v| flow.mesh.points[v]);
             let m = measure(&corners);
-            let diam = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| {
-                (0..D).map(|d| (corners[i][d] - corners[j][d]).powi(2)).sum::<f64>().sqrt()
-            });
+            let diam = (0..D)
+                .flat_map(|i| (0..D).map(move |j| (i, j)))
+                .map(|(i, j)| (0..D).map(|d| (corners[i][d] - corners[j][d]).powi(2)).sum::<f64>().sqrt());
             let diam = diam.fold(0.0, f64::max);
             out.fluid_cell.push(fc);
             for q in 0..nq {
@@ -620,10 +627,8 @@ impl<const D: usize> FsiDiscretization<D> {
         }
         // Solid block (updated Lagrangian: increment from X + u_n, F_n per point).
         let mut kb = CscMatrix::zeros(&model.solid.pattern);
-        let inertia = input
-            .solid_target
-            .filter(|_| model.problem.solid.density > 0.0)
-            .map(|t| (model.problem.solid.density / (input.dt * input.dt), t));
+        let inertia =
+            input.solid_target.filter(|_| model.problem.solid.density > 0.0).map(|t| (model.problem.solid.density / (input.dt * input.dt), t));
         model.solid.assemble_system(
             &model.problem.solid,
             input.time,
@@ -1082,10 +1087,14 @@ pub fn step<const D: usize>(
         solid_target: target.as_deref(),
     };
     let clock = Instant::now();
-    let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs))
-        .map_err(|e| match e {
-            NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => FsiError::SingularAt { unknown, what: disc.describe_unknown(model, unknown), error: e },
-            other => FsiError::Newton(other),
+    let report =
+        newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs)).map_err(|e| {
+            match e {
+                NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => {
+                    FsiError::SingularAt { unknown, what: disc.describe_unknown(model, unknown), error: e }
+                }
+                other => FsiError::Newton(other),
+            }
         })?;
     for &(d, v) in &fixed {
         x[d] = v;
@@ -1107,7 +1116,12 @@ pub fn step<const D: usize>(
     let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { inc[i] / dt } else { 0.0 }).collect();
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.layout.fields[0];
-    let snapshot = FluidSnapshot { solid_base: state.solid_x.clone(), mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec() };
+    let snapshot = FluidSnapshot {
+        solid_base: state.solid_x.clone(),
+        mesh: disc.flow.mesh.clone(),
+        nodes: vel.nodes.clone(),
+        velocity: x[vel.range()].to_vec(),
+    };
     seconds.update = clock.elapsed().as_secs_f64();
     let report = FsiStepReport {
         time: t_new,

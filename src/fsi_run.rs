@@ -157,9 +157,8 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
                 entry.1 = v;
             }
         }
-        let hist = history.get_or_insert_with(|| {
-            History::new(&options.out_dir.join("history.csv"), &values.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>())
-        });
+        let hist = history
+            .get_or_insert_with(|| History::new(&options.out_dir.join("history.csv"), &values.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>()));
         hist.push(k, r.time, r.newton.iterations, residual, &values.iter().map(|(_, v)| *v).collect::<Vec<_>>())?;
         if k == total {
             crate::run::write_profiles(case, &st.disc.flow, &st.fluid_problem, fluid_x, &options.out_dir, obs)?;
@@ -196,9 +195,8 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         ]);
         last = values;
         state = next;
-        options.after_step(case, k, state.time, || {
-            (RestartState::Fsi(state.to_restart()), Progress::after_step(iterations, &residuals, &timings, t))
-        })?;
+        options
+            .after_step(case, k, state.time, || (RestartState::Fsi(state.to_restart()), Progress::after_step(iterations, &residuals, &timings, t)))?;
         timings.output += out_t.elapsed().as_secs_f64() - out_seconds;
         obs.step(k, total, state.time);
     }

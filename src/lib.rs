@@ -8,22 +8,22 @@
 //! -> output.
 pub use fdfsi_fem as fem;
 
-pub mod flow;
-pub mod solid;
-pub mod physics;
-pub mod solve;
-pub mod verify;
-pub mod case;
-pub mod output;
-pub mod quantities;
-pub mod run;
-pub mod picture;
-pub mod time;
 pub mod adaptation;
-pub mod solid_run;
-pub mod fsi;
-pub mod fsi_run;
+pub mod case;
 pub mod check;
 pub mod checkpoint;
+pub mod flow;
+pub mod fsi;
+pub mod fsi_run;
+pub mod output;
+pub mod physics;
+pub mod picture;
 pub mod plot;
 pub mod provenance;
+pub mod quantities;
+pub mod run;
+pub mod solid;
+pub mod solid_run;
+pub mod solve;
+pub mod time;
+pub mod verify;

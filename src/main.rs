@@ -4,9 +4,9 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use fdfsi::case::Case;
 use fdfsi::run::{check_case, run_case, RunObserver, RunOptions, BUILTIN_CASES, DEFAULT_CASE};
+use fdfsi::verify::{self, Effort};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
-use fdfsi::verify::{self, Effort};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -227,7 +227,11 @@ fn main() -> Result<()> {
             );
             println!(
                 "gamma_s: {} pieces, measure {:.6e}; gamma_f measure {:.6e}; min quality {:.3}; files in {}",
-                s.gamma_s_pieces, s.gamma_s_measure, s.gamma_f_measure, st.min_quality, out.display()
+                s.gamma_s_pieces,
+                s.gamma_s_measure,
+                s.gamma_f_measure,
+                st.min_quality,
+                out.display()
             );
         }
         Command::Plot { dir, with } => {

@@ -44,8 +44,7 @@ pub fn fluid_grid<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Re
     let (cell_type, corner_nodes) = if D == 2 { (VtkCellType::QuadraticTriangle, 6) } else { (VtkCellType::QuadraticTetra, 10) };
     // The P2 nodes (vertices and edges) come first in the velocity numbering.
     let num_p2 = disc.topology.num_vertices + disc.topology.edges.len();
-    let points: Vec<[f64; 3]> =
-        disc.velocity_nodes[..num_p2].iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect();
+    let points: Vec<[f64; 3]> = disc.velocity_nodes[..num_p2].iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect();
     let mut grid = UnstructuredGrid::new(points);
     for c in 0..disc.mesh.num_cells() {
         grid.push_cell(cell_type, &vf.nodes.cell(c)[..corner_nodes])?;

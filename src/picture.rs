@@ -9,8 +9,7 @@ use std::path::Path;
 
 /// The viridis colour map at `s` in [0, 1] (piecewise linear through 5 control colours).
 pub fn viridis(s: f64) -> RGBColor {
-    const C: [(f64, f64, f64); 5] =
-        [(68.0, 1.0, 84.0), (59.0, 82.0, 139.0), (33.0, 145.0, 140.0), (94.0, 201.0, 98.0), (253.0, 231.0, 37.0)];
+    const C: [(f64, f64, f64); 5] = [(68.0, 1.0, 84.0), (59.0, 82.0, 139.0), (33.0, 145.0, 140.0), (94.0, 201.0, 98.0), (253.0, 231.0, 37.0)];
     let s = if s.is_finite() { s.clamp(0.0, 1.0) } else { 0.0 } * 4.0;
     let i = (s.floor() as usize).min(3);
     let f = s - i as f64;
@@ -89,9 +88,7 @@ pub fn write_surfaces_png(path: &Path, gamma_s: &[[[f64; 3]; 3]], gamma_f: &[[[f
     if all().next().is_none() || all().flatten().any(|v| !v.is_finite()) {
         return Err("no surface to draw, or a point that is not finite".into());
     }
-    let fold = |f: &dyn Fn(&[f64; 3]) -> f64| {
-        all().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(f(p)), hi.max(f(p))))
-    };
+    let fold = |f: &dyn Fn(&[f64; 3]) -> f64| all().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(f(p)), hi.max(f(p))));
     let r = |p: &[f64; 3]| p[0].hypot(p[1]);
     let (x, y, rr, z) = (fold(&|p| p[0]), fold(&|p| p[1]), fold(&r), fold(&|p| p[2]));
     let pad = |(lo, hi): (f64, f64)| {

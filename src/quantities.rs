@@ -207,10 +207,7 @@ pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64
             (0..points.len())
                 .map(|q| {
                     let phi = &tab.values[q * n..(q + 1) * n];
-                    (0..D)
-                        .map(|a| nodes.iter().zip(phi).map(|(&node, v)| v * x[vf.dof(node, a)]).sum::<f64>().powi(2))
-                        .sum::<f64>()
-                        .sqrt()
+                    (0..D).map(|a| nodes.iter().zip(phi).map(|(&node, v)| v * x[vf.dof(node, a)]).sum::<f64>().powi(2)).sum::<f64>().sqrt()
                 })
                 .fold(0.0, f64::max)
         })
@@ -238,11 +235,7 @@ pub fn evaluate_all<const D: usize>(
         out.push((q.name.clone(), domain_quantity(disc, x, q)));
     }
     for c in &output.combination {
-        let v = c
-            .terms
-            .iter()
-            .map(|(q, k)| k * out.iter().find(|(n, _)| n == q).map(|(_, v)| *v).unwrap_or(f64::NAN))
-            .sum();
+        let v = c.terms.iter().map(|(q, k)| k * out.iter().find(|(n, _)| n == q).map(|(_, v)| *v).unwrap_or(f64::NAN)).sum();
         out.push((c.name.clone(), v));
     }
     Ok(out)
@@ -288,10 +281,7 @@ fn chain_facets<const D: usize>(disc: &FlowDiscretization<D>, facets: &[fdfsi_fe
     let mut order = Vec::with_capacity(facets.len());
     // Facets are oriented counter-clockwise around the fluid (outward normal on the right of the
     // walking direction); an open piece is walked from the facet whose first vertex is free.
-    while let Some(start) = (0..facets.len())
-        .filter(|&k| !used[k])
-        .min_by_key(|&k| usize::from(at[&ends(k)[0]].len() != 1))
-    {
+    while let Some(start) = (0..facets.len()).filter(|&k| !used[k]).min_by_key(|&k| usize::from(at[&ends(k)[0]].len() != 1)) {
         let mut from = ends(start)[0];
         let mut k = start;
         loop {

@@ -3,6 +3,7 @@
 //! Each phase runs inside a named timer whose seconds go to `summary.json`.
 
 use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, TimeFn};
+use crate::checkpoint::{Checkpoint, CheckpointError, Progress, RestartState, CHECKPOINT_VERSION};
 use crate::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowError, FlowProblem, TractionBc, VectorFn};
 use crate::output::{fluid_grid, write_atomic, History, OutputError};
 use crate::physics::fluid::FluidParams;
@@ -12,7 +13,6 @@ use fdfsi_fem::generate;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh, GmshError};
 use fdfsi_fem::mesh::{Mesh, Topology};
 use fdfsi_fem::vtk::{PvdSeries, VtkError};
-use crate::checkpoint::{Checkpoint, CheckpointError, Progress, RestartState, CHECKPOINT_VERSION};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -255,12 +255,8 @@ pub fn build_mesh(case: &Case, case_dir: &Path) -> Result<AnyMesh, RunError> {
         MeshSpec::Rectangle { x, y, n } => {
             AnyMesh::D2(generate::rectangle_triangles(x[0], x[1], y[0], y[1], n[0], n[1], generate::DiagonalPattern::Alternating))
         }
-        MeshSpec::Channel { length, height, n, grading } => {
-            AnyMesh::D2(generate::channel_triangles(*length, *height, n[0], n[1], *grading))
-        }
-        MeshSpec::Box { x, y, z, n } => {
-            AnyMesh::D3(generate::box_tetrahedra(x[0], x[1], y[0], y[1], z[0], z[1], n[0], n[1], n[2]))
-        }
+        MeshSpec::Channel { length, height, n, grading } => AnyMesh::D2(generate::channel_triangles(*length, *height, n[0], n[1], *grading)),
+        MeshSpec::Box { x, y, z, n } => AnyMesh::D3(generate::box_tetrahedra(x[0], x[1], y[0], y[1], z[0], z[1], n[0], n[1], n[2])),
         MeshSpec::Pipe { radius, length, n_radial, n_axial, quarter } => {
             AnyMesh::D3(generate::pipe_tetrahedra(*radius, *length, *n_radial, *n_axial, *quarter))
         }
@@ -341,12 +337,13 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         if c.case != case.to_toml() {
             return Err(RunError::Case(CaseError::Invalid {
                 file: Checkpoint::path(&options.out_dir).display().to_string(),
-                message: "the case differs from the one the checkpoint was written for; resume with the checkpoint's own case (`fdfsi run --resume DIR`)".into(),
+                message:
+                    "the case differs from the one the checkpoint was written for; resume with the checkpoint's own case (`fdfsi run --resume DIR`)"
+                        .into(),
             }));
         }
     }
-    std::fs::create_dir_all(&options.out_dir)
-        .map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
+    std::fs::create_dir_all(&options.out_dir).map_err(|source| OutputError::Io { path: options.out_dir.display().to_string(), source })?;
     write_atomic(&options.out_dir.join("case.toml"), case.to_toml().as_bytes())?;
     check_free_space(&options.out_dir, expected.output_bytes())?;
     // Three kinds of run: solid only, FSI, or flow (with a fixed solid, if any).
@@ -411,10 +408,7 @@ fn vector_fn<const D: usize>(exprs: Vec<Expr>, time: TimeFn) -> VectorFn<D> {
 }
 
 fn compile_all(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, CaseError> {
-    values
-        .iter()
-        .map(|v| Expr::compile(v).map_err(|message| CaseError::Invalid { file: "case".into(), message }))
-        .collect()
+    values.iter().map(|v| Expr::compile(v).map_err(|message| CaseError::Invalid { file: "case".into(), message })).collect()
 }
 
 /// The flow problem a case describes on `mesh`; time-function tables are read relative to
@@ -505,12 +499,7 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
     let discretize = t.elapsed().as_secs_f64();
     let nv = disc.layout.fields[0].num_dofs();
     let np = disc.layout.fields[1].num_dofs();
-    obs.log(&format!(
-        "mesh: {cells} cells; dofs: velocity {nv}, pressure {np}, total {} (nnz {}); {:.2} s",
-        nv + np,
-        disc.pattern.nnz(),
-        discretize
-    ));
+    obs.log(&format!("mesh: {cells} cells; dofs: velocity {nv}, pressure {np}, total {} (nnz {}); {:.2} s", nv + np, disc.pattern.nnz(), discretize));
     let mut lu = case.solver.linear_solver();
     let mut out = Outputs::new(case, options)?;
     let mut timings = Timings { discretize, ..Default::default() };
@@ -575,7 +564,10 @@ fn run_flow<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, ob
                     let clock = Instant::now();
                     timings.output = out.seconds;
                     let r = options.after_step(case, rep.step, rep.time, || {
-                        (RestartState::Flow { x: x.to_vec(), level: level.clone() }, Progress::after_step(newton_iterations, &residual_norms, &timings, part_start))
+                        (
+                            RestartState::Flow { x: x.to_vec(), level: level.clone() },
+                            Progress::after_step(newton_iterations, &residual_norms, &timings, part_start),
+                        )
                     });
                     out.seconds += clock.elapsed().as_secs_f64();
                     r

@@ -32,8 +32,8 @@
 //! `min_increment`.
 
 use crate::physics::solid::{
-    area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState,
-    Mat3, SolidCellState, SolidMaterial, IDENTITY,
+    area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState, Mat3, SolidCellState,
+    SolidMaterial, IDENTITY,
 };
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
@@ -92,15 +92,7 @@ pub struct SolidProblem<const D: usize> {
 impl<const D: usize> SolidProblem<D> {
     /// A problem without boundary conditions, pressure pin or inertia.
     pub fn new(formulation: Formulation, material: Arc<dyn SolidMaterial>) -> Self {
-        SolidProblem {
-            formulation,
-            material,
-            dirichlet: Vec::new(),
-            traction: Vec::new(),
-            pressure: Vec::new(),
-            pin_pressure: None,
-            density: 0.0,
-        }
+        SolidProblem { formulation, material, dirichlet: Vec::new(), traction: Vec::new(), pressure: Vec::new(), pin_pressure: None, density: 0.0 }
     }
     /// Adds a prescribed displacement.
     pub fn with_displacement(
@@ -227,11 +219,7 @@ impl<const D: usize> SolidDiscretization<D> {
                 let t1: [f64; D] = std::array::from_fn(|d| p1[d] - p0[d]);
                 let t2: [f64; D] = std::array::from_fn(|d| if D == 3 { p2[d] - p0[d] } else { 0.0 });
                 let tab = element.tabulate(&pts);
-                let dphi_t = tab
-                    .grads
-                    .iter()
-                    .map(|g| [(0..D).map(|d| g[d] * t1[d]).sum(), (0..D).map(|d| g[d] * t2[d]).sum()])
-                    .collect();
+                let dphi_t = tab.grads.iter().map(|g| [(0..D).map(|d| g[d] * t1[d]).sum(), (0..D).map(|d| g[d] * t2[d]).sum()]).collect();
                 debug_assert_eq!(tab.values.len(), pts.len() * nv);
                 FacetTab { values: tab.values, dphi_t }
             })
@@ -400,8 +388,11 @@ impl<const D: usize> SolidDiscretization<D> {
                     x0_centroid: self.centroid_x0[c],
                     inertia: inert.map(|coefficient| InertiaState { coefficient, target: &tgt[..] }),
                 };
-                solid_cell(cv, formulation, material, &state, &mut local.ke, &mut local.fe)
-                    .map_err(|e| SolidAssemblyError::Inverted { cell: c, point: e.point, det: e.det })?;
+                solid_cell(cv, formulation, material, &state, &mut local.ke, &mut local.fe).map_err(|e| SolidAssemblyError::Inverted {
+                    cell: c,
+                    point: e.point,
+                    det: e.det,
+                })?;
                 local.fe.iter_mut().for_each(|v| *v = -*v);
                 Ok(())
             },
@@ -419,7 +410,11 @@ impl<const D: usize> SolidDiscretization<D> {
                 let tab = &self.facet_tabs[bf.facet];
                 re.iter_mut().for_each(|v| *v = 0.0);
                 for q in 0..nf {
-                    let pt = FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] };
+                    let pt = FacetPoint {
+                        phi: &tab.values[q * nv..(q + 1) * nv],
+                        dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv],
+                        weight: self.facet_weights[q],
+                    };
                     let nda = area_vector(&x_ref, &pt, 1.0);
                     let da = nda.iter().map(|v| v * v).sum::<f64>().sqrt();
                     let mut xq = [0.0; D];
@@ -472,7 +467,11 @@ impl<const D: usize> SolidDiscretization<D> {
                 re.iter_mut().for_each(|v| *v = 0.0);
                 ke.iter_mut().for_each(|v| *v = 0.0);
                 let pts: Vec<FacetPoint> = (0..nf)
-                    .map(|q| FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] })
+                    .map(|q| FacetPoint {
+                        phi: &tab.values[q * nv..(q + 1) * nv],
+                        dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv],
+                        weight: self.facet_weights[q],
+                    })
                     .collect();
                 follower_pressure_facet(formulation, &x_cur, &pts, orientation, pval, &mut ke, nu, &mut re);
                 let nodes = vf.nodes.cell(bf.cell);
@@ -567,7 +566,15 @@ pub struct LoadStepping {
 
 impl Default for LoadStepping {
     fn default() -> Self {
-        LoadStepping { mode: Lagrangian::Total, final_load: 1.0, initial_increment: 1.0, max_increment: 1.0, min_increment: 1e-4, growth: 2.0, predictor: true }
+        LoadStepping {
+            mode: Lagrangian::Total,
+            final_load: 1.0,
+            initial_increment: 1.0,
+            max_increment: 1.0,
+            min_increment: 1e-4,
+            growth: 2.0,
+            predictor: true,
+        }
     }
 }
 
@@ -673,8 +680,7 @@ pub fn solve_quasi_static_with<const D: usize>(
         });
         match result {
             Ok(report) => {
-                let delta: Vec<f64> =
-                    if updated { trial[..nu_global].to_vec() } else { (0..nu_global).map(|i| trial[i] - state[i]).collect() };
+                let delta: Vec<f64> = if updated { trial[..nu_global].to_vec() } else { (0..nu_global).map(|i| trial[i] - state[i]).collect() };
                 last_change = if stepping.predictor { Some((delta, target - load)) } else { None };
                 if updated {
                     let f = f_qp.as_mut().expect("updated mode stores F");

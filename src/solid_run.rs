@@ -14,9 +14,7 @@
 use crate::adaptation::solid_mesh;
 use crate::case::{Case, CaseError, Expr, ProbeField, SolidBoundaryType, SolidModel, SolidSpec};
 use crate::output::{History, OutputError};
-use crate::physics::solid::{
-    det3, matmul, transpose, NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial,
-};
+use crate::physics::solid::{det3, matmul, transpose, NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
 use crate::run::{RunError, RunObserver, RunOptions, RunSummary, Timings};
 use crate::solid::{pressure_at, solve_quasi_static_with, LoadStepping, SolidDiscretization, SolidProblem};
 use crate::solve::linear::LinearSolver;
@@ -173,8 +171,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         }
     }
     let t = Instant::now();
-    let quantities: BTreeMap<String, f64> =
-        probe_nodes.iter().map(|(name, node, a)| (name.clone(), disc.displacement(&sol.x, *node)[*a])).collect();
+    let quantities: BTreeMap<String, f64> = probe_nodes.iter().map(|(name, node, a)| (name.clone(), disc.displacement(&sol.x, *node)[*a])).collect();
     let mut series = PvdSeries::new(&options.out_dir, "solution");
     series.add(sol.load, "solid", &solid_grid(&disc, problem.material.as_ref(), &sol.x)?)?;
     timings.output = t.elapsed().as_secs_f64();
@@ -203,7 +200,11 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
 }
 
 /// The deformed solid as a VTK grid (see the module doc for its arrays).
-pub(crate) fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn SolidMaterial, x: &[f64]) -> Result<UnstructuredGrid, RunError> {
+pub(crate) fn solid_grid<const D: usize>(
+    disc: &SolidDiscretization<D>,
+    material: &dyn SolidMaterial,
+    x: &[f64],
+) -> Result<UnstructuredGrid, RunError> {
     let field = disc.displacement_field();
     let n = field.nodes.num_nodes;
     let points: Vec<[f64; 3]> = (0..n)
@@ -218,7 +219,12 @@ pub(crate) fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material
     for c in 0..nc {
         grid.push_cell(ty, field.nodes.cell(c)).map_err(OutputError::from)?;
     }
-    let disp: Vec<f64> = (0..n).flat_map(|i| { let u = disc.displacement(x, i); (0..3).map(move |d| if d < D { u[d] } else { 0.0 }) }).collect();
+    let disp: Vec<f64> = (0..n)
+        .flat_map(|i| {
+            let u = disc.displacement(x, i);
+            (0..3).map(move |d| if d < D { u[d] } else { 0.0 })
+        })
+        .collect();
     grid.add_point_data("displacement", 3, disp).map_err(OutputError::from)?;
     let f = disc.deformation_gradients(x).map_err(|e| invalid(format!("stress output: {e}")))?;
     let nq = disc.points_per_cell();

@@ -2,8 +2,8 @@
 
 use fdfsi::case::Case;
 use fdfsi::checkpoint::Checkpoint;
-use fdfsi::run::{run_case, RunOptions, RunSummary, BUILTIN_CASES};
 use fdfsi::fem::vtk::{read_pvd, read_vtu};
+use fdfsi::run::{run_case, RunOptions, RunSummary, BUILTIN_CASES};
 use std::path::{Path, PathBuf};
 
 fn run(name: &str) -> (RunSummary, PathBuf) {
@@ -51,10 +51,7 @@ fn q(s: &RunSummary, name: &str) -> f64 {
 #[test]
 fn every_case_file_is_a_builtin_and_is_tested() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
-    let mut files: Vec<String> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(|e| e.ok()?.path().file_stem()?.to_str().map(String::from))
-        .collect();
+    let mut files: Vec<String> = std::fs::read_dir(&dir).unwrap().filter_map(|e| e.ok()?.path().file_stem()?.to_str().map(String::from)).collect();
     files.sort();
     let mut builtin: Vec<String> = BUILTIN_CASES.iter().map(|(n, _)| n.to_string()).collect();
     builtin.sort();
@@ -623,7 +620,8 @@ fn model_problem_4_fine_mesh_seals_the_pipe_at_rest() {
     // gamma_f crosses the layer of cells between z = 12/7 and 16/7: each of its 3 x 222
     // tetrahedra is cut in a triangle or a quadrilateral (two facets), so 666 to 1332 facets; the
     // adaptation makes 888 (a regression count).
-    let facets: usize = summary.description.split(" coupling elements").next().and_then(|t| t.rsplit(' ').next()).and_then(|n| n.parse().ok()).unwrap();
+    let facets: usize =
+        summary.description.split(" coupling elements").next().and_then(|t| t.rsplit(' ').next()).and_then(|n| n.parse().ok()).unwrap();
     assert!((666..=1332).contains(&facets), "{}", summary.description);
     assert_eq!(facets, 888, "{}", summary.description);
     assert_eq!(summary.steps, 60);
@@ -720,7 +718,8 @@ const MODEL_PROBLEM_4: EquilibriumClaims = EquilibriumClaims { pressures: [1.1e-
 
 /// README and cases/model-problem-4-fine.toml: upstream 1 - 6e-7, downstream 9e-7, speed 6.9e-5
 /// of its peak, the cells on both sides 1 and 0 to 3.3e-4 / 3.9e-4, the traction p n to 9.1e-3.
-const MODEL_PROBLEM_4_FINE: EquilibriumClaims = EquilibriumClaims { pressures: [6e-7, 9e-7], speed: 6.9e-5, sides: [3.3e-4, 3.9e-4], traction: 9.1e-3 };
+const MODEL_PROBLEM_4_FINE: EquilibriumClaims =
+    EquilibriumClaims { pressures: [6e-7, 9e-7], speed: 6.9e-5, sides: [3.3e-4, 3.9e-4], traction: 9.1e-3 };
 
 /// A model problem 4 run against model problem 3: 60 steps, its dofs at the last step, its
 /// equilibrium claims; returns the worst deviation of the centre displacement over the transient

@@ -226,14 +226,8 @@ fn killed_run_resumes_to_the_same_history() {
     let (full, killed) = (tmp.path().join("full"), tmp.path().join("killed"));
     let ok = Command::new(exe).args(["-q", "run"]).arg(&case_file).arg("--out").arg(&full).status().unwrap();
     assert!(ok.success());
-    let mut child = Command::new(exe)
-        .args(["-q", "run"])
-        .arg(&case_file)
-        .arg("--out")
-        .arg(&killed)
-        .args(["--checkpoint-every", "1"])
-        .spawn()
-        .unwrap();
+    let mut child =
+        Command::new(exe).args(["-q", "run"]).arg(&case_file).arg("--out").arg(&killed).args(["--checkpoint-every", "1"]).spawn().unwrap();
     // Kill it once a few checkpoints exist, mid-way through a later step.
     let start = Instant::now();
     loop {
@@ -268,15 +262,26 @@ fn adapt_at_a_checkpoint_is_the_next_steps_mesh() {
     assert_eq!(Checkpoint::read(dir.path()).unwrap().step, 2);
     let s = fdfsi::run::adapt_checkpoint(dir.path(), &dir.path().join("adapt")).unwrap();
     let h = history(dir.path());
-    let facets_col = std::fs::read_to_string(dir.path().join("history.csv")).unwrap().lines().next().unwrap().split(',').position(|c| c == "coupling_facets").unwrap();
+    let facets_col = std::fs::read_to_string(dir.path().join("history.csv"))
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|c| c == "coupling_facets")
+        .unwrap();
     assert_eq!(s.stats.coupling_facets as f64, h[2][facets_col], "step 3 was adapted to the solid after step 2");
     let gamma_s = read_vtu(&dir.path().join("adapt/gamma_s.vtu")).unwrap().points;
     let solid_at = |time: f64| {
         let entries = read_pvd(&dir.path().join("solution.pvd")).unwrap();
-        let e = entries.iter().find(|e| e.name == "solid" && (e.time - time).abs() < 1e-9).unwrap_or_else(|| panic!("no solid at t = {time}: {entries:?}"));
+        let e = entries
+            .iter()
+            .find(|e| e.name == "solid" && (e.time - time).abs() < 1e-9)
+            .unwrap_or_else(|| panic!("no solid at t = {time}: {entries:?}"));
         read_vtu(&dir.path().join(&e.file)).unwrap().points
     };
-    let distance = |p: &[f64; 3], pts: &[[f64; 3]]| pts.iter().map(|q| (0..3).map(|d| (p[d] - q[d]).powi(2)).sum::<f64>().sqrt()).fold(f64::INFINITY, f64::min);
+    let distance =
+        |p: &[f64; 3], pts: &[[f64; 3]]| pts.iter().map(|q| (0..3).map(|d| (p[d] - q[d]).powi(2)).sum::<f64>().sqrt()).fold(f64::INFINITY, f64::min);
     let (at_step_2, at_step_1) = (solid_at(0.1), solid_at(0.05));
     assert!(gamma_s.iter().all(|p| distance(p, &at_step_2) < 1e-12), "gamma_s lies on the solid of step 2");
     let moved = gamma_s.iter().map(|p| distance(p, &at_step_1)).fold(0.0, f64::max);

@@ -142,7 +142,10 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
             }
         }
     }
-    println!("max |K - FD| / (1 + |K|) = {:.2e} at ({}, {}); max |K| = {scale:.2e}; {coupling_checked} nonzero coupling entries checked", worst.0, worst.1, worst.2);
+    println!(
+        "max |K - FD| / (1 + |K|) = {:.2e} at ({}, {}); max |K| = {scale:.2e}; {coupling_checked} nonzero coupling entries checked",
+        worst.0, worst.1, worst.2
+    );
     assert!(coupling_checked > 0);
     assert!(worst.0 < 1e-5, "Jacobian mismatch {:.3e} at ({}, {})", worst.0, worst.1, worst.2);
 }
@@ -256,9 +259,9 @@ fn unknowns_are_described_by_field_and_position() {
 /// eigen-decomposition of the global Gram matrix B^T B (the code finds them star by star).
 #[test]
 fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
+    use faer::prelude::Solve;
     use fdfsi::case::{Case, MeshSpec, SolidMeshSpec};
     use fdfsi::fem::gmsh::AnyMesh;
-    use faer::prelude::Solve;
     use fdfsi::fsi::FsiDiscretization;
     const D: usize = 3;
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
@@ -317,7 +320,10 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
         let zmax = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(zmax > 0.0 && by_facet.len() >= 3, "mode {j}: support of {} facets", by_facet.len());
         for (dof, [bz, scale]) in pairing(&z) {
-            assert!(bz.abs() <= 1e-10 * scale.max(1e-300) || bz.abs() < 1e-14 * zmax, "mode {j}: free velocity dof {dof} sees it: {bz:e} of {scale:e}");
+            assert!(
+                bz.abs() <= 1e-10 * scale.max(1e-300) || bz.abs() < 1e-14 * zmax,
+                "mode {j}: free velocity dof {dof} sees it: {bz:e} of {scale:e}"
+            );
         }
         for &(e, a) in by_facet.keys() {
             let integral: f64 = points(e).map(|q| c.weight[q] * (0..D).map(|k| c.mu[q * D + k] * z[(e * D + k) * D + a]).sum::<f64>()).sum();
@@ -361,7 +367,11 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
     let max = (0..n).map(|i| s[i]).fold(0.0f64, f64::max);
     let null = (0..n).filter(|&i| s[i] < 1e-10 * max).count();
     let next = (0..n).map(|i| s[i]).filter(|&v| v >= 1e-10 * max).fold(f64::MAX, f64::min);
-    println!("{ne} gamma_f facets, {n} multipliers: null space of the pairing {null}, removed modes {}; smallest kept eigenvalue {:.2e} of {max:.2e}", disc.kernel.len(), next);
+    println!(
+        "{ne} gamma_f facets, {n} multipliers: null space of the pairing {null}, removed modes {}; smallest kept eigenvalue {:.2e} of {max:.2e}",
+        disc.kernel.len(),
+        next
+    );
     assert_eq!(null, disc.kernel.len(), "the removed modes span the null space of the pairing");
     assert!(next > 1e-6 * max, "a clear gap between the null space and the rest");
 }

@@ -50,8 +50,8 @@
 use fdfsi::fem::adapt::AdaptOptions;
 use fdfsi::fem::generate::{rectangle_quads, rectangle_triangles, DiagonalPattern};
 use fdfsi::fem::mesh::{GeometryOrder, Mesh};
-use fdfsi::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
 use fdfsi::fem::sparse::CscMatrix;
+use fdfsi::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
 use fdfsi::fsi::{step, tag_gamma_f, wall_shear_stress, FsiDiscretization, FsiModel, FsiProblem, FsiState, MultiplierSpace, StepInput, WallShear};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
 use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
@@ -265,7 +265,10 @@ fn model_problem_2(nx: usize, ny: usize, multiplier: MultiplierSpace) -> Outcome
     let fmag = (f_twin[0].powi(2) + f_twin[1].powi(2)).sqrt();
     let force_rel = ((f_lambda[0] - f_twin[0]).powi(2) + (f_lambda[1] - f_twin[1]).powi(2)).sqrt() / fmag;
     let consistency = ((f_lambda[0] - f_residual[0]).powi(2) + (f_lambda[1] - f_residual[1]).powi(2)).sqrt() / fmag;
-    println!("force on the plate: FSI int lambda = [{:.6}, {:.6}], FSI fluid residual = [{:.6}, {:.6}], Dirichlet twin = [{:.6}, {:.6}]", f_lambda[0], f_lambda[1], f_residual[0], f_residual[1], f_twin[0], f_twin[1]);
+    println!(
+        "force on the plate: FSI int lambda = [{:.6}, {:.6}], FSI fluid residual = [{:.6}, {:.6}], Dirichlet twin = [{:.6}, {:.6}]",
+        f_lambda[0], f_lambda[1], f_residual[0], f_residual[1], f_twin[0], f_twin[1]
+    );
     println!("relative force difference FSI vs twin: {force_rel:.3e}; |int lambda - fluid residual force| / |F| = {consistency:.1e}");
     // Wall shear stress on both sides of the plate.
     let gf = &st.disc.adapted.gamma_f;

@@ -217,26 +217,15 @@ fn ops(max: usize) -> impl Strategy<Value = Vec<Op>> {
 /// mutations of `seeds` (`k` the seed's index): of the valid ones (the first `valid`; one to
 /// three edits, so that many stay close to valid and reach the later checks), and of all
 /// (malformed corpus entries; up to five edits).
-fn inputs(
-    seeds: Vec<Vec<u8>>,
-    valid: usize,
-    tokens: &'static [&'static str],
-) -> Vec<(&'static str, BoxedStrategy<(Vec<u8>, usize)>)> {
+fn inputs(seeds: Vec<Vec<u8>>, valid: usize, tokens: &'static [&'static str]) -> Vec<(&'static str, BoxedStrategy<(Vec<u8>, usize)>)> {
     let bytes = proptest::collection::vec(any::<u8>(), 0..1024).prop_map(|b| (b, usize::MAX)).boxed();
-    let soup = proptest::collection::vec(proptest::sample::select(tokens), 0..200)
-        .prop_map(|t| (t.concat().into_bytes(), usize::MAX))
-        .boxed();
+    let soup = proptest::collection::vec(proptest::sample::select(tokens), 0..200).prop_map(|t| (t.concat().into_bytes(), usize::MAX)).boxed();
     let n = seeds.len();
     let seeds = std::sync::Arc::new(seeds);
     let all = seeds.clone();
     let mutated = (0..valid, ops(4)).prop_map(move |(k, ops)| (mutate(&seeds[k], &ops, tokens), k)).boxed();
     let corpus = (0..n, ops(6)).prop_map(move |(k, ops)| (mutate(&all[k], &ops, tokens), k)).boxed();
-    vec![
-        ("arbitrary bytes", bytes),
-        ("token soup", soup),
-        ("mutated valid inputs", mutated),
-        ("mutated corpus inputs", corpus),
-    ]
+    vec![("arbitrary bytes", bytes), ("token soup", soup), ("mutated valid inputs", mutated), ("mutated corpus inputs", corpus)]
 }
 
 /// Runs `check` on the inputs of every strategy: one round of [`cases_per_round`] each with a
@@ -253,13 +242,8 @@ fn fuzz(
     let mut round = 0u64;
     loop {
         for (what, strategy) in &strategies {
-            let config = Config {
-                cases: cases_per_round(),
-                failure_persistence: None,
-                max_shrink_iters: 500,
-                max_shrink_time: 60_000,
-                ..Config::default()
-            };
+            let config =
+                Config { cases: cases_per_round(), failure_persistence: None, max_shrink_iters: 500, max_shrink_time: 60_000, ..Config::default() };
             let mut seed = [0u8; 32];
             let salt = if round == 0 { 0x5eed } else { start.elapsed().as_nanos() as u64 ^ (round << 32) };
             seed[..8].copy_from_slice(&salt.to_le_bytes());
@@ -394,9 +378,7 @@ fn seeds(dirs: &[PathBuf], ext: &str) -> (Vec<PathBuf>, usize) {
         .flat_map(|d| std::fs::read_dir(d).unwrap().map(|e| e.unwrap().path()))
         .filter(|p| p.extension().is_some_and(|e| e == ext))
         .collect();
-    let malformed = |p: &PathBuf| {
-        p.starts_with(root().join("tests/malformed")) && !p.file_name().unwrap().to_string_lossy().starts_with("ok-")
-    };
+    let malformed = |p: &PathBuf| p.starts_with(root().join("tests/malformed")) && !p.file_name().unwrap().to_string_lossy().starts_with("ok-");
     paths.sort_by_key(|p| (malformed(p), p.clone()));
     let valid = paths.iter().filter(|p| !malformed(p)).count();
     (paths, valid)

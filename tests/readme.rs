@@ -96,8 +96,20 @@ fn accepted_fields(snippet: &str) -> Vec<String> {
 fn every_field_the_parser_accepts_is_documented() {
     const UNKNOWN: &str = "bogus_key = 1";
     let mut tables: Vec<String> = [
-        "", "[physics]", "[fluid]", "[time]", "[solver]", "[solver.newton]", "[[boundary]]", "[output]", "[[output.probe]]",
-        "[[output.boundary_integral]]", "[[output.profile]]", "[[output.combination]]", "[solid]", "[[solid.boundary]]",
+        "",
+        "[physics]",
+        "[fluid]",
+        "[time]",
+        "[solver]",
+        "[solver.newton]",
+        "[[boundary]]",
+        "[output]",
+        "[[output.probe]]",
+        "[[output.boundary_integral]]",
+        "[[output.profile]]",
+        "[[output.combination]]",
+        "[solid]",
+        "[[solid.boundary]]",
         "[solid.loading]",
     ]
     .iter()

@@ -7,8 +7,7 @@ use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
 use fdfsi::solid::{solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidProblem};
 use fdfsi::solve::linear::FaerLu;
 use fdfsi::verify::solid_exact::{
-    cylinder_inflation, homogeneous_checks, quarter_annulus, rivlin_bending, study_newton, CylinderInflation,
-    SolidRun, UniaxialPlaneStrain,
+    cylinder_inflation, homogeneous_checks, quarter_annulus, rivlin_bending, study_newton, CylinderInflation, SolidRun, UniaxialPlaneStrain,
 };
 use fdfsi::verify::Effort;
 use std::sync::Arc;

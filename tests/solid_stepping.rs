@@ -23,9 +23,7 @@ fn updated_lagrangian_stepping_ends_in_the_total_lagrangian_state() {
     let mesh = rectangle_quads(0.0, 1.0, -2.0, 2.0, 2, 8, GeometryOrder::Quadratic);
     let disc = SolidDiscretization::build(mesh, Formulation::Plane, mat.as_ref()).unwrap();
     let bc = move |x: &[f64; 2], l: f64| ex.displacement_at_load(x, l);
-    let problem = SolidProblem::new(Formulation::Plane, mat.clone())
-        .with_displacement("bottom", &[0, 1], bc)
-        .with_displacement("top", &[0, 1], bc);
+    let problem = SolidProblem::new(Formulation::Plane, mat.clone()).with_displacement("bottom", &[0, 1], bc).with_displacement("top", &[0, 1], bc);
     let newton = fdfsi::solve::newton::NewtonOptions { max_iterations: 25, abs_tol: 1e-12, rel_tol: 1e-13, ..Default::default() };
     let tl = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Total, 8), &mut FaerLu::default(), &newton).unwrap();
     let ul = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Updated, 8), &mut FaerLu::default(), &newton).unwrap();
@@ -33,7 +31,11 @@ fn updated_lagrangian_stepping_ends_in_the_total_lagrangian_state() {
     let f_tl = disc.deformation_gradients(&tl.x).unwrap();
     let f_ul = ul.f_qp.as_ref().unwrap();
     let df = f_tl.iter().zip(f_ul).flat_map(|(a, b)| (0..3).flat_map(move |i| (0..3).map(move |j| (a[i][j] - b[i][j]).abs()))).fold(0.0, f64::max);
-    println!("bending: TL {} increments, UL {} increments; max |x_TL - x_UL| = {d:.2e}, max |F_TL - F_UL| = {df:.2e}", tl.steps.len(), ul.steps.len());
+    println!(
+        "bending: TL {} increments, UL {} increments; max |x_TL - x_UL| = {d:.2e}, max |F_TL - F_UL| = {df:.2e}",
+        tl.steps.len(),
+        ul.steps.len()
+    );
     // README: the same state to 7e-15 (measured 6.7e-15 in x, 4.9e-15 in F): round-off, held at
     // 6e-14.
     assert!(d < 6e-14, "UL and TL differ by {d:.3e}");
@@ -61,10 +63,20 @@ fn an_inverted_element_cuts_the_increment_and_is_reported_with_element_and_step(
     let mesh = rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 1, GeometryOrder::Quadratic);
     let disc = SolidDiscretization::build(mesh, Formulation::Plane, mat.as_ref()).unwrap();
     // Push the right edge past the left one: impossible without inversion.
-    let problem = SolidProblem::new(Formulation::Plane, mat)
-        .with_displacement("left", &[0, 1], |_: &[f64; 2], _| [0.0; 2])
-        .with_displacement("right", &[0, 1], |_: &[f64; 2], l| [-1.5 * l, 0.0]);
-    let stepping = LoadStepping { mode: Lagrangian::Total, final_load: 1.0, initial_increment: 1.0, max_increment: 1.0, min_increment: 0.1, growth: 1.0, predictor: true };
+    let problem = SolidProblem::new(Formulation::Plane, mat).with_displacement("left", &[0, 1], |_: &[f64; 2], _| [0.0; 2]).with_displacement(
+        "right",
+        &[0, 1],
+        |_: &[f64; 2], l| [-1.5 * l, 0.0],
+    );
+    let stepping = LoadStepping {
+        mode: Lagrangian::Total,
+        final_load: 1.0,
+        initial_increment: 1.0,
+        max_increment: 1.0,
+        min_increment: 0.1,
+        growth: 1.0,
+        predictor: true,
+    };
     let err = solve_quasi_static(&disc, &problem, &stepping, &mut FaerLu::default(), &study_newton()).unwrap_err();
     println!("{err}");
     match err {
@@ -93,7 +105,12 @@ fn cook_membrane_mixed_does_not_lock_and_displacement_q2_does() {
     // displacements on 2, 4, 8, 16 cells per side to the two decimals published there.
     for (r, (mixed, locking)) in res.iter().zip([(6.71, 4.69), (6.84, 5.92), (6.89, 6.52), (6.91, 6.76)]) {
         assert!((r.mixed_tip_uy - mixed).abs() < 0.006, "{} cells: Q2/P1disc {} vs {mixed}", r.elements_per_side, r.mixed_tip_uy);
-        assert!((r.displacement_only_tip_uy - locking).abs() < 0.006, "{} cells: Q2 {} vs {locking}", r.elements_per_side, r.displacement_only_tip_uy);
+        assert!(
+            (r.displacement_only_tip_uy - locking).abs() < 0.006,
+            "{} cells: Q2 {} vs {locking}",
+            r.elements_per_side,
+            r.displacement_only_tip_uy
+        );
     }
     // No locking: the coarse mixed meshes are already close; converging.
     for r in &res[1..] {

@@ -240,40 +240,40 @@ mod tests {
         let nu = 14;
         let n = nu + 3;
         for form_v in [ViscousForm::Stress, ViscousForm::Laplace] {
-        let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true, viscous_form: form_v };
-        let mut s = 7u64;
-        let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        let x0: Vec<f64> = (0..n).map(|_| rnd()).collect();
-        let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
-        let f = |x: &[f64; 2]| [x[0].sin(), x[1] * x[0]];
-        for form in [Formulation::Plane, Formulation::Axisymmetric] {
-            let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
-                ke.iter_mut().for_each(|v| *v = 0.0);
-                re.iter_mut().for_each(|v| *v = 0.0);
-                let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
-                fluid_cell(&cv, form, &params, &st, &f, ke, re);
+            let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true, viscous_form: form_v };
+            let mut s = 7u64;
+            let mut rnd = || {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
             };
-            let mut ke = vec![0.0; n * n];
-            let mut re = vec![0.0; n];
-            eval(&x0, &mut ke, &mut re);
-            let h = 1e-6;
-            for j in 0..n {
-                let mut xp = x0.clone();
-                let mut xm = x0.clone();
-                xp[j] += h;
-                xm[j] -= h;
-                let (mut kp, mut rp, mut rm) = (vec![0.0; n * n], vec![0.0; n], vec![0.0; n]);
-                eval(&xp, &mut kp, &mut rp);
-                eval(&xm, &mut kp, &mut rm);
-                for i in 0..n {
-                    let fd = (rp[i] - rm[i]) / (2.0 * h);
-                    assert!((fd - ke[i * n + j]).abs() < 1e-6 * (1.0 + fd.abs()), "{form:?} K[{i}][{j}] = {} vs FD {fd}", ke[i * n + j]);
+            let x0: Vec<f64> = (0..n).map(|_| rnd()).collect();
+            let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
+            let f = |x: &[f64; 2]| [x[0].sin(), x[1] * x[0]];
+            for form in [Formulation::Plane, Formulation::Axisymmetric] {
+                let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
+                    ke.iter_mut().for_each(|v| *v = 0.0);
+                    re.iter_mut().for_each(|v| *v = 0.0);
+                    let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
+                    fluid_cell(&cv, form, &params, &st, &f, ke, re);
+                };
+                let mut ke = vec![0.0; n * n];
+                let mut re = vec![0.0; n];
+                eval(&x0, &mut ke, &mut re);
+                let h = 1e-6;
+                for j in 0..n {
+                    let mut xp = x0.clone();
+                    let mut xm = x0.clone();
+                    xp[j] += h;
+                    xm[j] -= h;
+                    let (mut kp, mut rp, mut rm) = (vec![0.0; n * n], vec![0.0; n], vec![0.0; n]);
+                    eval(&xp, &mut kp, &mut rp);
+                    eval(&xm, &mut kp, &mut rm);
+                    for i in 0..n {
+                        let fd = (rp[i] - rm[i]) / (2.0 * h);
+                        assert!((fd - ke[i * n + j]).abs() < 1e-6 * (1.0 + fd.abs()), "{form:?} K[{i}][{j}] = {} vs FD {fd}", ke[i * n + j]);
+                    }
                 }
             }
-        }
         }
     }
 }

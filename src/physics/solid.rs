@@ -322,13 +322,7 @@ pub struct InvertedPoint {
 /// Deformation gradient at quadrature point `q` of a cell (see the module docs); `cv` is
 /// re-initialised on the integration configuration.
 #[inline]
-pub fn deformation_gradient<const D: usize>(
-    cv: &CellValues<D>,
-    formulation: Formulation,
-    u: &[f64],
-    f_prev: &Mat3,
-    q: usize,
-) -> Mat3 {
+pub fn deformation_gradient<const D: usize>(cv: &CellValues<D>, formulation: Formulation, u: &[f64], f_prev: &Mat3, q: usize) -> Mat3 {
     let phi = cv.phi(q);
     let dphi = cv.grad_phi(q);
     let mut h = [[0.0; 3]; 3];
@@ -543,11 +537,7 @@ fn area_from_tangents<const D: usize>(t1: &[f64; 3], t2: &[f64; 3], orientation:
     if D == 2 {
         [orientation * t1[1], -orientation * t1[0], 0.0]
     } else {
-        [
-            orientation * (t1[1] * t2[2] - t1[2] * t2[1]),
-            orientation * (t1[2] * t2[0] - t1[0] * t2[2]),
-            orientation * (t1[0] * t2[1] - t1[1] * t2[0]),
-        ]
+        [orientation * (t1[1] * t2[2] - t1[2] * t2[1]), orientation * (t1[2] * t2[0] - t1[0] * t2[2]), orientation * (t1[0] * t2[1] - t1[1] * t2[0])]
     }
 }
 
@@ -747,8 +737,11 @@ mod tests {
         let mut cv = CellValues::new(quadrature::quadrilateral(5), &e, &e);
         // A curved, distorted cell away from the axis.
         let mut rnd = rng(11);
-        let coords: Vec<[f64; 2]> =
-            e.nodes().iter().map(|xi| [0.3 + 1.1 * xi[0] + 0.2 * xi[1] + 0.03 * rnd(), 0.5 + 0.9 * xi[1] + 0.1 * xi[0] * xi[0] + 0.03 * rnd()]).collect();
+        let coords: Vec<[f64; 2]> = e
+            .nodes()
+            .iter()
+            .map(|xi| [0.3 + 1.1 * xi[0] + 0.2 * xi[1] + 0.03 * rnd(), 0.5 + 0.9 * xi[1] + 0.1 * xi[0] * xi[0] + 0.03 * rnd()])
+            .collect();
         cv.reinit(&coords).unwrap();
         let fprev: Vec<Mat3> = (0..cv.num_points())
             .map(|_| {
@@ -780,9 +773,8 @@ mod tests {
             .map(|xi| [xi[0] + 0.2 * xi[1] + 0.02 * rnd(), xi[1] + 0.1 * xi[2] * xi[2] + 0.02 * rnd(), 0.8 * xi[2] + 0.1 * xi[0] + 0.02 * rnd()])
             .collect();
         cv.reinit(&coords).unwrap();
-        let fprev: Vec<Mat3> = (0..cv.num_points())
-            .map(|_| std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 } + 0.1 * rnd())))
-            .collect();
+        let fprev: Vec<Mat3> =
+            (0..cv.num_points()).map(|_| std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 } + 0.1 * rnd()))).collect();
         for (s, m) in materials().iter().enumerate() {
             check_kernel_fd(&cv, Formulation::ThreeD, m.as_ref(), None, s == 0, 17 + s as u64);
         }

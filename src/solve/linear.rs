@@ -18,9 +18,9 @@
 //! measured 1.3-1.6x faster numeric factorisation on the Schaefer-Turek meshes (BENCHMARKS.md).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::sparse::linalg::lu::{factorize_symbolic_lu, LuRef, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Conj, Par};
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use thiserror::Error;

@@ -90,13 +90,7 @@ impl Default for NdOptions {
 ///
 /// The lists need not be symmetric, sorted or free of self loops and duplicates: the graph is
 /// symmetrised first. Returns `perm` with `perm[new] = old`.
-pub fn nested_dissection(
-    n: usize,
-    ptr: &[usize],
-    idx: &[usize],
-    extra: &[(usize, usize)],
-    opts: &NdOptions,
-) -> Result<Vec<usize>, OrderingError> {
+pub fn nested_dissection(n: usize, ptr: &[usize], idx: &[usize], extra: &[(usize, usize)], opts: &NdOptions) -> Result<Vec<usize>, OrderingError> {
     let g = symmetric_graph(n, ptr, idx, extra)?;
     if n == 0 {
         return Ok(Vec::new());
@@ -104,8 +98,7 @@ pub fn nested_dissection(
     let (cg, sv_ptr, sv_list) = compress(&g);
     let labels: Vec<usize> = (0..cg.n()).collect();
     let mut order = vec![0usize; cg.n()];
-    let opts =
-        NdOptions { leaf_size: opts.leaf_size.max(1), coarsen_to: opts.coarsen_to.max(8), trials: opts.trials.max(1), ..opts.clone() };
+    let opts = NdOptions { leaf_size: opts.leaf_size.max(1), coarsen_to: opts.coarsen_to.max(8), trials: opts.trials.max(1), ..opts.clone() };
     dissect(&cg, &labels, &mut order, &opts, opts.seed)?;
     let mut perm = Vec::with_capacity(n);
     for &s in &order {

@@ -75,10 +75,7 @@ impl Manufactured<2> for AxisymmetricStokes {
     fn gradient(&self, x: &[f64; 2]) -> [[f64; 2]; 2] {
         let (z, r) = (x[0], x[1]);
         let (s, c) = ((PI * z).sin(), (PI * z).cos());
-        [
-            [2.0 * PI * (1.0 - r * r) * c, -4.0 * r * s],
-            [PI * PI * (r - r * r * r / 2.0) * s, -PI * (1.0 - 1.5 * r * r) * c],
-        ]
+        [[2.0 * PI * (1.0 - r * r) * c, -4.0 * r * s], [PI * PI * (r - r * r * r / 2.0) * s, -PI * (1.0 - 1.5 * r * r) * c]]
     }
     fn pressure(&self, x: &[f64; 2]) -> f64 {
         x[1] * x[1] * (PI * x[0]).cos()
@@ -112,11 +109,7 @@ impl Manufactured<3> for Stokes3d {
     fn gradient(&self, x: &[f64; 3]) -> [[f64; 3]; 3] {
         let s: [f64; 3] = std::array::from_fn(|d| (PI * x[d]).sin());
         let c: [f64; 3] = std::array::from_fn(|d| (PI * x[d]).cos());
-        [
-            [0.0, PI * c[1] * s[2], PI * s[1] * c[2]],
-            [PI * c[0] * s[2], 0.0, PI * s[0] * c[2]],
-            [PI * c[0] * s[1], PI * s[0] * c[1], 0.0],
-        ]
+        [[0.0, PI * c[1] * s[2], PI * s[1] * c[2]], [PI * c[0] * s[2], 0.0, PI * s[0] * c[2]], [PI * c[0] * s[1], PI * s[0] * c[1], 0.0]]
     }
     fn pressure(&self, x: &[f64; 3]) -> f64 {
         (0..3).map(|d| (PI * x[d]).cos()).product()
@@ -138,9 +131,7 @@ mod tests {
     fn stress<const D: usize>(m: &dyn Manufactured<D>, x: &[f64; D]) -> [[f64; D]; D] {
         let g = m.gradient(x);
         let p = m.pressure(x);
-        std::array::from_fn(|a| {
-            std::array::from_fn(|b| m.viscosity() * (g[a][b] + g[b][a]) - if a == b { p } else { 0.0 })
-        })
+        std::array::from_fn(|a| std::array::from_fn(|b| m.viscosity() * (g[a][b] + g[b][a]) - if a == b { p } else { 0.0 }))
     }
 
     fn fd_check_gradient<const D: usize>(m: &dyn Manufactured<D>, x: &[f64; D]) {

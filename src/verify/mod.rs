@@ -18,9 +18,7 @@
 pub mod manufactured;
 pub mod solid_exact;
 
-use crate::flow::{
-    flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc,
-};
+use crate::flow::{flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc};
 use crate::physics::fluid::{FluidParams, Formulation};
 use crate::solve::linear::FaerLu;
 use crate::solve::newton::NewtonOptions;
@@ -98,11 +96,7 @@ pub fn manufactured_problem<const D: usize>(
             .iter()
             .map(|(name, comps)| {
                 let ex = exact.clone();
-                DirichletBc {
-                    boundary: name.to_string(),
-                    components: comps.clone(),
-                    value: Arc::new(move |x: &[f64; D], _t| ex.velocity(x)),
-                }
+                DirichletBc { boundary: name.to_string(), components: comps.clone(), value: Arc::new(move |x: &[f64; D], _t| ex.velocity(x)) }
             })
             .collect(),
         traction: traction
@@ -334,11 +328,7 @@ pub fn time_convergence(scheme: crate::time::TimeScheme) -> Result<Study, crate:
         let options = TimeOptions { dt: 1.0 / n as f64, t_end: 1.0, scheme, max_cuts: 0 };
         let mut lu = FaerLu::default();
         solve_unsteady(&disc, &problem, &mut x, &options, &mut lu, &NewtonOptions::default(), |_, _| Ok(()))?;
-        let (u, gr, p) = (
-            |x: &[f64; 2]| exact(x, 1.0),
-            |x: &[f64; 2]| [[0.0, g(1.0) * (1.0 - 2.0 * x[1])], [0.0, 0.0]],
-            |_: &[f64; 2]| 0.0,
-        );
+        let (u, gr, p) = (|x: &[f64; 2]| exact(x, 1.0), |x: &[f64; 2]| [[0.0, g(1.0) * (1.0 - 2.0 * x[1])], [0.0, 0.0]], |_: &[f64; 2]| 0.0);
         let e = flow_errors(&disc, Formulation::Plane, &x, &ExactFlow { velocity: &u, gradient: &gr, pressure: &p }, 6)?;
         errors.push(e.velocity_l2);
     }

@@ -14,11 +14,10 @@
 //! the mixed Q2/P1disc and of the displacement-only Q2 discretisation side by side.
 
 use super::{Effort, Study};
-use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
 use crate::physics::fluid::Formulation;
+use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
 use crate::solid::{
-    pressure_at, solid_errors, solve_quasi_static, ExactSolid, Lagrangian, LoadStepping, SolidDiscretization, SolidError,
-    SolidErrors, SolidProblem,
+    pressure_at, solid_errors, solve_quasi_static, ExactSolid, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidErrors, SolidProblem,
 };
 use crate::solve::linear::FaerLu;
 use crate::solve::newton::NewtonOptions;
@@ -297,9 +296,8 @@ pub fn rivlin_bending(effort: Effort) -> Result<SolidRun, SolidError> {
         let mesh = rectangle_quads(0.0, ex.h, -ex.l / 2.0, ex.l / 2.0, n, 4 * n, GeometryOrder::Quadratic);
         let disc = SolidDiscretization::build(mesh, Formulation::Plane, material.as_ref())?;
         let bc = move |x: &[f64; 2], load: f64| ex.displacement_at_load(x, load);
-        let problem = SolidProblem::new(Formulation::Plane, material.clone())
-            .with_displacement("bottom", &[0, 1], bc)
-            .with_displacement("top", &[0, 1], bc);
+        let problem =
+            SolidProblem::new(Formulation::Plane, material.clone()).with_displacement("bottom", &[0, 1], bc).with_displacement("top", &[0, 1], bc);
         let stepping = LoadStepping::uniform(Lagrangian::Total, 4);
         let sol = solve_quasi_static(&disc, &problem, &stepping, &mut FaerLu::default(), &study_newton())?;
         let (u, g, p) = (|x: &[f64; 2]| ex.displacement(x), |x: &[f64; 2]| ex.gradient(x), |x: &[f64; 2]| ex.pressure(x));
@@ -370,10 +368,8 @@ pub struct CookResult {
 /// ([`NeoHookeanCompressible`] with the same G and K), on `n x n` meshes.
 pub fn cook_membrane(levels: &[usize]) -> Result<Vec<CookResult>, SolidError> {
     let (g, k) = (80.1938, 40.0942e4);
-    let mats: [Arc<dyn SolidMaterial>; 2] = [
-        Arc::new(NeoHookeanMixed { shear_modulus: g, bulk_modulus: k }),
-        Arc::new(NeoHookeanCompressible::from_shear_bulk(g, k)),
-    ];
+    let mats: [Arc<dyn SolidMaterial>; 2] =
+        [Arc::new(NeoHookeanMixed { shear_modulus: g, bulk_modulus: k }), Arc::new(NeoHookeanCompressible::from_shear_bulk(g, k))];
     let mut out = Vec::new();
     for &n in levels {
         let mut tips = [0.0; 2];
@@ -383,7 +379,13 @@ pub fn cook_membrane(levels: &[usize]) -> Result<Vec<CookResult>, SolidError> {
                 .with_displacement("left", &[0, 1], |_: &[f64; 2], _| [0.0; 2])
                 .with_traction("right", |_: &[f64; 2], l| [0.0, 6.25 * l]);
             let stepping = LoadStepping { initial_increment: 0.5, max_increment: 0.5, min_increment: 1e-3, ..Default::default() };
-            let sol = solve_quasi_static(&disc, &problem, &stepping, &mut FaerLu::default(), &NewtonOptions { max_iterations: 30, abs_tol: 1e-7, rel_tol: 1e-10, ..Default::default() })?;
+            let sol = solve_quasi_static(
+                &disc,
+                &problem,
+                &stepping,
+                &mut FaerLu::default(),
+                &NewtonOptions { max_iterations: 30, abs_tol: 1e-7, rel_tol: 1e-10, ..Default::default() },
+            )?;
             tips[m] = disc.displacement(&sol.x, disc.node_near(&[48.0, 60.0]))[1];
         }
         out.push(CookResult { elements_per_side: n, mixed_tip_uy: tips[0], displacement_only_tip_uy: tips[1] });
@@ -393,11 +395,7 @@ pub fn cook_membrane(levels: &[usize]) -> Result<Vec<CookResult>, SolidError> {
 
 /// The solid studies of `fdfsi verify`.
 pub fn solid_studies(effort: Effort) -> Result<Vec<SolidRun>, SolidError> {
-    Ok(vec![
-        rivlin_bending(effort)?,
-        cylinder_inflation(Formulation::Plane, effort)?,
-        cylinder_inflation(Formulation::Axisymmetric, effort)?,
-    ])
+    Ok(vec![rivlin_bending(effort)?, cylinder_inflation(Formulation::Plane, effort)?, cylinder_inflation(Formulation::Axisymmetric, effort)?])
 }
 
 #[cfg(test)]
@@ -473,12 +471,7 @@ pub struct ExactnessCheck {
 }
 
 /// Largest nodal displacement error and pressure error (all cells, all quadrature points).
-fn homogeneous_errors<const D: usize>(
-    disc: &SolidDiscretization<D>,
-    x: &[f64],
-    u: impl Fn(&[f64; D]) -> [f64; D],
-    p: f64,
-) -> (f64, f64) {
+fn homogeneous_errors<const D: usize>(disc: &SolidDiscretization<D>, x: &[f64], u: impl Fn(&[f64; D]) -> [f64; D], p: f64) -> (f64, f64) {
     let mut eu: f64 = 0.0;
     for (node, x0) in disc.nodes_x0.iter().enumerate() {
         let ue = u(x0);
@@ -524,7 +517,8 @@ pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     // Axisymmetric uniaxial: stretch along the axis z = x[0]; the axis r = 0 is "bottom".
     let ex3 = Uniaxial3d { shear_modulus: 1.0, stretch: 1.5 };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(1.0));
-    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, GeometryOrder::Quadratic), Formulation::Axisymmetric, mat.as_ref())?;
+    let disc =
+        SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, GeometryOrder::Quadratic), Formulation::Axisymmetric, mat.as_ref())?;
     let problem = SolidProblem::new(Formulation::Axisymmetric, mat.clone())
         .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
         .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
@@ -532,7 +526,11 @@ pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     let sol = solve(&disc, &problem, 2)?;
     push("uniaxial-axisymmetric", homogeneous_errors(&disc, &sol.x, |x| ex3.displacement(x), ex3.pressure()));
     // 3D uniaxial on 27-node hexahedra.
-    let disc = SolidDiscretization::build(box_hexahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 2, 1, 1, GeometryOrder::Quadratic), Formulation::ThreeD, mat.as_ref())?;
+    let disc = SolidDiscretization::build(
+        box_hexahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 2, 1, 1, GeometryOrder::Quadratic),
+        Formulation::ThreeD,
+        mat.as_ref(),
+    )?;
     let problem = SolidProblem::new(Formulation::ThreeD, mat.clone())
         .with_displacement("xmin", &[0], |_: &[f64; 3], _| [0.0; 3])
         .with_displacement("ymin", &[1], |_: &[f64; 3], _| [0.0; 3])

@@ -41,20 +41,10 @@ pub enum ReferenceCell {
 
 const SEG_VERTS: [[f64; 3]; 2] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
 const TRI_VERTS: [[f64; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-const QUAD_VERTS: [[f64; 3]; 4] =
-    [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
-const TET_VERTS: [[f64; 3]; 4] =
-    [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-const HEX_VERTS: [[f64; 3]; 8] = [
-    [0.0, 0.0, 0.0],
-    [1.0, 0.0, 0.0],
-    [1.0, 1.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, 0.0, 1.0],
-    [1.0, 0.0, 1.0],
-    [1.0, 1.0, 1.0],
-    [0.0, 1.0, 1.0],
-];
+const QUAD_VERTS: [[f64; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+const TET_VERTS: [[f64; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+const HEX_VERTS: [[f64; 3]; 8] =
+    [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0]];
 
 /// Edges of the triangle (VTK order; edge `i` is also facet `i`).
 pub const TRI_EDGES: [[usize; 2]; 3] = [[0, 1], [1, 2], [2, 0]];
@@ -63,26 +53,12 @@ pub const QUAD_EDGES: [[usize; 2]; 4] = [[0, 1], [1, 2], [2, 3], [3, 0]];
 /// Edges of the tetrahedron (VTK order of the 10-node tetrahedron's mid-edge nodes).
 pub const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
 /// Edges of the hexahedron (VTK order of the 27-node hexahedron's mid-edge nodes).
-pub const HEX_EDGES: [[usize; 2]; 12] = [
-    [0, 1],
-    [1, 2],
-    [2, 3],
-    [3, 0],
-    [4, 5],
-    [5, 6],
-    [6, 7],
-    [7, 4],
-    [0, 4],
-    [1, 5],
-    [2, 6],
-    [3, 7],
-];
+pub const HEX_EDGES: [[usize; 2]; 12] = [[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4], [1, 5], [2, 6], [3, 7]];
 /// Facets of the tetrahedron: facet `i` is opposite vertex `i`, ordered so that its normal by the
 /// right-hand rule points out of a positively oriented tetrahedron.
 pub const TET_FACETS: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
 /// Facets of the hexahedron in VTK's face-node order (x-, x+, y-, y+, z-, z+), outward oriented.
-pub const HEX_FACETS: [[usize; 4]; 6] =
-    [[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3, 2, 1], [4, 5, 6, 7]];
+pub const HEX_FACETS: [[usize; 4]; 6] = [[0, 4, 7, 3], [1, 2, 6, 5], [0, 1, 5, 4], [3, 7, 6, 2], [0, 3, 2, 1], [4, 5, 6, 7]];
 const SEG_FACETS: [[usize; 1]; 2] = [[0], [1]];
 
 impl ReferenceCell {
@@ -183,12 +159,7 @@ impl ReferenceCell {
         let weights: Vec<f64> = match self.facet_cell() {
             ReferenceCell::Segment if self.dim() == 2 => vec![1.0 - eta[0], eta[0]],
             ReferenceCell::Triangle => vec![1.0 - eta[0] - eta[1], eta[0], eta[1]],
-            ReferenceCell::Quadrilateral => vec![
-                (1.0 - eta[0]) * (1.0 - eta[1]),
-                eta[0] * (1.0 - eta[1]),
-                eta[0] * eta[1],
-                (1.0 - eta[0]) * eta[1],
-            ],
+            ReferenceCell::Quadrilateral => vec![(1.0 - eta[0]) * (1.0 - eta[1]), eta[0] * (1.0 - eta[1]), eta[0] * eta[1], (1.0 - eta[0]) * eta[1]],
             _ => vec![1.0],
         };
         let mut x = [0.0; D];
@@ -374,9 +345,7 @@ fn invert_small(a: &[f64], n: usize) -> Vec<f64> {
         inv[i * n + i] = 1.0;
     }
     for col in 0..n {
-        let piv = (col..n)
-            .max_by(|&i, &j| m[i * n + col].abs().total_cmp(&m[j * n + col].abs()))
-            .expect("non-empty range");
+        let piv = (col..n).max_by(|&i, &j| m[i * n + col].abs().total_cmp(&m[j * n + col].abs())).expect("non-empty range");
         assert!(m[piv * n + col].abs() > 1e-12, "singular nodal matrix: element nodes not unisolvent");
         for k in 0..n {
             m.swap(col * n + k, piv * n + k);
@@ -521,10 +490,7 @@ fn lagrange_1d(order: usize, t: f64) -> ([f64; 3], [f64; 3]) {
     if order == 1 {
         ([1.0 - t, t, 0.0], [-1.0, 1.0, 0.0])
     } else {
-        (
-            [(1.0 - t) * (1.0 - 2.0 * t), t * (2.0 * t - 1.0), 4.0 * t * (1.0 - t)],
-            [4.0 * t - 3.0, 4.0 * t - 1.0, 4.0 - 8.0 * t],
-        )
+        ([(1.0 - t) * (1.0 - 2.0 * t), t * (2.0 * t - 1.0), 4.0 * t * (1.0 - t)], [4.0 * t - 3.0, 4.0 * t - 1.0, 4.0 - 8.0 * t])
     }
 }
 
@@ -692,16 +658,9 @@ impl ReferenceElement<3> {
     pub fn p2plus_tetrahedron() -> Self {
         let cell = ReferenceCell::Tetrahedron;
         let v = cell.vertices();
-        let face_nodes: Vec<[f64; 3]> = TET_FACETS
-            .iter()
-            .map(|f| std::array::from_fn(|d| (v[f[0]][d] + v[f[1]][d] + v[f[2]][d]) / 3.0))
-            .collect();
+        let face_nodes: Vec<[f64; 3]> = TET_FACETS.iter().map(|f| std::array::from_fn(|d| (v[f[0]][d] + v[f[1]][d] + v[f[2]][d]) / 3.0)).collect();
         let nodes = [vertex_nodes(cell), edge_nodes(cell), face_nodes, vec![cell.centroid()]].concat();
-        let entities = vertex_entities(4)
-            .chain(edge_entities(6))
-            .chain(face_entities(4))
-            .chain([interior_entity(3)])
-            .collect();
+        let entities = vertex_entities(4).chain(edge_entities(6)).chain(face_entities(4)).chain([interior_entity(3)]).collect();
         Self::build(cell, ElementFamily::P2Plus, nodes, entities, raw_p2plus_tetrahedron, true)
     }
     /// Trilinear hexahedron.
@@ -713,11 +672,7 @@ impl ReferenceElement<3> {
     pub fn q2_hexahedron() -> Self {
         let cell = ReferenceCell::Hexahedron;
         let nodes = Q2_HEX_NODES.to_vec();
-        let entities = vertex_entities(8)
-            .chain(edge_entities(12))
-            .chain(face_entities(6))
-            .chain([interior_entity(3)])
-            .collect();
+        let entities = vertex_entities(8).chain(edge_entities(12)).chain(face_entities(6)).chain([interior_entity(3)]).collect();
         Self::build(cell, ElementFamily::Q2, nodes, entities, raw_q2_hex, false)
     }
 }
@@ -896,7 +851,7 @@ mod tests {
             assert!((a[k] - b[k]).abs() < 1e-14);
         }
         assert!((a.iter().sum::<f64>() - 0.5).abs() < 1e-14);
-                for k in 0..3 {
+        for k in 0..3 {
             assert!((a[k] - 0.5 / 20.0).abs() < 1e-14, "vertex {k}: {}", a[k]);
             assert!((a[3 + k] - 0.5 * 2.0 / 15.0).abs() < 1e-14, "edge {k}: {}", a[3 + k]);
         }

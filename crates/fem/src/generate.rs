@@ -56,15 +56,7 @@ pub enum DiagonalPattern {
 ///
 /// # Panics
 /// If an interval is empty or not finite, or `nx` or `ny` is 0.
-pub fn rectangle_triangles(
-    x0: f64,
-    x1: f64,
-    y0: f64,
-    y1: f64,
-    nx: usize,
-    ny: usize,
-    pattern: DiagonalPattern,
-) -> Mesh<2> {
+pub fn rectangle_triangles(x0: f64, x1: f64, y0: f64, y1: f64, nx: usize, ny: usize, pattern: DiagonalPattern) -> Mesh<2> {
     check_interval("x", x0, x1);
     check_interval("y", y0, y1);
     check_count("nx", nx);
@@ -159,17 +151,7 @@ pub fn graded_spacing(length: f64, n: usize, g: f64) -> Vec<f64> {
 /// # Panics
 /// If an interval is empty or not finite, or a count is 0.
 #[allow(clippy::too_many_arguments)]
-pub fn box_tetrahedra(
-    x0: f64,
-    x1: f64,
-    y0: f64,
-    y1: f64,
-    z0: f64,
-    z1: f64,
-    nx: usize,
-    ny: usize,
-    nz: usize,
-) -> Mesh<3> {
+pub fn box_tetrahedra(x0: f64, x1: f64, y0: f64, y1: f64, z0: f64, z1: f64, nx: usize, ny: usize, nz: usize) -> Mesh<3> {
     let axes = box_axes([(x0, x1), (y0, y1), (z0, z1)], [nx, ny, nz]);
     const PERMUTATIONS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
     let n = [nx, ny, nz];
@@ -202,18 +184,7 @@ pub fn box_tetrahedra(
 /// # Panics
 /// If an interval is empty or not finite, or a count is 0.
 #[allow(clippy::too_many_arguments)]
-pub fn box_hexahedra(
-    x0: f64,
-    x1: f64,
-    y0: f64,
-    y1: f64,
-    z0: f64,
-    z1: f64,
-    nx: usize,
-    ny: usize,
-    nz: usize,
-    order: GeometryOrder,
-) -> Mesh<3> {
+pub fn box_hexahedra(x0: f64, x1: f64, y0: f64, y1: f64, z0: f64, z1: f64, nx: usize, ny: usize, nz: usize, order: GeometryOrder) -> Mesh<3> {
     let axes = box_axes([(x0, x1), (y0, y1), (z0, z1)], [nx, ny, nz]);
     tensor_mesh(axes, order, &BOX_BOUNDARIES)
 }
@@ -619,11 +590,8 @@ fn tensor_mesh<const D: usize>(axes: [Vec<f64>; D], order: GeometryOrder, names:
     let n: [usize; D] = std::array::from_fn(|d| axes[d].len() - 1);
     let points = grid_points(&fine, m);
     let cell_type = if D == 2 { ReferenceCell::Quadrilateral } else { ReferenceCell::Hexahedron };
-    let offsets: Vec<[usize; D]> = geometry_element::<D>(cell_type, order)
-        .nodes()
-        .iter()
-        .map(|xi| std::array::from_fn(|d| (xi[d] * s as f64).round() as usize))
-        .collect();
+    let offsets: Vec<[usize; D]> =
+        geometry_element::<D>(cell_type, order).nodes().iter().map(|xi| std::array::from_fn(|d| (xi[d] * s as f64).round() as usize)).collect();
     let num_cells: usize = n.iter().product();
     let mut cells = Vec::with_capacity(num_cells * offsets.len());
     for c in 0..num_cells {
@@ -756,8 +724,7 @@ fn orient_simplices<const D: usize>(points: &[[f64; D]], cells: &mut [usize], k:
             }
             _ => {
                 let (a, b, c) = (e(1), e(2), e(3));
-                a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                    + a[2] * (b[0] * c[1] - b[1] * c[0])
+                a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
             }
         };
         if det < 0.0 {
@@ -840,9 +807,7 @@ mod tests {
 
     #[test]
     fn rectangle_triangles_all_patterns() {
-        for pattern in
-            [DiagonalPattern::Right, DiagonalPattern::Left, DiagonalPattern::Alternating, DiagonalPattern::Crossed]
-        {
+        for pattern in [DiagonalPattern::Right, DiagonalPattern::Left, DiagonalPattern::Alternating, DiagonalPattern::Crossed] {
             let m = rectangle_triangles(-1.0, 2.0, 0.5, 1.5, 6, 4, pattern);
             m.check().unwrap();
             let per_square = if pattern == DiagonalPattern::Crossed { 4 } else { 2 };
@@ -883,8 +848,7 @@ mod tests {
                         let (a, b, mid) = (m.points[n[e[0]]], m.points[n[e[1]]], m.points[n[4 + k]]);
                         assert_eq!(mid, [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]);
                     }
-                    let centre: [f64; 2] =
-                        std::array::from_fn(|d| (0..4).map(|i| m.points[n[i]][d]).sum::<f64>() / 4.0);
+                    let centre: [f64; 2] = std::array::from_fn(|d| (0..4).map(|i| m.points[n[i]][d]).sum::<f64>() / 4.0);
                     let p8 = m.points[n[8]];
                     assert!((p8[0] - centre[0]).abs() < 1e-15 && (p8[1] - centre[1]).abs() < 1e-15);
                 }
@@ -982,8 +946,7 @@ mod tests {
                         assert_eq!(p(8 + k), mid, "edge node {k}");
                     }
                     for (f, face) in HEX_FACETS.iter().enumerate() {
-                        let centre: [f64; 3] =
-                            std::array::from_fn(|d| face.iter().map(|&i| p(i)[d]).sum::<f64>() / 4.0);
+                        let centre: [f64; 3] = std::array::from_fn(|d| face.iter().map(|&i| p(i)[d]).sum::<f64>() / 4.0);
                         let q = p(20 + f);
                         assert!((0..3).all(|d| (q[d] - centre[d]).abs() < 1e-15), "face node {f}");
                     }
@@ -1011,9 +974,8 @@ mod tests {
                 assert_boundary_complete(&m);
                 assert_conforming(&m);
                 let ring = ring_segments(n_radial, quarter);
-                let section_tris: usize = (1..=n_radial)
-                    .map(|k| ring_segments(k, quarter) + if k > 1 { ring_segments(k - 1, quarter) } else { 0 })
-                    .sum();
+                let section_tris: usize =
+                    (1..=n_radial).map(|k| ring_segments(k, quarter) + if k > 1 { ring_segments(k - 1, quarter) } else { 0 }).sum();
                 assert_named_boundary(&m, "inlet", section_tris, |p| p[2] == 0.0);
                 assert_named_boundary(&m, "outlet", section_tris, |p| p[2] == l);
                 assert_named_boundary(&m, "wall", 2 * 3 * ring, |p| ((p[0].hypot(p[1])) - r).abs() <= 4e-16 * r);
@@ -1120,7 +1082,8 @@ mod tests {
             assert_named_boundary(&m, "symmetry_y", (n_core + n_ring) * n_layers, |p| p[1] == 0.0);
             // The rim's vertices are the quarter pipe's outer-ring vertices, bit for bit.
             let pipe = pipe_tetrahedra(r, 4.0, n_radial, 1, true);
-            let wall: HashSet<[u64; 2]> = pipe.points.iter().filter(|p| p[2] == 0.0 && p[0].hypot(p[1]) > 0.999).map(|p| [p[0].to_bits(), p[1].to_bits()]).collect();
+            let wall: HashSet<[u64; 2]> =
+                pipe.points.iter().filter(|p| p[2] == 0.0 && p[0].hypot(p[1]) > 0.999).map(|p| [p[0].to_bits(), p[1].to_bits()]).collect();
             let mr = &m;
             let rim: HashSet<[u64; 2]> = m
                 .boundary_facets("wall")

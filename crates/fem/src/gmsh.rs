@@ -218,20 +218,14 @@ fn check_header(bytes: &[u8], file: &str) -> Result<bool, GmshError> {
         .unwrap_or_default();
     let token = |i: usize| line.get(i).map(|t| String::from_utf8_lossy(t).into_owned());
     let version = token(0).ok_or_else(|| parse_err("$MeshFormat has no version line"))?;
-    let number =
-        version.parse::<f64>().map_err(|_| parse_err(&format!("invalid format version '{version}' in $MeshFormat")))?;
+    let number = version.parse::<f64>().map_err(|_| parse_err(&format!("invalid format version '{version}' in $MeshFormat")))?;
     if number != 4.1 {
         return Err(GmshError::UnsupportedVersion { file: file.to_string(), version });
     }
     let binary = match token(1).as_deref() {
         Some("0") => false,
         Some("1") => true,
-        other => {
-            return Err(parse_err(&format!(
-                "invalid file type '{}' in $MeshFormat (0 = ASCII, 1 = binary)",
-                other.unwrap_or("")
-            )))
-        }
+        other => return Err(parse_err(&format!("invalid file type '{}' in $MeshFormat (0 = ASCII, 1 = binary)", other.unwrap_or("")))),
     };
     match token(2).as_deref().map(str::parse::<usize>) {
         Some(Ok(1 | 2 | 4 | 8 | 16)) => Ok(binary),
@@ -241,8 +235,7 @@ fn check_header(bytes: &[u8], file: &str) -> Result<bool, GmshError> {
 
 /// Runs `mshio`, turning its errors (and, defensively, its panics) into [`GmshError`]s.
 fn run_mshio(bytes: &[u8], file: &str, binary: bool) -> Result<MshFile<u64, i32, f64>, GmshError> {
-    let result =
-        std::panic::catch_unwind(|| mshio::parse_msh_bytes(bytes).map_err(|e| mshio_error(bytes, &e, file, binary)));
+    let result = std::panic::catch_unwind(|| mshio::parse_msh_bytes(bytes).map_err(|e| mshio_error(bytes, &e, file, binary)));
     match result {
         Ok(r) => r,
         Err(_) => Err(GmshError::Parse { file: file.to_string(), message: "the MSH parser failed".into() }),
@@ -265,12 +258,7 @@ fn mshio_error(bytes: &[u8], err: &mshio::MshParserError<&[u8]>, file: &str, bin
         let from_context = trace.iter().find_map(|(_, k)| k.context()?.strip_prefix("value ")?.trim().parse().ok());
         let type_number = tokens.first().and_then(|t| t.parse().ok()).or(from_context);
         let element_tag = tokens.get(2).and_then(|t| t.parse().ok());
-        return GmshError::UnsupportedElement {
-            file: file.to_string(),
-            element_tag,
-            type_number,
-            detail: "unknown element type number".into(),
-        };
+        return GmshError::UnsupportedElement { file: file.to_string(), element_tag, type_number, detail: "unknown element type number".into() };
     }
     let message = match trace.first() {
         None => match section_problem(bytes).or_else(|| if binary { None } else { bad_number(bytes) }) {
@@ -280,11 +268,7 @@ fn mshio_error(bytes: &[u8], err: &mshio::MshParserError<&[u8]>, file: &str, bin
         },
         Some((at, kind)) => {
             let off = offset(at);
-            let place = if binary {
-                format!("byte {off}")
-            } else {
-                format!("line {}", bytes[..off].iter().filter(|&&b| b == b'\n').count() + 1)
-            };
+            let place = if binary { format!("byte {off}") } else { format!("line {}", bytes[..off].iter().filter(|&&b| b == b'\n').count() + 1) };
             // Contexts from the outermost in; the innermost entry is the error itself.
             let chain: Vec<String> = trace.iter().rev().filter_map(|(_, k)| k.context().map(String::from)).collect();
             let what = if kind.context().is_some() { String::new() } else { format!(": {kind}") };
@@ -351,14 +335,11 @@ fn physical_names(bytes: &[u8], file: &str) -> Result<HashMap<(usize, i32), Stri
     };
     let body_start = start + b"\n$PhysicalNames".len();
     let err = |message: String| GmshError::Parse { file: file.to_string(), message };
-    let len = find(&bytes[body_start..], b"$EndPhysicalNames")
-        .ok_or_else(|| err("$PhysicalNames has no $EndPhysicalNames".into()))?;
+    let len = find(&bytes[body_start..], b"$EndPhysicalNames").ok_or_else(|| err("$PhysicalNames has no $EndPhysicalNames".into()))?;
     let text = String::from_utf8_lossy(&bytes[body_start..body_start + len]);
     let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
-    let count: usize = lines
-        .next()
-        .and_then(|l| l.parse().ok())
-        .ok_or_else(|| err("$PhysicalNames does not start with the number of names".into()))?;
+    let count: usize =
+        lines.next().and_then(|l| l.parse().ok()).ok_or_else(|| err("$PhysicalNames does not start with the number of names".into()))?;
     let mut read = 0;
     for line in lines {
         let bad = || err(format!("invalid line in $PhysicalNames: '{line}'"));
@@ -417,15 +398,9 @@ fn node_table(msh: &MshFile<u64, i32, f64>, file: &str) -> Result<HashMap<u64, [
             None => (0..block.nodes.len()).map(|i| (next + i as u64, i)).collect(),
         };
         for (tag, i) in entries {
-            let x = coords(i).ok_or_else(|| GmshError::Inconsistent {
-                file: file.to_string(),
-                message: format!("node {tag} has no coordinates"),
-            })?;
+            let x = coords(i).ok_or_else(|| GmshError::Inconsistent { file: file.to_string(), message: format!("node {tag} has no coordinates") })?;
             if table.insert(tag, x).is_some() {
-                return Err(GmshError::Inconsistent {
-                    file: file.to_string(),
-                    message: format!("node tag {tag} is defined twice"),
-                });
+                return Err(GmshError::Inconsistent { file: file.to_string(), message: format!("node tag {tag} is defined twice") });
             }
         }
         next += block.nodes.len() as u64;
@@ -520,8 +495,7 @@ const SUPPORTED: &str = "supported cells: Tri3, Tri6, Qua4, Qua9, Tet4, Tet10, H
 
 /// Gmsh reference coordinates of the 6-node triangle (manual, "Node ordering"); the 3-node
 /// triangle is its first 3 rows.
-const GMSH_TRI6: [[f64; 3]; 6] =
-    [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.0]];
+const GMSH_TRI6: [[f64; 3]; 6] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.0]];
 /// Gmsh reference coordinates of the 9-node quadrangle on `[-1, 1]^2`: vertices, edges
 /// (0,1), (1,2), (2,3), (3,0), centre.
 const GMSH_QUA9: [[f64; 3]; 9] = [
@@ -586,9 +560,7 @@ const GMSH_HEX27: [[f64; 3]; 27] = [
 /// (tensor cells from `[-1, 1]^d` to `[0, 1]^d`; simplices are the same).
 fn gmsh_reference(cell: ReferenceCell, order: GeometryOrder) -> Vec<[f64; 3]> {
     let n = geometry_nodes(cell, order);
-    let to_unit = |p: &[f64; 3], dim: usize| -> [f64; 3] {
-        std::array::from_fn(|d| if d < dim { 0.5 * (p[d] + 1.0) } else { 0.0 })
-    };
+    let to_unit = |p: &[f64; 3], dim: usize| -> [f64; 3] { std::array::from_fn(|d| if d < dim { 0.5 * (p[d] + 1.0) } else { 0.0 }) };
     match cell {
         ReferenceCell::Triangle => GMSH_TRI6[..n].to_vec(),
         ReferenceCell::Tetrahedron => GMSH_TET10[..n].to_vec(),
@@ -691,8 +663,7 @@ fn collect_cells(input: &Input, dim: usize) -> Result<Cells, GmshError> {
         detail: format!("{}; {SUPPORTED}", type_name(e.ty)),
     };
     let (cell_type, order) = cell_kind(first.ty).ok_or_else(|| unsupported(first))?;
-    let internal =
-        |what: &str| GmshError::Inconsistent { file: file.clone(), message: format!("internal error: {what}") };
+    let internal = |what: &str| GmshError::Inconsistent { file: file.clone(), message: format!("internal error: {what}") };
     let perm = gmsh_to_vtk_permutation(cell_type, order).ok_or_else(|| internal("no Gmsh node permutation"))?;
     let mut cells = Cells {
         cell_type,
@@ -709,12 +680,7 @@ fn collect_cells(input: &Input, dim: usize) -> Result<Cells, GmshError> {
             if cell_kind(e.ty).is_none() {
                 return Err(unsupported(e));
             }
-            return Err(GmshError::MixedCellTypes {
-                file: file.clone(),
-                element_tag: e.tag,
-                first: type_name(first.ty),
-                found: type_name(e.ty),
-            });
+            return Err(GmshError::MixedCellTypes { file: file.clone(), element_tag: e.tag, first: type_name(first.ty), found: type_name(e.ty) });
         }
         if e.nodes.len() != perm.len() {
             return Err(internal("element with a wrong number of nodes"));
@@ -734,11 +700,7 @@ fn keep_node(cells: &mut Cells, input: &Input, element_tag: u64, tag: u64) -> Re
     if let Some(&id) = cells.compact.get(&tag) {
         return Ok(id);
     }
-    let x = input.nodes.get(&tag).ok_or_else(|| GmshError::MissingNode {
-        file: input.file.clone(),
-        element_tag,
-        node_tag: tag,
-    })?;
+    let x = input.nodes.get(&tag).ok_or_else(|| GmshError::MissingNode { file: input.file.clone(), element_tag, node_tag: tag })?;
     if !x.iter().all(|c| c.is_finite()) {
         return Err(GmshError::NonFiniteNode { file: input.file.clone(), node_tag: tag, coords: *x });
     }
@@ -782,10 +744,7 @@ fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &st
     }
     let diag = bounding_diagonal(points);
     if !diag.is_finite() {
-        return Err(GmshError::Inconsistent {
-            file: file.to_string(),
-            message: "node coordinates are not finite".into(),
-        });
+        return Err(GmshError::Inconsistent { file: file.to_string(), message: "node coordinates are not finite".into() });
     }
     let h = 1e-12 * diag.max(f64::MIN_POSITIVE);
     let lo: [f64; D] = std::array::from_fn(|d| points.iter().map(|p| p[d]).fold(f64::INFINITY, f64::min));
@@ -806,12 +765,7 @@ fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &st
             for &j in bins.get(&nb).map(Vec::as_slice).unwrap_or(&[]) {
                 if j > i && (0..D).all(|d| (points[j][d] - p[d]).abs() <= h) {
                     let coords = std::array::from_fn(|d| if d < D { p[d] } else { 0.0 });
-                    return Err(GmshError::DuplicateNodes {
-                        file: file.to_string(),
-                        node_a: tags[i],
-                        node_b: tags[j],
-                        coords,
-                    });
+                    return Err(GmshError::DuplicateNodes { file: file.to_string(), node_a: tags[i], node_b: tags[j], coords });
                 }
             }
         }
@@ -821,10 +775,8 @@ fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &st
 
 /// Orientation and degeneracy of each cell (see the module documentation).
 fn orient_cells<const D: usize>(mesh: &mut Mesh<D>, element_tags: &[u64], file: &str) -> Result<(), GmshError> {
-    let reflect = reflection_permutation(mesh.cell_type, mesh.order).ok_or_else(|| GmshError::Inconsistent {
-        file: file.to_string(),
-        message: "internal error: no reflection permutation".into(),
-    })?;
+    let reflect = reflection_permutation(mesh.cell_type, mesh.order)
+        .ok_or_else(|| GmshError::Inconsistent { file: file.to_string(), message: "internal error: no reflection permutation".into() })?;
     let npc = mesh.nodes_per_cell();
     for (c, &element_tag) in element_tags.iter().enumerate() {
         let measure = mesh.signed_vertex_measure(c);
@@ -889,21 +841,17 @@ fn check_jacobians<const D: usize>(mesh: &Mesh<D>, element_tags: &[u64], file: &
 
 /// A physical tag as a mesh tag (physical tags are positive).
 fn physical_tag(tag: i32, file: &str) -> Result<u32, GmshError> {
-    u32::try_from(tag).ok().filter(|&t| t > 0).ok_or_else(|| GmshError::Inconsistent {
-        file: file.to_string(),
-        message: format!("invalid physical tag {tag}"),
-    })
+    u32::try_from(tag)
+        .ok()
+        .filter(|&t| t > 0)
+        .ok_or_else(|| GmshError::Inconsistent { file: file.to_string(), message: format!("invalid physical tag {tag}") })
 }
 
 /// Names of the physical tags `used` of dimension `dim`: all named groups of that dimension, and
 /// used tags without a name under their number; sorted by tag.
 fn group_names(input: &Input, dim: usize, used: &[u32]) -> Vec<(String, u32)> {
-    let mut out: Vec<(String, u32)> = input
-        .names
-        .iter()
-        .filter(|((d, t), _)| *d == dim && *t > 0)
-        .map(|((_, t), name)| (name.clone(), *t as u32))
-        .collect();
+    let mut out: Vec<(String, u32)> =
+        input.names.iter().filter(|((d, t), _)| *d == dim && *t > 0).map(|((_, t), name)| (name.clone(), *t as u32)).collect();
     for &t in used {
         if !out.iter().any(|(_, u)| *u == t) {
             out.push((t.to_string(), t));
@@ -922,11 +870,7 @@ fn assign_regions<const D: usize>(mesh: &mut Mesh<D>, input: &Input, cells: &Cel
         let tag = match input.groups.get(&(D, entity)).and_then(|t| t.first()) {
             Some(&t) => physical_tag(t, &input.file)?,
             None if groups_exist => {
-                return Err(GmshError::MissingPhysicalGroup {
-                    file: input.file.clone(),
-                    element_tag: cells.element_tags[c],
-                    entity_tag: entity,
-                })
+                return Err(GmshError::MissingPhysicalGroup { file: input.file.clone(), element_tag: cells.element_tags[c], entity_tag: entity })
             }
             None => 0,
         };
@@ -950,11 +894,7 @@ fn facet_key(verts: impl Iterator<Item = usize>) -> [usize; 4] {
 }
 
 /// Boundary facets from the tagged elements of dimension `D - 1`.
-fn assign_boundary<const D: usize>(
-    mesh: &mut Mesh<D>,
-    input: &Input,
-    compact: &HashMap<u64, usize>,
-) -> Result<(), GmshError> {
+fn assign_boundary<const D: usize>(mesh: &mut Mesh<D>, input: &Input, compact: &HashMap<u64, usize>) -> Result<(), GmshError> {
     let file = &input.file;
     let ct = mesh.cell_type;
     let mut facets: HashMap<[usize; 4], (usize, usize)> = HashMap::with_capacity(mesh.num_cells() * ct.num_facets());
@@ -973,8 +913,7 @@ fn assign_boundary<const D: usize>(
             type_number: Some(e.ty as i64),
             detail: format!("{} as a boundary element of a {D}D mesh; {SUPPORTED}", type_name(e.ty)),
         })?;
-        let not_on_facet =
-            || GmshError::BoundaryNotOnFacet { file: file.clone(), element_tag: e.tag, kind: type_name(e.ty), dim: D };
+        let not_on_facet = || GmshError::BoundaryNotOnFacet { file: file.clone(), element_tag: e.tag, kind: type_name(e.ty), dim: D };
         let mut verts = Vec::with_capacity(nv);
         for &node in e.nodes.iter().take(nv) {
             if !input.nodes.contains_key(&node) {
@@ -1172,8 +1111,7 @@ mod tests {
     fn quad9_mesh_is_read_in_vtk_order() {
         // One 9-node quadrangle on [0,2]x[0,1]; Gmsh and VTK orders coincide.
         let p = |x: f64, y: f64| [x, y, 0.0];
-        let coords =
-            [p(0., 0.), p(2., 0.), p(2., 1.), p(0., 1.), p(1., 0.), p(2., 0.5), p(1., 1.), p(0., 0.5), p(1., 0.5)];
+        let coords = [p(0., 0.), p(2., 0.), p(2., 1.), p(0., 1.), p(1., 0.), p(2., 0.5), p(1., 1.), p(0., 0.5), p(1., 0.5)];
         let m = parse_2d(&Msh {
             nodes: coords.iter().enumerate().map(|(i, x)| (i as u64 + 1, *x)).collect(),
             blocks: vec![(2, 1, 10, vec![(1, (1..=9).collect())])],
@@ -1186,10 +1124,8 @@ mod tests {
     }
 
     const GMSH_TET_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [3, 0], [3, 2], [3, 1]];
-    const GMSH_HEX_EDGES: [[usize; 2]; 12] =
-        [[0, 1], [0, 3], [0, 4], [1, 2], [1, 5], [2, 3], [2, 6], [3, 7], [4, 5], [4, 7], [5, 6], [6, 7]];
-    const GMSH_HEX_FACES: [[usize; 4]; 6] =
-        [[0, 3, 2, 1], [0, 1, 5, 4], [0, 4, 7, 3], [1, 2, 6, 5], [2, 3, 7, 6], [4, 5, 6, 7]];
+    const GMSH_HEX_EDGES: [[usize; 2]; 12] = [[0, 1], [0, 3], [0, 4], [1, 2], [1, 5], [2, 3], [2, 6], [3, 7], [4, 5], [4, 7], [5, 6], [6, 7]];
+    const GMSH_HEX_FACES: [[usize; 4]; 6] = [[0, 3, 2, 1], [0, 1, 5, 4], [0, 4, 7, 3], [1, 2, 6, 5], [2, 3, 7, 6], [4, 5, 6, 7]];
 
     fn mean(points: &[[f64; 3]]) -> [f64; 3] {
         std::array::from_fn(|d| points.iter().map(|p| p[d]).sum::<f64>() / points.len() as f64)
@@ -1289,10 +1225,7 @@ mod tests {
                 let n = geometry_nodes(cell, order);
                 let set: HashSet<usize> = perm.iter().copied().collect();
                 assert_eq!((perm.len(), set.len()), (n, n));
-                assert!(
-                    perm[..cell.num_vertices()].iter().enumerate().all(|(i, &p)| i == p),
-                    "vertices keep their order"
-                );
+                assert!(perm[..cell.num_vertices()].iter().enumerate().all(|(i, &p)| i == p), "vertices keep their order");
                 let r = reflection_permutation(cell, order).unwrap();
                 assert!(r.iter().enumerate().all(|(k, &j)| r[j] == k), "a reflection is an involution");
             }
@@ -1410,10 +1343,7 @@ mod tests {
         let mut m = square();
         m.blocks.push((2, 1, 200, vec![(77, vec![10, 20, 30])]));
         let e = error_of(m.text().as_bytes(), "unknown-type.msh");
-        assert!(
-            matches!(e, GmshError::UnsupportedElement { element_tag: Some(77), type_number: Some(200), .. }),
-            "{e}"
-        );
+        assert!(matches!(e, GmshError::UnsupportedElement { element_tag: Some(77), type_number: Some(200), .. }), "{e}");
         // A 20-node hexahedron (serendipity, Gmsh type 17).
         let mut m = single_tet([[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
         m.blocks = vec![(3, 1, 17, vec![(3, (1..=20).map(|i| (i - 1) % 4 + 1).collect())])];
@@ -1542,9 +1472,7 @@ mod tests {
             (state % n as u64) as usize
         };
         const BYTES: &[u8] = b"0123456789 -.\n$eE\x00\xff";
-        for original in
-            [square().text().into_bytes(), tet10().text().into_bytes(), hex27().text().into_bytes(), binary_square()]
-        {
+        for original in [square().text().into_bytes(), tet10().text().into_bytes(), hex27().text().into_bytes(), binary_square()] {
             for _ in 0..300 {
                 let mut b = original.clone();
                 for _ in 0..1 + next(3) {
@@ -1607,8 +1535,7 @@ mod tests {
         for v in [2, 3, 1, 3] {
             size(&mut b, v);
         }
-        let blocks: [(i32, i32, Vec<Vec<u64>>); 2] =
-            [(1, 1, vec![vec![1, 10, 20]]), (2, 2, vec![vec![2, 10, 20, 30], vec![3, 10, 30, 40]])];
+        let blocks: [(i32, i32, Vec<Vec<u64>>); 2] = [(1, 1, vec![vec![1, 10, 20]]), (2, 2, vec![vec![2, 10, 20, 30], vec![3, 10, 30, 40]])];
         for (dim, ty, elems) in blocks {
             int(&mut b, dim);
             int(&mut b, 1);

@@ -6,14 +6,14 @@
 //! [`gmsh`] (MSH 4.1 import) -> [`dofs`] (dof maps) -> [`sparse`] (pattern, CSR matrix,
 //! coloured assembly) -> [`vtk`] (`.vtu`/`.pvd` output and read-back).
 
+pub mod adapt;
+pub mod dofs;
 pub mod element;
-pub mod quadrature;
-pub mod values;
-pub mod mesh;
 pub mod generate;
 pub mod gmsh;
-pub mod dofs;
-pub mod sparse;
 pub mod locate;
+pub mod mesh;
+pub mod quadrature;
+pub mod sparse;
+pub mod values;
 pub mod vtk;
-pub mod adapt;

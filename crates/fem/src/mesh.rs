@@ -100,15 +100,19 @@ impl<const D: usize> Mesh<D> {
     }
     /// Tag of the boundary named `name`, or an error listing the names there are.
     pub fn boundary_tag(&self, name: &str) -> Result<u32, MeshError> {
-        self.boundary_names.iter().find(|(n, _)| n == name).map(|(_, t)| *t).ok_or_else(|| {
-            MeshError::UnknownBoundary { name: name.to_string(), available: names(&self.boundary_names) }
-        })
+        self.boundary_names
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, t)| *t)
+            .ok_or_else(|| MeshError::UnknownBoundary { name: name.to_string(), available: names(&self.boundary_names) })
     }
     /// Tag of the region named `name`.
     pub fn region_tag(&self, name: &str) -> Result<u32, MeshError> {
-        self.region_names.iter().find(|(n, _)| n == name).map(|(_, t)| *t).ok_or_else(|| {
-            MeshError::UnknownRegion { name: name.to_string(), available: names(&self.region_names) }
-        })
+        self.region_names
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, t)| *t)
+            .ok_or_else(|| MeshError::UnknownRegion { name: name.to_string(), available: names(&self.region_names) })
     }
     /// Boundary facets carrying the tag of `name`.
     pub fn boundary_facets(&self, name: &str) -> Result<Vec<BoundaryFacet>, MeshError> {
@@ -156,8 +160,7 @@ impl<const D: usize> Mesh<D> {
             ReferenceCell::Tetrahedron | ReferenceCell::Hexahedron => {
                 let (i1, i2, i3) = if self.cell_type == ReferenceCell::Tetrahedron { (1, 2, 3) } else { (1, 3, 4) };
                 let (a, b, c3) = (sub(p(i1), p(0)), sub(p(i2), p(0)), sub(p(i3), p(0)));
-                let det = a[0] * (b[1] * c3[2] - b[2] * c3[1]) - a[1] * (b[0] * c3[2] - b[2] * c3[0])
-                    + a[2] * (b[0] * c3[1] - b[1] * c3[0]);
+                let det = a[0] * (b[1] * c3[2] - b[2] * c3[1]) - a[1] * (b[0] * c3[2] - b[2] * c3[0]) + a[2] * (b[0] * c3[1] - b[1] * c3[0]);
                 if self.cell_type == ReferenceCell::Tetrahedron {
                     det / 6.0
                 } else {
@@ -256,16 +259,11 @@ pub fn facet_local_nodes(cell: ReferenceCell, order: GeometryOrder, f: usize) ->
         let nv = cell.num_vertices();
         let edges = cell.edges();
         let nf = verts.len();
-        let facet_edges: Vec<[usize; 2]> = if cell.dim() == 2 {
-            vec![[verts[0], verts[1]]]
-        } else {
-            (0..nf).map(|i| [verts[i], verts[(i + 1) % nf]]).collect()
-        };
+        let facet_edges: Vec<[usize; 2]> =
+            if cell.dim() == 2 { vec![[verts[0], verts[1]]] } else { (0..nf).map(|i| [verts[i], verts[(i + 1) % nf]]).collect() };
         for fe in facet_edges {
-            let k = edges
-                .iter()
-                .position(|e| (e[0] == fe[0] && e[1] == fe[1]) || (e[0] == fe[1] && e[1] == fe[0]))
-                .expect("facet edge is a cell edge");
+            let k =
+                edges.iter().position(|e| (e[0] == fe[0] && e[1] == fe[1]) || (e[0] == fe[1] && e[1] == fe[0])).expect("facet edge is a cell edge");
             out.push(nv + k);
         }
         match cell {
@@ -362,16 +360,7 @@ impl Topology {
                 }
             }
         }
-        Topology {
-            num_vertices: vertex_to_node.len(),
-            vertex_to_node,
-            node_to_vertex,
-            edges,
-            cell_edges,
-            faces,
-            cell_faces,
-            facet_cells,
-        }
+        Topology { num_vertices: vertex_to_node.len(), vertex_to_node, node_to_vertex, edges, cell_edges, faces, cell_faces, facet_cells }
     }
 
     /// Number of facets (edges in 2D, faces in 3D).
@@ -386,11 +375,8 @@ impl Topology {
 
     /// Cell across local facet `f` of cell `c`, if any.
     pub fn neighbour(&self, cell_type: ReferenceCell, c: usize, f: usize) -> Option<usize> {
-        let id = if cell_type.dim() == 3 {
-            self.cell_faces[c * cell_type.num_facets() + f]
-        } else {
-            self.cell_edges[c * cell_type.edges().len() + f]
-        };
+        let id =
+            if cell_type.dim() == 3 { self.cell_faces[c * cell_type.num_facets() + f] } else { self.cell_edges[c * cell_type.edges().len() + f] };
         let [a, b] = self.facet_cells[id];
         if a.0 == c {
             (b != NO_CELL).then_some(b.0)

@@ -97,23 +97,13 @@ fn points_for_degree(p: usize) -> usize {
 /// Rule on the segment `[0, 1]` exact to degree `degree`.
 pub fn segment(degree: usize) -> QuadratureRule<1> {
     let (x, w) = gauss_legendre(points_for_degree(degree));
-    QuadratureRule {
-        cell: ReferenceCell::Segment,
-        degree,
-        points: x.into_iter().map(|x| [x]).collect(),
-        weights: w,
-    }
+    QuadratureRule { cell: ReferenceCell::Segment, degree, points: x.into_iter().map(|x| [x]).collect(), weights: w }
 }
 
 /// Rule on the reference triangle exact to total degree `degree`.
 pub fn triangle(degree: usize) -> QuadratureRule<2> {
     if degree <= 1 {
-        return QuadratureRule {
-            cell: ReferenceCell::Triangle,
-            degree,
-            points: vec![[1.0 / 3.0, 1.0 / 3.0]],
-            weights: vec![0.5],
-        };
+        return QuadratureRule { cell: ReferenceCell::Triangle, degree, points: vec![[1.0 / 3.0, 1.0 / 3.0]], weights: vec![0.5] };
     }
     if degree <= 5 {
         return dunavant7();
@@ -139,15 +129,8 @@ fn dunavant7() -> QuadratureRule<2> {
     let a2 = (6.0 + s15) / 21.0;
     let w1 = (155.0 - s15) / 2400.0;
     let w2 = (155.0 + s15) / 2400.0;
-    let points = vec![
-        [1.0 / 3.0, 1.0 / 3.0],
-        [a1, a1],
-        [1.0 - 2.0 * a1, a1],
-        [a1, 1.0 - 2.0 * a1],
-        [a2, a2],
-        [1.0 - 2.0 * a2, a2],
-        [a2, 1.0 - 2.0 * a2],
-    ];
+    let points =
+        vec![[1.0 / 3.0, 1.0 / 3.0], [a1, a1], [1.0 - 2.0 * a1, a1], [a1, 1.0 - 2.0 * a1], [a2, a2], [1.0 - 2.0 * a2, a2], [a2, 1.0 - 2.0 * a2]];
     let weights = vec![9.0 / 80.0, w1, w1, w1, w2, w2, w2];
     QuadratureRule { cell: ReferenceCell::Triangle, degree: 5, points, weights }
 }
@@ -155,12 +138,7 @@ fn dunavant7() -> QuadratureRule<2> {
 /// Rule on the reference tetrahedron exact to total degree `degree` (collapsed Gauss).
 pub fn tetrahedron(degree: usize) -> QuadratureRule<3> {
     if degree <= 1 {
-        return QuadratureRule {
-            cell: ReferenceCell::Tetrahedron,
-            degree,
-            points: vec![[0.25, 0.25, 0.25]],
-            weights: vec![1.0 / 6.0],
-        };
+        return QuadratureRule { cell: ReferenceCell::Tetrahedron, degree, points: vec![[0.25, 0.25, 0.25]], weights: vec![1.0 / 6.0] };
     }
     let (xu, wu) = gauss_legendre(points_for_degree(degree + 2));
     let (xv, wv) = gauss_legendre(points_for_degree(degree + 1));
@@ -285,12 +263,7 @@ mod tests {
             let qr = triangle(degree);
             for a in 0..=degree {
                 for b in 0..=degree - a {
-                    let q: f64 = qr
-                        .points
-                        .iter()
-                        .zip(&qr.weights)
-                        .map(|(p, w)| w * p[0].powi(a as i32) * p[1].powi(b as i32))
-                        .sum();
+                    let q: f64 = qr.points.iter().zip(&qr.weights).map(|(p, w)| w * p[0].powi(a as i32) * p[1].powi(b as i32)).sum();
                     let exact = tri_monomial(a, b);
                     assert!((q - exact).abs() < 1e-14, "deg {degree}: x^{a} y^{b}: {q} vs {exact}");
                 }
@@ -305,14 +278,8 @@ mod tests {
             for a in 0..=degree {
                 for b in 0..=degree - a {
                     for c in 0..=degree - a - b {
-                        let q: f64 = qr
-                            .points
-                            .iter()
-                            .zip(&qr.weights)
-                            .map(|(p, w)| {
-                                w * p[0].powi(a as i32) * p[1].powi(b as i32) * p[2].powi(c as i32)
-                            })
-                            .sum();
+                        let q: f64 =
+                            qr.points.iter().zip(&qr.weights).map(|(p, w)| w * p[0].powi(a as i32) * p[1].powi(b as i32) * p[2].powi(c as i32)).sum();
                         let exact = tet_monomial(a, b, c);
                         assert!((q - exact).abs() < 1e-14, "deg {degree}: {a},{b},{c}");
                     }
@@ -328,23 +295,12 @@ mod tests {
             let q3 = hexahedron(degree);
             for a in 0..=degree {
                 for b in 0..=degree {
-                    let q: f64 = q2
-                        .points
-                        .iter()
-                        .zip(&q2.weights)
-                        .map(|(p, w)| w * p[0].powi(a as i32) * p[1].powi(b as i32))
-                        .sum();
+                    let q: f64 = q2.points.iter().zip(&q2.weights).map(|(p, w)| w * p[0].powi(a as i32) * p[1].powi(b as i32)).sum();
                     let exact = 1.0 / ((a + 1) * (b + 1)) as f64;
                     assert!((q - exact).abs() < 1e-14);
                     let c = (a + b) % (degree + 1);
-                    let q: f64 = q3
-                        .points
-                        .iter()
-                        .zip(&q3.weights)
-                        .map(|(p, w)| {
-                            w * p[0].powi(a as i32) * p[1].powi(b as i32) * p[2].powi(c as i32)
-                        })
-                        .sum();
+                    let q: f64 =
+                        q3.points.iter().zip(&q3.weights).map(|(p, w)| w * p[0].powi(a as i32) * p[1].powi(b as i32) * p[2].powi(c as i32)).sum();
                     let exact = exact / (c + 1) as f64;
                     assert!((q - exact).abs() < 1e-14);
                 }

@@ -268,14 +268,21 @@ mod tests {
         let mut m = CscMatrix::zeros(&p);
         let mut rhs = vec![0.0; n];
         let skip = vec![false; n];
-        assemble(&mut m, &mut rhs, &col, &skip, || (), |c, _, l: &mut LocalSystem| -> Result<(), ()> {
-            l.dofs.clear();
-            l.dofs.extend_from_slice(&cells[c]);
-            l.reset(2);
-            l.ke.copy_from_slice(&[1.0, -1.0, -1.0, 1.0]);
-            l.fe.copy_from_slice(&[0.5, 0.5]);
-            Ok(())
-        })
+        assemble(
+            &mut m,
+            &mut rhs,
+            &col,
+            &skip,
+            || (),
+            |c, _, l: &mut LocalSystem| -> Result<(), ()> {
+                l.dofs.clear();
+                l.dofs.extend_from_slice(&cells[c]);
+                l.reset(2);
+                l.ke.copy_from_slice(&[1.0, -1.0, -1.0, 1.0]);
+                l.fe.copy_from_slice(&[0.5, 0.5]);
+                Ok(())
+            },
+        )
         .unwrap();
         assert_eq!(m.get(0, 0), 1.0);
         assert_eq!(m.get(2, 2), 2.0);

@@ -122,16 +122,7 @@ impl<const D: usize> CellValues<D> {
         let geo_at_centroid = geometry.tabulate(&[c]).values;
         let nq = qr.len();
         let n = function.num_dofs();
-        CellValues {
-            qr,
-            geo,
-            geo_at_centroid,
-            fun,
-            x: vec![[0.0; D]; nq],
-            jxw: vec![0.0; nq],
-            dphi: vec![[0.0; D]; nq * n],
-            centroid: [0.0; D],
-        }
+        CellValues { qr, geo, geo_at_centroid, fun, x: vec![[0.0; D]; nq], jxw: vec![0.0; nq], dphi: vec![[0.0; D]; nq * n], centroid: [0.0; D] }
     }
 
     /// Number of quadrature points.
@@ -274,9 +265,7 @@ impl<const D: usize> FacetValues<D> {
             if !(det > 0.0) {
                 return Err(MapError::NonPositiveJacobian { point: q, det });
             }
-            let jt = |t: &[f64; D]| -> [f64; D] {
-                std::array::from_fn(|a| (0..D).map(|b| jac[a][b] * t[b]).sum())
-            };
+            let jt = |t: &[f64; D]| -> [f64; D] { std::array::from_fn(|a| (0..D).map(|b| jac[a][b] * t[b]).sum()) };
             let (measure, mut nrm) = match D {
                 2 => {
                     let a = jt(&t1);

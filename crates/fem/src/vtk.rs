@@ -179,8 +179,7 @@ impl UnstructuredGrid {
     /// If `D > 3`.
     pub fn from_mesh<const D: usize>(mesh: &Mesh<D>) -> Self {
         assert!(D <= 3, "VTK points have at most 3 coordinates, the mesh has {D}");
-        let points =
-            mesh.points.iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect();
+        let points = mesh.points.iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect();
         let n = mesh.nodes_per_cell();
         let nc = mesh.num_cells();
         UnstructuredGrid {
@@ -212,11 +211,7 @@ impl UnstructuredGrid {
     /// Appends a cell; its node count must match its type.
     pub fn push_cell(&mut self, cell_type: VtkCellType, nodes: &[usize]) -> Result<(), VtkError> {
         if nodes.len() != cell_type.num_nodes() {
-            return Err(VtkError::Invalid(format!(
-                "a {cell_type:?} cell has {} nodes, got {}",
-                cell_type.num_nodes(),
-                nodes.len()
-            )));
+            return Err(VtkError::Invalid(format!("a {cell_type:?} cell has {} nodes, got {}", cell_type.num_nodes(), nodes.len())));
         }
         self.connectivity.extend_from_slice(nodes);
         self.offsets.push(self.connectivity.len());
@@ -225,12 +220,7 @@ impl UnstructuredGrid {
     }
 
     /// Adds a point array of `components` components (`num_points() * components` values).
-    pub fn add_point_data(
-        &mut self,
-        name: &str,
-        components: usize,
-        values: Vec<f64>,
-    ) -> Result<(), VtkError> {
+    pub fn add_point_data(&mut self, name: &str, components: usize, values: Vec<f64>) -> Result<(), VtkError> {
         let array = checked_array(&self.point_data, name, components, values, self.num_points())?;
         self.point_data.push(array);
         Ok(())
@@ -270,11 +260,7 @@ impl UnstructuredGrid {
     /// Offsets, node counts per type, node indices.
     fn check_cells(&self) -> Result<(), VtkError> {
         if self.offsets.len() != self.cell_types.len() {
-            return Err(VtkError::LengthMismatch {
-                array: "offsets".into(),
-                expected: self.cell_types.len(),
-                got: self.offsets.len(),
-            });
+            return Err(VtkError::LengthMismatch { array: "offsets".into(), expected: self.cell_types.len(), got: self.offsets.len() });
         }
         let mut start = 0;
         for (c, (&end, &ty)) in self.offsets.iter().zip(&self.cell_types).enumerate() {
@@ -288,18 +274,13 @@ impl UnstructuredGrid {
             start = end;
         }
         if start != self.connectivity.len() {
-            return Err(VtkError::LengthMismatch {
-                array: "connectivity".into(),
-                expected: start,
-                got: self.connectivity.len(),
-            });
+            return Err(VtkError::LengthMismatch { array: "connectivity".into(), expected: start, got: self.connectivity.len() });
         }
         let np = self.num_points();
         match self.connectivity.iter().position(|&n| n >= np) {
-            Some(i) => Err(VtkError::Invalid(format!(
-                "connectivity entry {i} refers to node {}, but the grid has {np} points",
-                self.connectivity[i]
-            ))),
+            Some(i) => {
+                Err(VtkError::Invalid(format!("connectivity entry {i} refers to node {}, but the grid has {np} points", self.connectivity[i])))
+            }
             None => Ok(()),
         }
     }
@@ -315,13 +296,7 @@ impl UnstructuredGrid {
 }
 
 /// Builds an array after checking its name (non-empty, unique among `existing`) and length.
-fn checked_array(
-    existing: &[DataArray],
-    name: &str,
-    components: usize,
-    values: Vec<f64>,
-    tuples: usize,
-) -> Result<DataArray, VtkError> {
+fn checked_array(existing: &[DataArray], name: &str, components: usize, values: Vec<f64>, tuples: usize) -> Result<DataArray, VtkError> {
     if existing.iter().any(|a| a.name == name) {
         return Err(VtkError::Invalid(format!("an array named '{name}' already exists")));
     }
@@ -380,10 +355,7 @@ pub fn write_vtu(path: &Path, grid: &UnstructuredGrid) -> Result<(), VtkError> {
 
 /// Runs `body` on a buffered writer to a temporary file beside `path`, syncs it and renames it
 /// onto `path`; the temporary file is removed if anything fails.
-fn write_atomically(
-    path: &Path,
-    body: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
-) -> Result<(), VtkError> {
+fn write_atomically(path: &Path, body: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>) -> Result<(), VtkError> {
     let tmp = temp_path(path);
     let result = (|| {
         let mut w = BufWriter::new(File::create(&tmp).map_err(io_err(&tmp))?);
@@ -421,17 +393,9 @@ fn sync_parent_dir(path: &Path) {
 /// The XML of a `.vtu` file.
 fn write_vtu_body<W: Write>(w: &mut W, grid: &UnstructuredGrid) -> io::Result<()> {
     writeln!(w, r#"<?xml version="1.0"?>"#)?;
-    writeln!(
-        w,
-        r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
-    )?;
+    writeln!(w, r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#)?;
     writeln!(w, "  <UnstructuredGrid>")?;
-    writeln!(
-        w,
-        r#"    <Piece NumberOfPoints="{}" NumberOfCells="{}">"#,
-        grid.num_points(),
-        grid.num_cells()
-    )?;
+    writeln!(w, r#"    <Piece NumberOfPoints="{}" NumberOfCells="{}">"#, grid.num_points(), grid.num_cells())?;
     write_data_section(w, "PointData", &grid.point_data)?;
     write_data_section(w, "CellData", &grid.cell_data)?;
     writeln!(w, "      <Points>")?;
@@ -475,21 +439,13 @@ fn write_binary_array<W: Write, const N: usize>(
     count: usize,
     values: impl Iterator<Item = [u8; N]>,
 ) -> io::Result<()> {
-    write!(
-        w,
-        r#"        <DataArray type="{vtk_type}" Name="{}" NumberOfComponents="{components}" format="binary">"#,
-        xml_escape(name)
-    )?;
+    write!(w, r#"        <DataArray type="{vtk_type}" Name="{}" NumberOfComponents="{components}" format="binary">"#, xml_escape(name))?;
     write_base64_block(w, (count * N) as u64, values)?;
     writeln!(w, "</DataArray>")
 }
 
 /// Base64 of `[nbytes as u64 LE][values...]`, as one stream.
-fn write_base64_block<W: Write, const N: usize>(
-    w: &mut W,
-    nbytes: u64,
-    values: impl Iterator<Item = [u8; N]>,
-) -> io::Result<()> {
+fn write_base64_block<W: Write, const N: usize>(w: &mut W, nbytes: u64, values: impl Iterator<Item = [u8; N]>) -> io::Result<()> {
     const CHUNK: usize = 1 << 15;
     let mut enc = base64::write::EncoderWriter::new(&mut *w, &STANDARD);
     enc.write_all(&nbytes.to_le_bytes())?;
@@ -666,16 +622,11 @@ impl PvdSeries {
 
 /// A stem or part name must be a non-empty run of ASCII letters, digits, `_`, `-`, `.`.
 fn check_file_name_part(what: &str, s: &str) -> Result<(), VtkError> {
-    let ok = !s.is_empty()
-        && s != "."
-        && s != ".."
-        && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+    let ok = !s.is_empty() && s != "." && s != ".." && s.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
     if ok {
         Ok(())
     } else {
-        Err(VtkError::Invalid(format!(
-            "{what} '{s}' is not a valid file-name part (use letters, digits, _ - .)"
-        )))
+        Err(VtkError::Invalid(format!("{what} '{s}' is not a valid file-name part (use letters, digits, _ - .)")))
     }
 }
 
@@ -719,10 +670,7 @@ fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, tag: &str) -> Option<roxmltree::
 }
 
 /// Child elements of `node` named `tag`.
-fn children<'a, 'i: 'a>(
-    node: roxmltree::Node<'a, 'i>,
-    tag: &'a str,
-) -> impl Iterator<Item = roxmltree::Node<'a, 'i>> + 'a {
+fn children<'a, 'i: 'a>(node: roxmltree::Node<'a, 'i>, tag: &'a str) -> impl Iterator<Item = roxmltree::Node<'a, 'i>> + 'a {
     node.children().filter(move |n| n.is_element() && n.tag_name().name() == tag)
 }
 
@@ -824,50 +772,31 @@ fn parse_points(piece: roxmltree::Node, enc: Encoding, np: usize) -> Result<Vec<
 }
 
 /// The `<Cells>` arrays (`connectivity`, `offsets`, `types`) into `grid`.
-fn parse_cells(
-    piece: roxmltree::Node,
-    enc: Encoding,
-    nc: usize,
-    grid: &mut UnstructuredGrid,
-) -> Result<(), String> {
+fn parse_cells(piece: roxmltree::Node, enc: Encoding, nc: usize, grid: &mut UnstructuredGrid) -> Result<(), String> {
     let cells = match child(piece, "Cells") {
         Some(c) => c,
         None if nc == 0 => return Ok(()),
         None => return Err("missing <Cells>".into()),
     };
-    let named = |name: &str| {
-        children(cells, "DataArray")
-            .find(|d| d.attribute("Name") == Some(name))
-            .ok_or_else(|| format!("<Cells> has no '{name}' array"))
-    };
+    let named =
+        |name: &str| children(cells, "DataArray").find(|d| d.attribute("Name") == Some(name)).ok_or_else(|| format!("<Cells> has no '{name}' array"));
     let offsets = read_index_array(named("offsets")?, enc, "offsets", Some(nc))?;
     let conn_len = offsets.last().copied().unwrap_or(0);
     grid.connectivity = read_index_array(named("connectivity")?, enc, "connectivity", Some(conn_len))?;
     grid.offsets = offsets;
     grid.cell_types = read_int_array(named("types")?, enc, "types", Some(nc))?
         .into_iter()
-        .map(|id| {
-            u8::try_from(id)
-                .ok()
-                .and_then(VtkCellType::from_id)
-                .ok_or_else(|| format!("unknown VTK cell type {id}"))
-        })
+        .map(|id| u8::try_from(id).ok().and_then(VtkCellType::from_id).ok_or_else(|| format!("unknown VTK cell type {id}")))
         .collect::<Result<_, _>>()?;
     Ok(())
 }
 
 /// The arrays of a `<PointData>`/`<CellData>` section (`tuples` tuples each), if present.
-fn parse_data_section(
-    piece: roxmltree::Node,
-    enc: Encoding,
-    tag: &str,
-    tuples: usize,
-) -> Result<Vec<DataArray>, String> {
+fn parse_data_section(piece: roxmltree::Node, enc: Encoding, tag: &str, tuples: usize) -> Result<Vec<DataArray>, String> {
     let Some(section) = child(piece, tag) else { return Ok(Vec::new()) };
     children(section, "DataArray")
         .map(|da| {
-            let name =
-                da.attribute("Name").ok_or_else(|| format!("a <{tag}> array has no Name"))?.to_string();
+            let name = da.attribute("Name").ok_or_else(|| format!("a <{tag}> array has no Name"))?.to_string();
             let components: usize = attr_or(da, "NumberOfComponents", 1)?;
             let values = read_f64_array(da, enc, &name, tuples * components)?;
             Ok(DataArray { name, components, values })
@@ -958,22 +887,14 @@ enum Raw<'a> {
 }
 
 /// The scalar type and raw content of array `name`.
-fn raw_array<'a>(
-    da: roxmltree::Node<'a, '_>,
-    enc: Encoding,
-    name: &str,
-) -> Result<(Scalar, Raw<'a>), String> {
+fn raw_array<'a>(da: roxmltree::Node<'a, '_>, enc: Encoding, name: &str) -> Result<(Scalar, Raw<'a>), String> {
     let ty = da.attribute("type").ok_or_else(|| format!("array '{name}' has no type attribute"))?;
     let scalar = Scalar::parse(ty).ok_or_else(|| format!("array '{name}' has unknown type \"{ty}\""))?;
     let text = da.text().unwrap_or("");
     let raw = match da.attribute("format") {
         Some("binary") => Raw::Binary(decode_binary(text, enc, name, scalar)?),
         Some("ascii") => Raw::Ascii(text),
-        Some(f) => {
-            return Err(format!(
-                "array '{name}' has format=\"{f}\"; only binary (inline) and ascii are supported"
-            ))
-        }
+        Some(f) => return Err(format!("array '{name}' has format=\"{f}\"; only binary (inline) and ascii are supported")),
         None => return Err(format!("array '{name}' has no format attribute")),
     };
     Ok((scalar, raw))
@@ -982,8 +903,7 @@ fn raw_array<'a>(
 /// Decodes an inline binary block to its data bytes, checking the length header.
 fn decode_binary(text: &str, enc: Encoding, name: &str, scalar: Scalar) -> Result<Vec<u8>, String> {
     let clean: String = text.chars().filter(|c| !c.is_ascii_whitespace()).collect();
-    let bytes =
-        decode_base64(&clean, enc.header).map_err(|e| format!("array '{name}' has bad base64: {e}"))?;
+    let bytes = decode_base64(&clean, enc.header).map_err(|e| format!("array '{name}' has bad base64: {e}"))?;
     if bytes.len() < enc.header {
         return Err(format!("array '{name}' is shorter than its {}-byte length header", enc.header));
     }
@@ -995,10 +915,7 @@ fn decode_binary(text: &str, enc: Encoding, name: &str, scalar: Scalar) -> Resul
         return Err(format!("array '{name}': header declares {declared} bytes, the data has {}", data.len()));
     }
     if data.len() % scalar.size() != 0 {
-        return Err(format!(
-            "array '{name}': {} bytes is not a whole number of {scalar:?} values",
-            data.len()
-        ));
+        return Err(format!("array '{name}': {} bytes is not a whole number of {scalar:?} values", data.len()));
     }
     Ok(data.to_vec())
 }
@@ -1028,30 +945,19 @@ fn check_count(name: &str, got: usize, expected: usize) -> Result<(), String> {
 }
 
 /// Reads an array as f64 values, `expected` of them.
-fn read_f64_array(
-    da: roxmltree::Node,
-    enc: Encoding,
-    name: &str,
-    expected: usize,
-) -> Result<Vec<f64>, String> {
+fn read_f64_array(da: roxmltree::Node, enc: Encoding, name: &str, expected: usize) -> Result<Vec<f64>, String> {
     let values: Vec<f64> = match raw_array(da, enc, name)? {
         (s, Raw::Binary(b)) => b.chunks_exact(s.size()).map(|c| s.decode_f64(c)).collect(),
-        (_, Raw::Ascii(t)) => t
-            .split_ascii_whitespace()
-            .map(|w| w.parse().map_err(|_| format!("array '{name}' has a bad number \"{w}\"")))
-            .collect::<Result<_, _>>()?,
+        (_, Raw::Ascii(t)) => {
+            t.split_ascii_whitespace().map(|w| w.parse().map_err(|_| format!("array '{name}' has a bad number \"{w}\""))).collect::<Result<_, _>>()?
+        }
     };
     check_count(name, values.len(), expected)?;
     Ok(values)
 }
 
 /// Reads an integer array (`expected` values, if given).
-fn read_int_array(
-    da: roxmltree::Node,
-    enc: Encoding,
-    name: &str,
-    expected: Option<usize>,
-) -> Result<Vec<i128>, String> {
+fn read_int_array(da: roxmltree::Node, enc: Encoding, name: &str, expected: Option<usize>) -> Result<Vec<i128>, String> {
     let values: Vec<i128> = match raw_array(da, enc, name)? {
         (s, _) if s.is_float() => return Err(format!("array '{name}' must have an integer type, not {s:?}")),
         (s, Raw::Binary(b)) => b.chunks_exact(s.size()).map(|c| s.decode_i128(c)).collect(),
@@ -1067,12 +973,7 @@ fn read_int_array(
 }
 
 /// Reads a non-negative index array.
-fn read_index_array(
-    da: roxmltree::Node,
-    enc: Encoding,
-    name: &str,
-    expected: Option<usize>,
-) -> Result<Vec<usize>, String> {
+fn read_index_array(da: roxmltree::Node, enc: Encoding, name: &str, expected: Option<usize>) -> Result<Vec<usize>, String> {
     read_int_array(da, enc, name, expected)?
         .into_iter()
         .map(|v| usize::try_from(v).map_err(|_| format!("array '{name}' has the invalid index {v}")))
@@ -1098,10 +999,7 @@ mod tests {
             self.0.join(name)
         }
         fn listing(&self) -> Vec<String> {
-            let mut v: Vec<String> = fs::read_dir(&self.0)
-                .unwrap()
-                .map(|e| e.unwrap().file_name().into_string().unwrap())
-                .collect();
+            let mut v: Vec<String> = fs::read_dir(&self.0).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
             v.sort();
             v
         }
@@ -1116,17 +1014,7 @@ mod tests {
     /// Two 6-node triangles on the unit square (9 nodes, VTK order: vertices then mid-edges).
     fn tri6_mesh() -> Mesh<2> {
         Mesh {
-            points: vec![
-                [0.0, 0.0],
-                [1.0, 0.0],
-                [1.0, 1.0],
-                [0.0, 1.0],
-                [0.5, 0.0],
-                [1.0, 0.5],
-                [0.5, 0.5],
-                [0.5, 1.0],
-                [0.0, 0.5],
-            ],
+            points: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.0], [1.0, 0.5], [0.5, 0.5], [0.5, 1.0], [0.0, 0.5]],
             cell_type: ReferenceCell::Triangle,
             order: GeometryOrder::Quadratic,
             cell_nodes: vec![0, 1, 2, 4, 5, 6, 0, 2, 3, 6, 7, 8],
@@ -1208,13 +1096,9 @@ mod tests {
         g.push_cell(VtkCellType::Triangle, &[0, 1, 2]).unwrap();
         write_vtu(&dir.path("g.vtu"), &g).unwrap();
         let text = fs::read_to_string(dir.path("g.vtu")).unwrap();
-        assert!(
-            text.contains(r#"Name="types" NumberOfComponents="1" format="binary">AQAAAAAAAAAF</DataArray>"#)
-        );
+        assert!(text.contains(r#"Name="types" NumberOfComponents="1" format="binary">AQAAAAAAAAAF</DataArray>"#));
         assert!(text.contains(">GAAAAAAAAAAAAAAAAAAAAAEAAAAAAAAAAgAAAAAAAAA=</DataArray>"));
-        assert!(text.contains(
-            ">SAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAADwPwAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAPA/AAAAAAAAAAA=<"
-        ));
+        assert!(text.contains(">SAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAADwPwAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAPA/AAAAAAAAAAA=<"));
     }
 
     #[test]
@@ -1235,8 +1119,7 @@ mod tests {
     #[test]
     fn mixed_cells_and_empty_grid_round_trip() {
         let dir = TestDir::new("mixed");
-        let mut g =
-            UnstructuredGrid::new(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0]]);
+        let mut g = UnstructuredGrid::new(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0]]);
         g.push_cell(VtkCellType::Triangle, &[0, 1, 2]).unwrap();
         g.push_cell(VtkCellType::QuadraticEdge, &[0, 1, 3]).unwrap();
         g.push_cell(VtkCellType::Vertex, &[2]).unwrap();
@@ -1408,34 +1291,23 @@ mod tests {
         let ts = text.find(r#"Name="types""#).unwrap();
         let ts = text[..ts].rfind("<DataArray").unwrap();
         let te = ts + text[ts..].find("</DataArray>").unwrap() + "</DataArray>".len();
-        let unknown = format!(
-            r#"{}<DataArray type="UInt8" Name="types" format="ascii">29 99</DataArray>{}"#,
-            &text[..ts],
-            &text[te..]
-        );
+        let unknown = format!(r#"{}<DataArray type="UInt8" Name="types" format="ascii">29 99</DataArray>{}"#, &text[..ts], &text[te..]);
         assert!(read_error(&dir, "type.vtu", &unknown).contains("unknown VTK cell type 99"));
         // Bad base64.
         let bad64 = text.replacen(r#"format="binary">"#, r#"format="binary">!!"#, 1);
         assert!(read_error(&dir, "b64.vtu", &bad64).contains("bad base64"));
         // Length mismatch.
         let np = grid.num_points();
-        let wrong =
-            text.replace(&format!(r#"NumberOfPoints="{np}""#), &format!(r#"NumberOfPoints="{}""#, np + 1));
+        let wrong = text.replace(&format!(r#"NumberOfPoints="{np}""#), &format!(r#"NumberOfPoints="{}""#, np + 1));
         assert!(read_error(&dir, "len.vtu", &wrong).contains("expected"));
         // Wrong file type, compressed, not XML at all.
-        assert!(
-            read_error(&dir, "pvd.vtu", &text.replace("UnstructuredGrid", "PolyData")).contains("PolyData")
-        );
+        assert!(read_error(&dir, "pvd.vtu", &text.replace("UnstructuredGrid", "PolyData")).contains("PolyData"));
         let z = text.replace("header_type=", r#"compressor="vtkZLibDataCompressor" header_type="#);
         assert!(read_error(&dir, "z.vtu", &z).contains("compressed"));
         let _ = read_error(&dir, "junk.vtu", "\u{0}\u{1}garbage");
         // Missing file and bad pvd.
         assert!(matches!(read_vtu(&dir.path("none.vtu")), Err(VtkError::Io { .. })));
-        fs::write(
-            dir.path("x.pvd"),
-            "<VTKFile type=\"Collection\"><Collection><DataSet timestep=\"a\" file=\"f\"/>",
-        )
-        .unwrap();
+        fs::write(dir.path("x.pvd"), "<VTKFile type=\"Collection\"><Collection><DataSet timestep=\"a\" file=\"f\"/>").unwrap();
         assert!(read_pvd(&dir.path("x.pvd")).unwrap_err().to_string().contains("x.pvd"));
     }
 }

@@ -27,8 +27,7 @@ impl Rng {
     }
 }
 
-const PATTERNS: [DiagonalPattern; 4] =
-    [DiagonalPattern::Right, DiagonalPattern::Left, DiagonalPattern::Alternating, DiagonalPattern::Crossed];
+const PATTERNS: [DiagonalPattern; 4] = [DiagonalPattern::Right, DiagonalPattern::Left, DiagonalPattern::Alternating, DiagonalPattern::Crossed];
 
 fn random_mesh(rng: &mut Rng) -> (Mesh<2>, usize) {
     let n = 2 + rng.below(10);

@@ -80,10 +80,7 @@ impl<const D: usize> Background<D> {
     pub fn new(original: &Mesh<D>) -> Result<Self, AdaptError> {
         let expected = if D == 2 { ReferenceCell::Triangle } else { ReferenceCell::Tetrahedron };
         if (D != 2 && D != 3) || original.cell_type != expected {
-            return Err(AdaptError::NotSimplex(format!(
-                "adaptation needs a {expected:?} mesh in {D}D, got {:?} cells",
-                original.cell_type
-            )));
+            return Err(AdaptError::NotSimplex(format!("adaptation needs a {expected:?} mesh in {D}D, got {:?} cells", original.cell_type)));
         }
         original.check().map_err(|e| AdaptError::BadMesh(e.to_string()))?;
         let mesh = vertex_mesh(original);

@@ -55,7 +55,11 @@ enum Hit {
     Miss,
     Cut(f64),
     /// Whether `a`, `b` lie on the piece (`in_plane` when both lie on its line / plane).
-    Touch { a: bool, b: bool, in_plane: bool },
+    Touch {
+        a: bool,
+        b: bool,
+        in_plane: bool,
+    },
 }
 
 /// Step 1 (see the module documentation).
@@ -199,14 +203,8 @@ mod tests {
         let piece = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         assert!(matches!(classify(&[0.2, 0.2, -1.0], &[0.2, 0.2, 3.0], &piece), Hit::Cut(t) if (t - 0.25).abs() < 1e-15));
         assert_eq!(classify(&[0.8, 0.8, -1.0], &[0.8, 0.8, 1.0], &piece), Hit::Miss);
-        assert_eq!(
-            classify(&[0.2, 0.2, 0.0], &[0.2, 0.2, 1.0], &piece),
-            Hit::Touch { a: true, b: false, in_plane: false }
-        );
-        assert_eq!(
-            classify(&[0.2, 0.2, 0.0], &[2.0, 0.2, 0.0], &piece),
-            Hit::Touch { a: true, b: false, in_plane: true }
-        );
+        assert_eq!(classify(&[0.2, 0.2, 0.0], &[0.2, 0.2, 1.0], &piece), Hit::Touch { a: true, b: false, in_plane: false });
+        assert_eq!(classify(&[0.2, 0.2, 0.0], &[2.0, 0.2, 0.0], &piece), Hit::Touch { a: true, b: false, in_plane: true });
         // Through a piece edge (closed piece).
         assert!(matches!(classify(&[0.5, 0.0, -1.0], &[0.5, 0.0, 1.0], &piece), Hit::Cut(_)));
     }

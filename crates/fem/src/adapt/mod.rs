@@ -273,12 +273,8 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.rejected_facets = rejected;
     stats.min_quality = split.min_quality;
     stats.passes = passes;
-    stats.degenerate_cases = stats.touched_vertices
-        + stats.snapped_cuts
-        + stats.edges_in_surface
-        + stats.multi_cut_edges
-        + stats.flat_cells
-        + stats.rejected_facets;
+    stats.degenerate_cases =
+        stats.touched_vertices + stats.snapped_cuts + stats.edges_in_surface + stats.multi_cut_edges + stats.flat_cells + stats.rejected_facets;
     Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, stats: out.stats })
 }
 
@@ -310,13 +306,7 @@ impl<const D: usize> Plan<D> {
 
 /// Step 2 (see the module documentation for the order and the rules). `pinned` nodes do not
 /// move; the cuts of `dropped` edges are dropped when an end of the edge moved.
-fn plan_moves<const D: usize>(
-    bg: &Background<D>,
-    cuts: &CutSet<D>,
-    eps_hat: f64,
-    pinned: &HashSet<usize>,
-    dropped: &HashSet<usize>,
-) -> Plan<D> {
+fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64, pinned: &HashSet<usize>, dropped: &HashSet<usize>) -> Plan<D> {
     let mut order: Vec<usize> = (0..cuts.cuts.len()).collect();
     let near = |i: usize| {
         let c = &cuts.cuts[i];
@@ -411,12 +401,10 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
                 nv + plan.new_node[&bg.cell_edge(c, l - D - 1)]
             }
         };
-        let split_edges: Vec<usize> =
-            (0..ct.edges().len()).filter(|&k| plan.new_node.contains_key(&bg.cell_edge(c, k))).collect();
+        let split_edges: Vec<usize> = (0..ct.edges().len()).filter(|&k| plan.new_node.contains_key(&bg.cell_edge(c, k))).collect();
         let order = split_order(bg, plan, c, &split_edges, &global);
         let labels = subdivide::bisect(ct, &order);
-        let ids: Vec<[usize; 4]> =
-            labels.iter().map(|l| std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX })).collect();
+        let ids: Vec<[usize; 4]> = labels.iter().map(|l| std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX })).collect();
         for kid in &ids {
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
             split.min_quality = split.min_quality.min(simplex_quality(&v));
@@ -430,13 +418,7 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
 /// The order in which the split edges of cell `c` are bisected: in 3D globally consistent
 /// (longest edge first at the current node positions, ties by global edge number); in 2D the
 /// order whose worst child has the largest minimum angle.
-fn split_order<const D: usize>(
-    bg: &Background<D>,
-    plan: &Plan<D>,
-    c: usize,
-    split_edges: &[usize],
-    global: &dyn Fn(usize) -> usize,
-) -> Vec<usize> {
+fn split_order<const D: usize>(bg: &Background<D>, plan: &Plan<D>, c: usize, split_edges: &[usize], global: &dyn Fn(usize) -> usize) -> Vec<usize> {
     let ct = bg.mesh.cell_type;
     if D == 3 {
         let key = |k: usize| {
@@ -484,13 +466,7 @@ struct Refusals {
 /// vertices on gamma_s) and touch a moved node: where such a child has a new node on an edge with
 /// a moved end, that edge's cut is dropped (the edge touches gamma_s at the moved end);
 /// otherwise the moves of the child's nodes are undone.
-fn refused_by_cells<const D: usize>(
-    bg: &Background<D>,
-    plan: &Plan<D>,
-    cuts: &CutSet<D>,
-    split: &Split,
-    min_quality: f64,
-) -> Refusals {
+fn refused_by_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>, split: &Split, min_quality: f64) -> Refusals {
     let nv = bg.mesh.points.len();
     let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
     let mut edge_of_new_node = vec![0; plan.new_points.len()];

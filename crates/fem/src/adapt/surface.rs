@@ -206,11 +206,7 @@ pub(crate) fn piece_measure<const D: usize>(c: &[[f64; D]; D]) -> f64 {
 /// Unit normal of a flat piece (see [`Surface::normal`]).
 pub(crate) fn piece_normal<const D: usize>(c: &[[f64; D]; D]) -> [f64; D] {
     let t = sub(&c[1], &c[0]);
-    let n: [f64; 3] = if D == 2 {
-        [t[1], -t[0], 0.0]
-    } else {
-        super::geom::cross(&super::geom::pad3(&t), &super::geom::pad3(&sub(&c[2], &c[0])))
-    };
+    let n: [f64; 3] = if D == 2 { [t[1], -t[0], 0.0] } else { super::geom::cross(&super::geom::pad3(&t), &super::geom::pad3(&sub(&c[2], &c[0]))) };
     let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
     std::array::from_fn(|d| n[d] / l)
 }
@@ -225,31 +221,22 @@ fn facet_pattern(cell: ReferenceCell, order: GeometryOrder, n: usize) -> Result<
     let piece = |c: &[usize], r: &[[f64; 2]]| (c.to_vec(), r.to_vec());
     Ok(match (cell.facet_cell(), order, n) {
         (ReferenceCell::Segment, GeometryOrder::Linear, 2) => vec![piece(&[0, 1], &[e(0.0, 0.0), e(1.0, 0.0)])],
-        (ReferenceCell::Segment, GeometryOrder::Quadratic, 3) => vec![
-            piece(&[0, 2], &[e(0.0, 0.0), e(0.5, 0.0)]),
-            piece(&[2, 1], &[e(0.5, 0.0), e(1.0, 0.0)]),
-        ],
+        (ReferenceCell::Segment, GeometryOrder::Quadratic, 3) => {
+            vec![piece(&[0, 2], &[e(0.0, 0.0), e(0.5, 0.0)]), piece(&[2, 1], &[e(0.5, 0.0), e(1.0, 0.0)])]
+        }
         (ReferenceCell::Triangle, GeometryOrder::Linear, 3) => {
             vec![piece(&[0, 1, 2], &[e(0.0, 0.0), e(1.0, 0.0), e(0.0, 1.0)])]
         }
         (ReferenceCell::Triangle, GeometryOrder::Quadratic, 6) => {
             let r = [e(0.0, 0.0), e(1.0, 0.0), e(0.0, 1.0), e(0.5, 0.0), e(0.5, 0.5), e(0.0, 0.5)];
-            [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]]
-                .iter()
-                .map(|t| (t.to_vec(), t.iter().map(|&k| r[k]).collect()))
-                .collect()
+            [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]].iter().map(|t| (t.to_vec(), t.iter().map(|&k| r[k]).collect())).collect()
         }
         (ReferenceCell::Quadrilateral, GeometryOrder::Linear, 4) => {
             let r = [e(0.0, 0.0), e(1.0, 0.0), e(1.0, 1.0), e(0.0, 1.0)];
             [[0, 1, 2], [0, 2, 3]].iter().map(|t| (t.to_vec(), t.iter().map(|&k| r[k]).collect())).collect()
         }
         (ReferenceCell::Quadrilateral, GeometryOrder::Quadratic, 9) => quad9_pattern(),
-        _ => {
-            return Err(AdaptError::Surface(format!(
-                "cannot split a {:?} facet with {n} nodes into flat pieces",
-                cell.facet_cell()
-            )))
-        }
+        _ => return Err(AdaptError::Surface(format!("cannot split a {:?} facet with {n} nodes into flat pieces", cell.facet_cell()))),
     })
 }
 

@@ -119,11 +119,7 @@ pub fn transfer_p2plus<const D: usize>(
         )));
     }
     if old_values.len() != old_nodes.num_nodes * D {
-        return Err(AdaptError::Transfer(format!(
-            "{} old values for {} nodes x {D} components",
-            old_values.len(),
-            old_nodes.num_nodes
-        )));
+        return Err(AdaptError::Transfer(format!("{} old values for {} nodes x {D} components", old_values.len(), old_nodes.num_nodes)));
     }
     let locator = CellLocator::new(old_mesh);
     let n = element.num_dofs();
@@ -131,9 +127,7 @@ pub fn transfer_p2plus<const D: usize>(
     let mut grad = [[0.0; D]; MAX_DOFS];
     let mut out = Vec::with_capacity(new_points.len() * D);
     for (i, x) in new_points.iter().enumerate() {
-        let (c, xi) = locator
-            .locate(old_mesh, x)
-            .ok_or_else(|| AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh")))?;
+        let (c, xi) = locator.locate(old_mesh, x).ok_or_else(|| AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh")))?;
         element.eval_into(&xi, &mut phi[..n], &mut grad[..n]);
         let nodes = old_nodes.cell(c);
         for k in 0..D {

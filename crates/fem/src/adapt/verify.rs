@@ -71,11 +71,7 @@ fn check_conforming<const D: usize>(mesh: &Mesh<D>) -> Result<(), String> {
         return Err("a boundary facet is tagged twice".into());
     }
     if exterior.len() != tagged.len() {
-        return Err(format!(
-            "{} exterior facets but {} tagged boundary facets (hanging nodes or lost tags)",
-            exterior.len(),
-            tagged.len()
-        ));
+        return Err(format!("{} exterior facets but {} tagged boundary facets (hanging nodes or lost tags)", exterior.len(), tagged.len()));
     }
     for e in &exterior {
         if tagged.binary_search(e).is_err() {
