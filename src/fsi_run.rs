@@ -157,8 +157,11 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
                 entry.1 = v;
             }
         }
-        let hist = history
-            .get_or_insert_with(|| History::new(&options.out_dir.join("history.csv"), &values.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>()));
+        if history.is_none() {
+            let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
+            history = Some(History::new(&options.out_dir.join("history.csv"), &names)?);
+        }
+        let hist = history.as_mut().expect("created above");
         hist.push(k, r.time, r.newton.iterations, residual, &values.iter().map(|(_, v)| *v).collect::<Vec<_>>())?;
         if k == total {
             crate::run::write_profiles(case, &st.disc.flow, &st.fluid_problem, fluid_x, &options.out_dir, obs)?;

@@ -714,10 +714,11 @@ impl Outputs {
     ) -> Result<(), RunError> {
         let t = Instant::now();
         let values = evaluate_all(&self.spec, disc, problem, x, state)?;
-        let history = self.history.get_or_insert_with(|| {
+        if self.history.is_none() {
             let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
-            History::new(&self.out_dir.join("history.csv"), &names)
-        });
+            self.history = Some(History::new(&self.out_dir.join("history.csv"), &names)?);
+        }
+        let history = self.history.as_mut().expect("created above");
         let vals: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
         history.push(step, state.time, iterations, residual, &vals)?;
         if write_fields {

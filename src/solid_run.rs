@@ -142,7 +142,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     }
     let probe_nodes = displacement_probes(case, &disc)?;
     let names: Vec<String> = probe_nodes.iter().map(|(n, _, _)| n.clone()).collect();
-    let mut history = History::new(&options.out_dir.join("history.csv"), &names);
+    let mut history = History::new(&options.out_dir.join("history.csv"), &names)?;
     let mut converged = 0usize;
     let mut lu = case.solver.linear_solver();
     let sol = solve_quasi_static_with(&disc, &problem, &stepping, &mut lu, &case.solver.newton, |rec, x| {

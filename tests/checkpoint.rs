@@ -110,9 +110,36 @@ impl RunObserver for StopAt {
     }
 }
 
+/// A run killed while appending a row of `history.csv` leaves a torn last line (here: a row
+/// without all its values and without its line end, after the checkpoint's step); the resumed
+/// run cuts it away and its history is whole and equal to the uninterrupted run's.
+#[test]
+fn a_torn_history_row_is_cut_away_on_resume() {
+    let (full, parts, dir) = interrupted_and_resumed_after(&channel_case(8), Path::new("."), 3, |dir| {
+        let path = dir.join("history.csv");
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        text.push_str("5,2.500000000000e-1,3,1.2");
+        std::fs::write(&path, text).unwrap();
+    });
+    let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    assert!(text.ends_with('\n'));
+    assert_same_history(&full, &parts, 0.0);
+}
+
 /// Runs `case` uninterrupted into `full`, and interrupted after step `stop_after` (+1, since the
 /// flag is seen at the end of the next step) then resumed into `parts`; returns both histories.
 fn interrupted_and_resumed(case_text: &str, case_dir: &Path, stop_after: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, PathBuf) {
+    interrupted_and_resumed_after(case_text, case_dir, stop_after, |_| {})
+}
+
+/// [`interrupted_and_resumed`] with `damage(run_dir)` done to the interrupted run's files before
+/// it is resumed.
+fn interrupted_and_resumed_after(
+    case_text: &str,
+    case_dir: &Path,
+    stop_after: usize,
+    damage: impl FnOnce(&Path),
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, PathBuf) {
     let case = Case::from_toml_str(case_text, "test").unwrap();
     let tmp = tempfile::tempdir().unwrap().keep();
     let (full, parts) = (tmp.join("full"), tmp.join("parts"));
@@ -124,6 +151,7 @@ fn interrupted_and_resumed(case_text: &str, case_dir: &Path, stop_after: usize) 
     assert_eq!(step, stop_after + 1);
     assert!(err.to_string().contains("fdfsi run --resume"), "{err}");
     assert_eq!(history(&parts).len(), if case.solid.is_some() { step } else { step + 1 });
+    damage(&parts);
     let (resumed_case, resume) = RunOptions::resume(&parts).unwrap();
     let checkpoint = Checkpoint::read(&parts).unwrap();
     assert_eq!(checkpoint.step, step);
