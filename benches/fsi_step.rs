@@ -19,11 +19,12 @@
 //! Run: `cargo bench --bench fsi_step` (numbers in BENCHMARKS.md).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use fdfsi::case::builtin::BUILTIN_CASES;
 use fdfsi::case::Case;
+use fdfsi::discretize::fsi::{step, FsiModel, FsiState};
 use fdfsi::fem::gmsh::AnyMesh;
 use fdfsi::fem::mesh::Mesh;
-use fdfsi::fsi::{step, FsiModel, FsiState};
-use fdfsi::run::{build_mesh, BUILTIN_CASES};
+use fdfsi::setup::build_mesh;
 use fdfsi::solve::linear::FaerLu;
 use std::hint::black_box;
 use std::path::Path;
@@ -41,7 +42,7 @@ fn bench_case(c: &mut Criterion, name: &str, edit: impl Fn(String) -> String, wa
 }
 
 fn bench_model<const D: usize>(c: &mut Criterion, label: &str, case: &Case, mesh: &Mesh<D>, dir: &Path, warm: usize) {
-    let model: FsiModel<D> = fdfsi::fsi_run::model(case, mesh, dir).expect("model");
+    let model: FsiModel<D> = fdfsi::setup::fsi_model(case, mesh, dir).expect("model");
     let dt = case.time.as_ref().expect("time").dt;
     let newton = case.solver.newton.clone();
     let mut state = FsiState::at_rest(&model);

@@ -22,7 +22,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
-use fdfsi::flow::{FlowDiscretization, FlowProblem, SteadySystem};
+use fdfsi::discretize::flow::{FlowDiscretization, FlowProblem, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -120,7 +120,7 @@ fn schaefer_turek(mesh_file: &str) -> System<2> {
         AnyMesh::D2(m) => m,
         AnyMesh::D3(_) => panic!("{mesh_file}: expected a 2D mesh"),
     };
-    let problem = fdfsi::run::flow_problem(&case, &mesh, &root.join("cases")).expect("problem");
+    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).expect("problem");
     let disc = FlowDiscretization::build(mesh, Formulation::Plane).expect("discretisation");
     System::new(disc, problem, 1)
 }

@@ -31,7 +31,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use faer::sparse::linalg::lu::factorize_symbolic_lu;
 use faer::sparse::SymbolicSparseColMatRef;
-use fdfsi::flow::{flow_errors, ExactFlow, FlowDiscretization, SteadySystem};
+use fdfsi::discretize::flow::{flow_errors, ExactFlow, FlowDiscretization, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::run::peak_resident_mib;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};

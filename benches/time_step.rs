@@ -21,10 +21,10 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fdfsi::case::Case;
+use fdfsi::discretize::flow::{FlowDiscretization, FlowProblem};
 use fdfsi::fem::gmsh::AnyMesh;
 use fdfsi::fem::mesh::Mesh;
-use fdfsi::flow::{FlowDiscretization, FlowProblem};
-use fdfsi::run::{build_mesh, flow_problem};
+use fdfsi::setup::{build_mesh, flow_problem};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
 use fdfsi::time::{solve_unsteady_from, step_history, TimeLevel, TimeOptions};

@@ -4,7 +4,7 @@
 //!
 //! `cargo run --release --example history_cost [STEPS]` prints the median time of one step's
 //! row around step 100 and around step STEPS (default 2000), 12 quantities per row.
-use fdfsi::output::{write_atomic, History};
+use fdfsi::io::{write_atomic, History};
 use std::time::Instant;
 
 fn median(mut v: Vec<f64>) -> f64 {

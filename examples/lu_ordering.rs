@@ -10,7 +10,7 @@
 //!
 //! One system and ordering per process, so `VmHWM` (peak resident memory) is theirs alone.
 use fdfsi::case::Case;
-use fdfsi::flow::{FlowDiscretization, FlowProblem, SteadySystem};
+use fdfsi::discretize::flow::{FlowDiscretization, FlowProblem, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi_fem::generate::box_tetrahedra;
@@ -117,7 +117,7 @@ fn main() {
             AnyMesh::D2(m) => m,
             AnyMesh::D3(_) => panic!("{file}: expected a 2D mesh"),
         };
-        let problem = fdfsi::run::flow_problem(&case, &mesh, &root.join("cases")).expect("problem");
+        let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).expect("problem");
         let disc = FlowDiscretization::build(mesh, Formulation::Plane).expect("discretisation");
         run(system, disc, problem, 1, ordering, reps);
     }

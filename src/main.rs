@@ -2,8 +2,9 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use fdfsi::case::builtin::{BUILTIN_CASES, DEFAULT_CASE};
 use fdfsi::case::Case;
-use fdfsi::run::{check_case, run_case, RunObserver, RunOptions, BUILTIN_CASES, DEFAULT_CASE};
+use fdfsi::run::{check_case, run_case, RunObserver, RunOptions};
 use fdfsi::verify::{self, Effort};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -210,13 +211,13 @@ fn main() -> Result<()> {
             let (label, s) = match at {
                 Some(run_dir) => {
                     let label = format!("{} (checkpoint)", run_dir.display());
-                    let s = fdfsi::run::adapt_checkpoint(&run_dir, &out).with_context(|| format!("adapting {label}"))?;
+                    let s = fdfsi::run::adapt::adapt_checkpoint(&run_dir, &out).with_context(|| format!("adapting {label}"))?;
                     (label, s)
                 }
                 None => {
                     let (c, dir, label) = load_case(case.as_deref())?;
                     c.validate(&label)?;
-                    let s = fdfsi::run::adapt_case(&c, &dir, &out).with_context(|| format!("adapting {label}"))?;
+                    let s = fdfsi::run::adapt::adapt_case(&c, &dir, &out).with_context(|| format!("adapting {label}"))?;
                     (label, s)
                 }
             };
@@ -235,7 +236,7 @@ fn main() -> Result<()> {
             );
         }
         Command::Plot { dir, with } => {
-            let files = fdfsi::plot::plot_compared(&dir, &with)?;
+            let files = fdfsi::io::plot::plot_compared(&dir, &with)?;
             for f in &files {
                 println!("{}", f.display());
             }
@@ -272,7 +273,7 @@ fn main() -> Result<()> {
             }
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&report)?;
-                fdfsi::output::write_atomic(&path, text.as_bytes())?;
+                fdfsi::io::write_atomic(&path, text.as_bytes())?;
                 log(&format!("wrote {}", path.display()));
             }
         }

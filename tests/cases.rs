@@ -1,9 +1,10 @@
 //! Every case in `cases/` runs and reproduces its documented check (see each file's header).
 
+use fdfsi::case::builtin::BUILTIN_CASES;
 use fdfsi::case::Case;
-use fdfsi::checkpoint::Checkpoint;
 use fdfsi::fem::vtk::{read_pvd, read_vtu};
-use fdfsi::run::{run_case, RunOptions, RunSummary, BUILTIN_CASES};
+use fdfsi::io::checkpoint::Checkpoint;
+use fdfsi::run::{run_case, RunOptions, RunSummary};
 use std::path::{Path, PathBuf};
 
 fn run(name: &str) -> (RunSummary, PathBuf) {
@@ -30,18 +31,18 @@ fn summary_json(out: &Path) -> serde_json::Value {
 }
 
 /// The provenance in `out/summary.json`, checked to name the run's `case.toml` by its hash.
-fn provenance(out: &Path) -> fdfsi::provenance::Provenance {
-    let p: fdfsi::provenance::Provenance = serde_json::from_value(summary_json(out)["provenance"].clone())
+fn provenance(out: &Path) -> fdfsi::io::provenance::Provenance {
+    let p: fdfsi::io::provenance::Provenance = serde_json::from_value(summary_json(out)["provenance"].clone())
         .unwrap_or_else(|e| panic!("{}: summary.json has no provenance ({e}): made before 2ad5061; move it away to run again", out.display()));
     let case_text = std::fs::read_to_string(out.join("case.toml")).unwrap();
-    assert_eq!(p.case_sha256, fdfsi::provenance::sha256_hex(case_text.as_bytes()), "{}: case.toml changed after the run", out.display());
+    assert_eq!(p.case_sha256, fdfsi::io::provenance::sha256_hex(case_text.as_bytes()), "{}: case.toml changed after the run", out.display());
     p
 }
 
 /// `summary.json` records the code and the case that made the run (every kind of run: flow in
 /// `channel_stokes_is_poiseuille_mid_channel`, solid, FSI).
 fn assert_has_provenance(out: &Path) {
-    assert_eq!(provenance(out).build, fdfsi::provenance::Build::current());
+    assert_eq!(provenance(out).build, fdfsi::io::provenance::Build::current());
 }
 
 fn q(s: &RunSummary, name: &str) -> f64 {
@@ -258,7 +259,7 @@ fn skewed_plate_dirichlet_twin_adapts_and_conserves_mass() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let case = Case::read(&dir.join("skewed-plate-dirichlet.toml")).unwrap();
     let out = std::env::temp_dir().join(format!("fdfsi-test-adapt-{}", std::process::id()));
-    let a = fdfsi::run::adapt_case(&case, &dir, &out).unwrap();
+    let a = fdfsi::run::adapt::adapt_case(&case, &dir, &out).unwrap();
     assert!(a.gamma_f_measure <= a.gamma_s_measure * (1.0 + 1e-12));
     assert!(a.gamma_f_measure > 0.8 * a.gamma_s_measure, "{a:?}");
     assert_eq!(a.stats.coupling_facets, read_vtu(&out.join("gamma_f.vtu")).unwrap().num_cells());
@@ -615,7 +616,7 @@ fn model_problem_4_fine_mesh_seals_the_pipe_at_rest() {
     // The run takes about 2.5 hours (model_problem_4_fine_mesh_closes_the_equilibrium_gap below); CI checks
     // the case: meshes, the adaptation at t = 0, the dofs.
     let (case, dir) = case_file("model-problem-4-fine");
-    let summary = fdfsi::check::check(&case, "model-problem-4-fine.toml", &dir).unwrap();
+    let summary = fdfsi::run::check::check(&case, "model-problem-4-fine.toml", &dir).unwrap();
     assert!(summary.description.contains("4662 cells") && summary.description.contains("189 cells"), "{}", summary.description);
     // gamma_f crosses the layer of cells between z = 12/7 and 16/7: each of its 3 x 222
     // tetrahedra is cut in a triangle or a quadrilateral (two facets), so 666 to 1332 facets; the
@@ -631,7 +632,7 @@ fn model_problem_4_fine_mesh_seals_the_pipe_at_rest() {
     // allowed for that, wall edges through the rim were missed and gamma_f had holes along the
     // rim: 873 facets.)
     let out = tempfile::tempdir().unwrap();
-    let a = fdfsi::run::adapt_case(&case, &dir, out.path()).unwrap();
+    let a = fdfsi::run::adapt::adapt_case(&case, &dir, out.path()).unwrap();
     let polygon = std::f64::consts::FRAC_PI_4 * 72.0 / (2.0 * std::f64::consts::PI) * (2.0 * std::f64::consts::PI / 72.0).sin();
     assert!((a.gamma_s_measure - polygon).abs() < 1e-12, "gamma_s {}", a.gamma_s_measure);
     assert!((a.gamma_f_measure - a.gamma_s_measure).abs() < 1e-12, "gamma_f {} vs gamma_s {}", a.gamma_f_measure, a.gamma_s_measure);
@@ -641,7 +642,7 @@ fn model_problem_4_fine_mesh_seals_the_pipe_at_rest() {
 fn model_problem_4_has_the_papers_cell_counts() {
     // README: 3 600 P2+ tetrahedra and 84 Q2 hexahedra (the paper: 3 600 and 80).
     let (case, dir) = case_file("model-problem-4");
-    let summary = fdfsi::check::check(&case, "model-problem-4.toml", &dir).unwrap();
+    let summary = fdfsi::run::check::check(&case, "model-problem-4.toml", &dir).unwrap();
     assert!(summary.description.contains("3600 cells") && summary.description.contains("84 cells"), "{}", summary.description);
 }
 
@@ -659,7 +660,7 @@ const CODE_PATHS: &[&str] = &["src", "crates", "meshes", "Cargo.toml", "Cargo.lo
 /// finished run's `summary.json` provenance, or of an unfinished run's checkpoint) must be of a
 /// known commit, unmodified, whose [`CODE_PATHS`] equal this checkout's (`git diff` of the commit
 /// against the working tree, and no untracked files there).
-fn assert_builds_are_this_code<'a>(out: &Path, builds: impl IntoIterator<Item = &'a fdfsi::provenance::Build>) {
+fn assert_builds_are_this_code<'a>(out: &Path, builds: impl IntoIterator<Item = &'a fdfsi::io::provenance::Build>) {
     let git = |args: &[&str]| std::process::Command::new("git").current_dir(env!("CARGO_MANIFEST_DIR")).args(args).args(CODE_PATHS).output();
     let untracked = git(&["ls-files", "--others", "--exclude-standard", "--"]).map(|o| o.stdout).unwrap_or_default();
     assert!(untracked.is_empty(), "untracked files in the code: {}", String::from_utf8_lossy(&untracked));

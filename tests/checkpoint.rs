@@ -2,9 +2,10 @@
 //! does, or killed with SIGKILL) continued with `--resume` gives the history of an uninterrupted
 //! run, and no output file is ever left truncated.
 
+use fdfsi::case::builtin::BUILTIN_CASES;
 use fdfsi::case::Case;
-use fdfsi::checkpoint::Checkpoint;
-use fdfsi::run::{run_case, RunError, RunObserver, RunOptions, BUILTIN_CASES};
+use fdfsi::io::checkpoint::Checkpoint;
+use fdfsi::run::{run_case, RunError, RunObserver, RunOptions};
 use fdfsi_fem::vtk::{read_pvd, read_vtu};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -174,6 +175,17 @@ fn flow_run_stopped_and_resumed_repeats_the_history() {
     assert_eq!(read_pvd(&dir.join("solution.pvd")).unwrap().len(), 5);
 }
 
+/// A solid run (quasi-static load steps) stopped as by Ctrl-C and resumed from its checkpoint
+/// repeats the uninterrupted run's history exactly.
+#[test]
+fn solid_run_stopped_and_resumed_repeats_the_history() {
+    let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "cook-membrane").unwrap().1.replace("steps = 2,", "steps = 4,");
+    assert!(text.contains("steps = 4,"));
+    let (full, parts, _) = interrupted_and_resumed(&text, Path::new("."), 1);
+    assert_eq!(full.len(), 4);
+    assert_same_history(&full, &parts, 0.0);
+}
+
 #[test]
 fn fsi_run_stopped_and_resumed_repeats_the_history() {
     let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "model-problem-2").unwrap().1;
@@ -202,7 +214,7 @@ fn fsi_run_with_reused_factorisations_resumes_to_round_off() {
 /// so far, and summary.json's provenance names the earlier parts' other builds.
 #[test]
 fn a_resumed_run_names_the_builds_of_its_earlier_parts() {
-    use fdfsi::provenance::Build;
+    use fdfsi::io::provenance::Build;
     let case = Case::from_toml_str(&channel_case(4), "test").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let flag = Arc::new(AtomicBool::new(false));
@@ -288,7 +300,7 @@ fn adapt_at_a_checkpoint_is_the_next_steps_mesh() {
     let options = RunOptions { checkpoint_every: Some(2), ..RunOptions::new(dir.path(), Path::new(env!("CARGO_MANIFEST_DIR")).join("cases")) };
     run_case(&case, &options, &mut |_: &str| {}).unwrap();
     assert_eq!(Checkpoint::read(dir.path()).unwrap().step, 2);
-    let s = fdfsi::run::adapt_checkpoint(dir.path(), &dir.path().join("adapt")).unwrap();
+    let s = fdfsi::run::adapt::adapt_checkpoint(dir.path(), &dir.path().join("adapt")).unwrap();
     let h = history(dir.path());
     let facets_col = std::fs::read_to_string(dir.path().join("history.csv"))
         .unwrap()
@@ -318,6 +330,6 @@ fn adapt_at_a_checkpoint_is_the_next_steps_mesh() {
     let flow = tempfile::tempdir().unwrap();
     let case = Case::from_toml_str(&channel_case(2), "test").unwrap();
     run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(flow.path(), ".") }, &mut |_: &str| {}).unwrap();
-    let e = fdfsi::run::adapt_checkpoint(flow.path(), &flow.path().join("adapt")).unwrap_err().to_string();
+    let e = fdfsi::run::adapt::adapt_checkpoint(flow.path(), &flow.path().join("adapt")).unwrap_err().to_string();
     assert!(e.contains("needs the checkpoint of an FSI run"), "{e}");
 }

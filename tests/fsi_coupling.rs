@@ -4,15 +4,15 @@
 //!
 //! `CARGO_TARGET_DIR=/tmp/target-fsi cargo test --release --test fsi_coupling -- --nocapture`
 
+use fdfsi::discretize::flow::FlowProblem;
+use fdfsi::discretize::fsi::{FsiDiscretization, FsiModel, FsiProblem, StepInput};
+use fdfsi::discretize::solid::SolidProblem;
 use fdfsi::fem::adapt::AdaptOptions;
 use fdfsi::fem::generate::{rectangle_quads, rectangle_triangles, DiagonalPattern};
 use fdfsi::fem::mesh::{GeometryOrder, Mesh};
 use fdfsi::fem::sparse::CscMatrix;
-use fdfsi::flow::FlowProblem;
-use fdfsi::fsi::{FsiDiscretization, FsiModel, FsiProblem, StepInput};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
 use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
-use fdfsi::solid::SolidProblem;
 use std::sync::Arc;
 
 fn rotated(mut m: Mesh<2>, deg: f64, pivot: [f64; 2]) -> Mesh<2> {
@@ -52,11 +52,11 @@ fn coupling_operator_reproduces_constants() {
     let dt = 0.25;
     fluid.params.inv_dt = 1.0 / dt;
     let f = model.solid.deformation_gradients(&base).unwrap();
-    let u_old = vec![0.0; disc.fluid_dofs];
+    let u_old = vec![0.0; disc.fluid_dofs()];
     let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_target: None };
     let (os, ol) = (disc.solid_offset(), disc.multiplier_offset());
     let c = [0.8, -1.3];
-    let vel = disc.flow.layout.fields[0].clone();
+    let vel = disc.flow.velocity_field().clone();
     let sf = model.solid.displacement_field().clone();
     let mut x = vec![0.0; disc.num_dofs()];
     for node in 0..vel.nodes.num_nodes {
@@ -99,7 +99,7 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
     let mut fluid = model.problem.fluid.clone();
     let dt = 0.1;
     fluid.params.inv_dt = 1.0 / dt;
-    let u_old: Vec<f64> = (0..disc.fluid_dofs).map(|_| rng.next()).collect();
+    let u_old: Vec<f64> = (0..disc.fluid_dofs()).map(|_| rng.next()).collect();
     let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_target: None };
     let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
     let mut x: Vec<f64> = (0..n).map(|_| rng.next()).collect();
@@ -108,9 +108,9 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
     }
     println!(
         "dofs: fluid {}, solid {}, multiplier {} ({} coupling elements); nnz {}",
-        disc.fluid_dofs,
-        disc.solid_dofs,
-        disc.multiplier_dofs,
+        disc.fluid_dofs(),
+        disc.solid_dofs(),
+        disc.multiplier_dofs(),
         disc.coupling.num_elements(),
         disc.pattern.nnz()
     );
@@ -157,8 +157,8 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
 #[test]
 fn a_membrane_held_on_the_axis_keeps_gamma_f_down_to_the_axis() {
     use fdfsi::case::Case;
+    use fdfsi::discretize::fsi::{step, FsiState};
     use fdfsi::fem::gmsh::AnyMesh;
-    use fdfsi::fsi::{step, FsiState};
     let case = Case::from_toml_str(
         r#"title = "membrane on the axis"
 [mesh]
@@ -205,8 +205,8 @@ type = "no-slip"
     )
     .unwrap();
     let dir = std::path::Path::new(".");
-    let AnyMesh::D2(mesh) = fdfsi::run::build_mesh(&case, dir).unwrap() else { panic!("2D") };
-    let model = fdfsi::fsi_run::model::<2>(&case, &mesh, dir).unwrap();
+    let AnyMesh::D2(mesh) = fdfsi::setup::build_mesh(&case, dir).unwrap() else { panic!("2D") };
+    let model = fdfsi::setup::fsi_model::<2>(&case, &mesh, dir).unwrap();
     let mut state = FsiState::at_rest(&model);
     let newton = fdfsi::solve::newton::NewtonOptions::default();
     let mut lu = fdfsi::solve::linear::FaerLu::default();
@@ -230,7 +230,7 @@ fn unknowns_are_described_by_field_and_position() {
     let model = tiny_model();
     let base = vec![0.0; model.solid.num_dofs()];
     let disc = FsiDiscretization::build(&model, &base).unwrap();
-    let (vel, pres) = (&disc.flow.layout.fields[0], &disc.flow.layout.fields[1]);
+    let (vel, pres) = (&disc.flow.velocity_field(), &disc.flow.pressure_field());
     let x = disc.flow.velocity_nodes[3];
     assert_eq!(disc.describe_unknown(&model, vel.dof(3, 1)), format!("the fluid velocity y at ({:.6}, {:.6})", x[0], x[1]));
     assert_eq!(disc.describe_unknown(&model, pres.dof(2 * 3 + 1, 0)), "fluid pressure dof 1 of cell 2");
@@ -240,7 +240,7 @@ fn unknowns_are_described_by_field_and_position() {
         disc.describe_unknown(&model, disc.solid_offset() + sf.dof(5, 0)),
         format!("the solid displacement x at reference position ({:.6}, {:.6})", x0[0], x0[1])
     );
-    let sp = &model.solid.layout.fields[1];
+    let sp = &model.solid.pressure_field();
     assert_eq!(disc.describe_unknown(&model, disc.solid_offset() + sp.dof(sp.nodes.per_cell + 2, 0)), "solid pressure dof 2 of cell 1");
     assert!(disc.describe_unknown(&model, disc.num_dofs()).starts_with("out of range"));
     let e = disc.coupling.num_elements() - 1;
@@ -251,7 +251,7 @@ fn unknowns_are_described_by_field_and_position() {
     );
 }
 
-/// The multiplier modes removed in 3D ([`fdfsi::fsi::multiplier_kernel`]) are the kernel they
+/// The multiplier modes removed in 3D ([`fdfsi::discretize::fsi::multiplier_kernel`]) are the kernel they
 /// are meant to remove, checked directly on model problem 4's set-up (the CI mesh): each removed
 /// mode z (recovered from the stored `M z` facet by facet) pairs with no free fluid velocity
 /// (`<z, v> = 0`: B z vanishes in every free velocity row), integrates to zero on every facet, and
@@ -261,19 +261,19 @@ fn unknowns_are_described_by_field_and_position() {
 fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
     use faer::prelude::Solve;
     use fdfsi::case::{Case, MeshSpec, SolidMeshSpec};
+    use fdfsi::discretize::fsi::FsiDiscretization;
     use fdfsi::fem::gmsh::AnyMesh;
-    use fdfsi::fsi::FsiDiscretization;
     const D: usize = 3;
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let mut case = Case::read(&dir.join("model-problem-4.toml")).unwrap();
     case.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
     case.solid.as_mut().unwrap().mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
-    let AnyMesh::D3(mesh) = fdfsi::run::build_mesh(&case, &dir).unwrap() else { panic!("3D") };
-    let model = fdfsi::fsi_run::model::<D>(&case, &mesh, &dir).unwrap();
+    let AnyMesh::D3(mesh) = fdfsi::setup::build_mesh(&case, &dir).unwrap() else { panic!("3D") };
+    let model = fdfsi::setup::fsi_model::<D>(&case, &mesh, &dir).unwrap();
     let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()]).unwrap();
     let c = &disc.coupling;
     let (ne, nf) = (c.num_elements(), c.nf);
-    let vel = &disc.flow.layout.fields[0];
+    let vel = &disc.flow.velocity_field();
     let fixed: std::collections::HashSet<usize> = disc.flow.dirichlet_dofs(&model.problem.fluid, 0.0).unwrap().into_iter().map(|(d, _)| d).collect();
     let points = |e: usize| c.point_start[e]..c.point_start[e + 1];
     let area: Vec<f64> = (0..ne).map(|e| points(e).map(|q| c.weight[q]).sum()).collect();

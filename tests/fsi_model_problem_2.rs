@@ -2,7 +2,7 @@
 //! degrees in the middle of the channel [0, 4] x [0, 1], steady plug inflow, Re = 20 on the
 //! channel height (rho = 1, eta = 0.05, inflow 1). Solved twice on the same adapted fluid mesh:
 //!
-//! * FSI: implicit-Euler steps of the monolithic Lagrange-multiplier method ([`fdfsi::fsi`]) to
+//! * FSI: implicit-Euler steps of the monolithic Lagrange-multiplier method ([`fdfsi::discretize::fsi`]) to
 //!   near steady state, with a very stiff incompressible neo-Hookean plate (G = 1e4, clamped on
 //!   its lower face; gamma_s = its upper face) and the inflow ramped over the first two steps;
 //! * pure fluid: steady Navier-Stokes with no-slip Dirichlet nodes on gamma_f.
@@ -47,16 +47,17 @@
 //! `CARGO_TARGET_DIR=/tmp/target-fsi cargo test --release --test fsi_model_problem_2 -- --nocapture`
 //! (both meshes, both multipliers, about a minute in release).
 
+use fdfsi::adapt::tag_gamma_f;
+use fdfsi::discretize::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
+use fdfsi::discretize::fsi::{step, wall_shear_stress, FsiDiscretization, FsiModel, FsiProblem, FsiState, MultiplierSpace, StepInput, WallShear};
+use fdfsi::discretize::solid::SolidProblem;
 use fdfsi::fem::adapt::AdaptOptions;
 use fdfsi::fem::generate::{rectangle_quads, rectangle_triangles, DiagonalPattern};
 use fdfsi::fem::mesh::{GeometryOrder, Mesh};
 use fdfsi::fem::sparse::CscMatrix;
-use fdfsi::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
-use fdfsi::fsi::{step, tag_gamma_f, wall_shear_stress, FsiDiscretization, FsiModel, FsiProblem, FsiState, MultiplierSpace, StepInput, WallShear};
 use fdfsi::physics::fluid::{FluidParams, Formulation, ViscousForm};
 use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
-use fdfsi::quantities::{boundary_force, StepState};
-use fdfsi::solid::SolidProblem;
+use fdfsi::post::quantities::{boundary_force, StepState};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
 use std::sync::Arc;
@@ -120,7 +121,7 @@ fn rel_l2_facet_means(a: &[WallShear], b: &[WallShear], side: usize) -> f64 {
 
 /// Velocity of the fluid vector `x` at `p` evaluated in cell `c`.
 fn eval_u(flow: &FlowDiscretization<2>, x: &[f64], c: usize, p: [f64; 2]) -> [f64; 2] {
-    let vel = &flow.layout.fields[0];
+    let vel = &flow.velocity_field();
     let nf = flow.velocity_element.num_dofs();
     let v: Vec<[f64; 2]> = flow.mesh.cell_vertices(c).iter().map(|&k| flow.mesh.points[k]).collect();
     let xi = fdfsi::fem::locate::simplex_reference_coords(&v, &p).unwrap();
@@ -211,7 +212,7 @@ fn model_problem_2(nx: usize, ny: usize, multiplier: MultiplierSpace) -> Outcome
         let r = &st.report;
         // Relative change of the fluid velocity over the step (same node numbering when the
         // adapted mesh is the same).
-        let vel = st.disc.flow.layout.fields[0].range();
+        let vel = st.disc.flow.velocity_field().range();
         let du: f64 = st.x[vel.clone()].iter().zip(&st.u_old[vel.clone()]).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
         let un: f64 = st.x[vel].iter().map(|a| a * a).sum::<f64>().sqrt();
         println!(
@@ -246,7 +247,7 @@ fn model_problem_2(nx: usize, ny: usize, multiplier: MultiplierSpace) -> Outcome
     assert!(lu.symbolic_factorizations() <= log.len(), "one symbolic factorisation per step at most");
     // FSI force from lambda, and the fluid's own consistent-residual force on gamma_f.
     let f_lambda = st.disc.multiplier_force(&st.x, Formulation::Plane);
-    let x_f = &st.x[..st.disc.fluid_dofs];
+    let x_f = &st.x[..st.disc.fluid_dofs()];
     let step_state = StepState { time: st.report.time, inv_dt: 1.0 / dt, u_star: Some(&st.u_old) };
     let f_residual = boundary_force(&st.disc.flow, &st.fluid_problem, x_f, &step_state, "gamma_f").unwrap();
     // Pure-fluid twin on the same adapted mesh: no-slip on gamma_f, steady Navier-Stokes.
@@ -367,7 +368,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
     let disc = FsiDiscretization::build(&model, &base).unwrap();
     let ne = disc.coupling.num_elements();
     assert_eq!(disc.coupling.num_chains, 1);
-    assert_eq!(disc.multiplier_dofs, ne * 4 + 2);
+    assert_eq!(disc.multiplier_dofs(), ne * 4 + 2);
     assert!(disc.inactive_multiplier_dofs.is_empty());
     // A fluid Dirichlet condition on the trace (here on gamma_f itself, component 0) removes the
     // free trace function of that component: its multiplier is fixed.
@@ -379,10 +380,10 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
     let mut fluid = model.problem.fluid.clone();
     let dt = 0.1;
     fluid.params.inv_dt = 1.0 / dt;
-    let zero_old = vec![0.0; disc.fluid_dofs];
+    let zero_old = vec![0.0; disc.fluid_dofs()];
     let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &zero_old, solid_base: &base, solid_f: &f, solid_target: None };
     let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
-    let vel = disc.flow.layout.fields[0].clone();
+    let vel = disc.flow.velocity_field().clone();
     let sf = model.solid.displacement_field().clone();
     let gamma_f = disc.adapted.gamma_f_measure();
     // The trace function: 1 at the gamma_f vertices, -1/2 at the mid-facet nodes (component 0).
@@ -428,7 +429,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
     let worst = r[ol..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     assert!(worst < 1e-14, "{worst:e}");
     // Jacobian vs central differences at a random state.
-    let u_old: Vec<f64> = (0..disc.fluid_dofs).map(|_| rnd()).collect();
+    let u_old: Vec<f64> = (0..disc.fluid_dofs()).map(|_| rnd()).collect();
     let input = StepInput { u_old: &u_old, ..input };
     let mut x: Vec<f64> = (0..n).map(|_| rnd()).collect();
     for v in x[os..os + nus].iter_mut() {

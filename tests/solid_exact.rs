@@ -2,9 +2,9 @@
 //! homogeneous states to round-off (plane strain, axisymmetric, 3D), Rivlin bending and cylinder
 //! inflation at third order, follower-pressure inflation, quadratic Newton convergence.
 
+use fdfsi::discretize::solid::{solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidProblem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
-use fdfsi::solid::{solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidProblem};
 use fdfsi::solve::linear::FaerLu;
 use fdfsi::verify::solid_exact::{
     cylinder_inflation, homogeneous_checks, quarter_annulus, rivlin_bending, study_newton, CylinderInflation, SolidRun, UniaxialPlaneStrain,

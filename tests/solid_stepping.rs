@@ -2,11 +2,11 @@
 //! increments are cut when an element inverts, Cook's membrane shows no locking for Q2/P1disc,
 //! and the implicit-Euler inertia term tends to the quasi-static solution for long steps.
 
+use fdfsi::discretize::solid::{solve_dynamic_step, solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidProblem};
 use fdfsi::fem::generate::rectangle_quads;
 use fdfsi::fem::mesh::GeometryOrder;
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::physics::solid::{NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
-use fdfsi::solid::{solve_dynamic_step, solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidProblem};
 use fdfsi::solve::linear::FaerLu;
 use fdfsi::verify::solid_exact::{cook_membrane, quarter_annulus, study_newton, CylinderInflation, RivlinBending};
 use std::sync::Arc;

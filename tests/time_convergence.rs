@@ -26,8 +26,8 @@ fn bdf2_is_second_order() {
 /// cuts allowed the same step is an error naming the step.
 #[test]
 fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
+    use fdfsi::discretize::flow::{DirichletBc, FlowDiscretization, FlowProblem};
     use fdfsi::fem::generate::{rectangle_triangles, DiagonalPattern};
-    use fdfsi::flow::{DirichletBc, FlowDiscretization, FlowProblem};
     use fdfsi::physics::fluid::{FluidParams, Formulation};
     use fdfsi::solve::linear::FaerLu;
     use fdfsi::solve::newton::NewtonOptions;

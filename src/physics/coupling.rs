@@ -19,7 +19,7 @@
 //! on the fluid; the solid's weak form has `lambda` as the traction applied to it. So `lambda`
 //! is the **traction of the fluid on the solid** (action), `-lambda` that of the solid on the
 //! fluid (reaction), and `int_gamma_f lambda ds` is the hydrodynamic force on the body, equal to
-//! the consistent-residual force `-R_f(v_a)` of the fluid ([`crate::quantities::boundary_force`]).
+//! the consistent-residual force `-R_f(v_a)` of the fluid ([`crate::post::quantities::boundary_force`]).
 //!
 //! The constraint row carries `+<mu, u_f>`, so the fluid-multiplier blocks of the Jacobian are
 //! transposes of each other (`B_f` and `B_f^T`); the solid-multiplier blocks are `-B_s^T` (solid

@@ -1190,12 +1190,12 @@ mod tests {
     /// on 4 x 4 x 4 cubes of P2+ tetrahedra (14 595 unknowns), whose top separators are large.
     #[test]
     fn threaded_large_blocks_give_the_sequential_solution() {
-        use crate::flow::FlowDiscretization;
+        use crate::discretize::flow::FlowDiscretization;
         use crate::physics::fluid::Formulation;
         let problem = crate::verify::stokes_3d_problem();
         let mesh = fdfsi_fem::generate::box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 4, 4, 4);
         let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).unwrap();
-        let (system, x0) = crate::flow::SteadySystem::new(&disc, &problem).unwrap();
+        let (system, x0) = crate::discretize::flow::SteadySystem::new(&disc, &problem).unwrap();
         let mut k = CscMatrix::zeros(&disc.pattern);
         let mut rhs = vec![0.0; x0.len()];
         system.assemble(&x0, &mut k, &mut rhs).unwrap();

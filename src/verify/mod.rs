@@ -18,7 +18,7 @@
 pub mod manufactured;
 pub mod solid_exact;
 
-use crate::flow::{flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc};
+use crate::discretize::flow::{flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc};
 use crate::physics::fluid::{FluidParams, Formulation};
 use crate::solve::linear::FaerLu;
 use crate::solve::newton::NewtonOptions;
@@ -130,7 +130,7 @@ pub fn stokes_errors<const D: usize>(
     exact: Arc<dyn Manufactured<D>>,
     dirichlet: &[(&str, Vec<usize>)],
     traction: &[&str],
-) -> Result<(crate::flow::FlowErrors, usize), FlowError> {
+) -> Result<(crate::discretize::flow::FlowErrors, usize), FlowError> {
     let disc = FlowDiscretization::build(mesh, formulation)?;
     let problem = manufactured_problem(formulation, exact.clone(), dirichlet, traction);
     let mut lu = FaerLu::default();
@@ -148,7 +148,7 @@ pub struct StokesRun {
     pub dofs: Vec<usize>,
 }
 
-fn three_studies(name: &str, h: &[f64], errs: &[crate::flow::FlowErrors]) -> Vec<Study> {
+fn three_studies(name: &str, h: &[f64], errs: &[crate::discretize::flow::FlowErrors]) -> Vec<Study> {
     vec![
         Study::new(name, "velocity_l2", 3.0, h, errs.iter().map(|e| e.velocity_l2).collect()),
         Study::new(name, "velocity_h1", 2.0, h, errs.iter().map(|e| e.velocity_h1).collect()),
@@ -228,7 +228,7 @@ pub enum VerifyError {
     #[error(transparent)]
     Time(#[from] crate::time::TimeError),
     #[error(transparent)]
-    Solid(#[from] crate::solid::SolidError),
+    Solid(#[from] crate::discretize::solid::SolidError),
 }
 
 /// All studies of `fdfsi verify`: Stokes (plane, axisymmetric, 3D), time convergence (Euler,

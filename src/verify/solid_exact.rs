@@ -14,11 +14,11 @@
 //! the mixed Q2/P1disc and of the displacement-only Q2 discretisation side by side.
 
 use super::{Effort, Study};
-use crate::physics::fluid::Formulation;
-use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
-use crate::solid::{
+use crate::discretize::solid::{
     pressure_at, solid_errors, solve_quasi_static, ExactSolid, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidErrors, SolidProblem,
 };
+use crate::physics::fluid::Formulation;
+use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
 use crate::solve::linear::FaerLu;
 use crate::solve::newton::NewtonOptions;
 use fdfsi_fem::generate::rectangle_quads;

@@ -9,7 +9,7 @@
 use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
-use fdfsi_fem::dofs::{BlockLayout, NodeMap};
+use fdfsi_fem::dofs::{BlockLayout, Field, NodeMap};
 use fdfsi_fem::element::{ReferenceCell, ReferenceElement};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
@@ -153,6 +153,16 @@ impl<const D: usize> FlowDiscretization<D> {
         self.layout.num_dofs()
     }
 
+    /// The velocity field (P2+, `D` components per node): the first block of the layout.
+    pub fn velocity_field(&self) -> &Field {
+        &self.layout.fields[0]
+    }
+
+    /// The pressure field (P1 discontinuous: `D + 1` dofs per cell): the second block.
+    pub fn pressure_field(&self) -> &Field {
+        &self.layout.fields[1]
+    }
+
     /// Fresh cell values for this discretisation at a rule.
     pub fn cell_values(&self, rule: QuadratureRule<D>) -> CellValues<D> {
         CellValues::new(rule, &self.velocity_element, &self.geometry_element)
@@ -176,7 +186,7 @@ impl<const D: usize> FlowDiscretization<D> {
 
     /// Global dofs constrained by the Dirichlet conditions and their values at time `t`.
     pub fn dirichlet_dofs(&self, problem: &FlowProblem<D>, t: f64) -> Result<Vec<(usize, f64)>, FlowError> {
-        let vel = &self.layout.fields[0];
+        let vel = &self.velocity_field();
         let mut out: Vec<(usize, f64)> = Vec::new();
         let mut seen = vec![false; self.num_dofs()];
         for bc in &problem.dirichlet {
@@ -196,7 +206,7 @@ impl<const D: usize> FlowDiscretization<D> {
             }
         }
         if problem.pin_pressure {
-            let p = &self.layout.fields[1];
+            let p = &self.pressure_field();
             out.push((p.dof(0, 0), 0.0));
         }
         Ok(out)
@@ -260,7 +270,7 @@ impl<const D: usize> FlowDiscretization<D> {
         let mut fv = self.facet_values();
         let mut coords = Vec::new();
         let mut re = vec![0.0; nu];
-        let vel = &self.layout.fields[0];
+        let vel = &self.velocity_field();
         for bc in &problem.traction {
             let facets = self.mesh.boundary_facets(&bc.boundary).unwrap_or_default();
             for bf in facets {
@@ -300,12 +310,12 @@ pub struct FlowSolution {
 impl FlowSolution {
     /// Velocity at velocity node `node`.
     pub fn velocity<const D: usize>(&self, disc: &FlowDiscretization<D>, node: usize) -> [f64; D] {
-        let f = &disc.layout.fields[0];
+        let f = &disc.velocity_field();
         std::array::from_fn(|a| self.x[f.dof(node, a)])
     }
     /// Pressure dofs of cell `c`: value at the centroid, then the gradient.
     pub fn pressure_dofs<'a, const D: usize>(&'a self, disc: &FlowDiscretization<D>, c: usize) -> &'a [f64] {
-        let f = &disc.layout.fields[1];
+        let f = &disc.pressure_field();
         let s = f.dof(c * (D + 1), 0);
         &self.x[s..s + D + 1]
     }
@@ -359,7 +369,7 @@ fn shift_pressure_to_zero_mean<const D: usize>(disc: &FlowDiscretization<D>, for
     let mut cv = disc.cell_values(disc.cell_rule.clone());
     let mut coords = Vec::new();
     let (mut int_p, mut vol) = (0.0, 0.0);
-    let pf = &disc.layout.fields[1];
+    let pf = &disc.pressure_field();
     let mut psi = [0.0; 4];
     for c in 0..disc.mesh.num_cells() {
         disc.mesh.cell_coords_into(c, &mut coords);
@@ -405,8 +415,8 @@ pub fn flow_errors<const D: usize>(
     degree: usize,
 ) -> Result<FlowErrors, FlowError> {
     let mut cv = disc.cell_values(quadrature::for_cell(disc.mesh.cell_type, degree));
-    let vf = &disc.layout.fields[0];
-    let pf = &disc.layout.fields[1];
+    let vf = &disc.velocity_field();
+    let pf = &disc.pressure_field();
     let mut coords = Vec::new();
     let mut e = FlowErrors::default();
     let mut psi = [0.0; 4];

@@ -14,13 +14,14 @@
 //! Errors name the case file and the table or key at fault. A valid case gets a
 //! [`CheckSummary`]: unknowns per field, the number of steps and an estimate of the output size.
 
-use crate::case::{name_of, Case, CaseError, ProbeField, SolidSpec, TimeFn, TimeFunction};
-use crate::flow::FlowDiscretization;
-use crate::fsi::{FsiDiscretization, FsiModel, FsiProblem};
-use crate::fsi_run::is_fsi;
-use crate::run::{build_mesh, flow_problem, RunError};
-use crate::solid::SolidDiscretization;
-use fdfsi_fem::adapt::{AdaptOptions, CellLocator, GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
+use super::RunError;
+use crate::case::{name_of, Case, CaseError, ProbeField, RunKind, SolidSpec, TimeFn, TimeFunction};
+use crate::discretize::flow::FlowDiscretization;
+use crate::discretize::fsi::FsiDiscretization;
+use crate::discretize::solid::SolidDiscretization;
+use crate::setup::{adapt_fluid, build_mesh, flow_problem, fsi_model, solid_problem, SetupError};
+use crate::time::num_steps;
+use fdfsi_fem::adapt::{CellLocator, GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
 use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::{bounding_box, Mesh};
@@ -95,7 +96,11 @@ pub fn check(case: &Case, file: &str, case_dir: &Path) -> Result<CheckSummary, R
     case.validate(file)?;
     // Every error names the case file.
     check_unlabelled(case, file, case_dir).map_err(|e| match e {
-        RunError::Case(CaseError::Invalid { .. } | CaseError::Parse { .. }) if e.to_string().contains(file) => e,
+        RunError::Case(CaseError::Invalid { .. } | CaseError::Parse { .. }) | RunError::Setup(SetupError::Case(_))
+            if e.to_string().contains(file) =>
+        {
+            e
+        }
         other => RunError::Case(CaseError::Invalid { file: file.to_string(), message: other.to_string() }),
     })
 }
@@ -157,7 +162,7 @@ impl Ctx<'_> {
     /// The placed solid mesh; `solid.surface` and the `[[solid.boundary]]` names must be its
     /// boundaries.
     fn solid_mesh<const D: usize>(&self, spec: &SolidSpec) -> Result<Mesh<D>, RunError> {
-        let mesh = crate::adaptation::solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
+        let mesh = crate::setup::solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
         let names: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
         if let Some(s) = &spec.surface {
             self.known_name(&names, s, &format!("solid.surface = \"{s}\""), "the solid mesh")?;
@@ -176,20 +181,21 @@ impl Ctx<'_> {
         let spec = self.solid_spec()?;
         let mesh = self.solid_mesh::<D>(spec)?;
         let cells = mesh.num_cells();
-        let problem = crate::solid_run::problem::<D>(case, spec, true)?;
+        let problem = solid_problem::<D>(case, spec, true)?;
         let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
         disc.check_problem(&problem)?;
         let description = format!(
-            "{}: solid-only ({}), {D}D mesh of {cells} cells; nnz {}; {:?} Lagrangian",
+            "{}: solid-only ({}), {D}D mesh of {cells} cells; {}; nnz {}; {:?} Lagrangian",
             case.title,
             problem.material.name(),
+            disc.layout.fields.iter().map(|f| format!("{} {}", f.name, f.num_dofs())).collect::<Vec<_>>().join(", "),
             disc.pattern.nnz(),
             spec.loading.mode
         );
         let steps = spec.loading.steps;
         Ok(CheckSummary {
             description,
-            dofs: with_total(disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect()),
+            dofs: with_total(super::solid::solid_dofs(&disc)),
             steps,
             step_kind: "load steps",
             field_writes: 1,
@@ -204,7 +210,7 @@ impl Ctx<'_> {
         if !matches!(mesh.cell_type, ReferenceCell::Triangle | ReferenceCell::Tetrahedron) {
             return Err(self.invalid(format!("[mesh]: fluid meshes must be triangles (2D) or tetrahedra (3D), got {:?} cells", mesh.cell_type)));
         }
-        let fsi = is_fsi(case);
+        let fsi = case.kind() == RunKind::Fsi;
         let own: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
         let mut adapted_names = own.clone();
         if case.solid.is_some() {
@@ -230,20 +236,16 @@ impl Ctx<'_> {
         };
         let cells = mesh.num_cells();
         let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.domain.len() + case.output.combination.len();
-        if let (true, Some((spec, solid_mesh))) = (fsi, solid) {
+        if let (true, Some((spec, _))) = (fsi, solid) {
             let surface = spec.surface.clone().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
-            let fluid = flow_problem(case, &mesh, self.dir)?;
-            let solid = crate::solid_run::problem::<D>(case, spec, false)?;
-            let material = solid.material.name();
-            let problem = FsiProblem { fluid, solid, surface: surface.clone(), adapt: AdaptOptions::new(spec.eps_hat) };
-            let model = FsiModel::new(problem, &mesh, solid_mesh)?;
+            // The model `fdfsi run` builds, at t = 0: the same unknowns as its first step.
+            let model = fsi_model(case, &mesh, self.dir)?;
+            let material = model.problem.solid.material.name();
             let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()])?;
             self.probes_inside(&disc.flow.mesh)?;
-            let mut dofs: Vec<(String, usize)> = disc.flow.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect();
-            dofs.extend(model.solid.layout.fields.iter().map(|f| (format!("solid {}", f.name), f.num_dofs())));
-            dofs.push(("multiplier".into(), disc.multiplier_dofs));
+            let dofs = disc.layout.dofs_per_part();
             let ts = case.time.as_ref().ok_or_else(|| self.invalid("an FSI run needs a [time] table".into()))?;
-            let steps = time_steps(ts.end, ts.dt);
+            let steps = num_steps(ts.dt, ts.end);
             let field_writes = (1..=steps).filter(|k| k % ts.output_every.max(1) == 0 || *k == steps).count();
             let description = format!(
                 "{}: FSI run, {} flow ({}) on a {D}D mesh of {cells} cells ({} after adaptation to the solid at t = 0); \
@@ -267,14 +269,14 @@ impl Ctx<'_> {
             });
         }
         let adapted = match &case.solid {
-            Some(_) => crate::adaptation::adapt_fluid(case, mesh, self.dir)?.adapted.mesh,
+            Some(_) => adapt_fluid(case, mesh, self.dir)?.adapted.mesh,
             None => mesh,
         };
         self.probes_inside(&adapted)?;
         flow_problem(case, &adapted, self.dir)?;
         let adapted_cells = adapted.num_cells();
         let disc = FlowDiscretization::build(adapted, case.physics.formulation)?;
-        let dofs = with_total(disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect());
+        let dofs = with_total(super::flow::flow_dofs(&disc));
         let solid_text = match &case.solid {
             Some(s) => format!("; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells", s.surface.as_deref().unwrap_or("?")),
             None => String::new(),
@@ -289,7 +291,7 @@ impl Ctx<'_> {
         let (steps, step_kind, field_writes, rows) = match &case.time {
             None => (1, "steady solve", 1, 1),
             Some(ts) => {
-                let steps = time_steps(ts.end, ts.dt);
+                let steps = num_steps(ts.dt, ts.end);
                 let every = ts.output_every.max(1);
                 (steps, "time steps", 1 + steps / every + usize::from(steps % every != 0), steps + 1)
             }
@@ -365,12 +367,6 @@ impl Ctx<'_> {
     }
 }
 
-/// The number of steps of `[0, end]` in steps of `dt` (the last one may be shorter), as the run
-/// counts them.
-fn time_steps(end: f64, dt: f64) -> usize {
-    (end / dt - 1e-9).ceil().max(1.0) as usize
-}
-
 fn with_total(mut dofs: Vec<(String, usize)>) -> Vec<(String, usize)> {
     let total = dofs.iter().map(|(_, k)| k).sum();
     dofs.push(("total".into(), total));
@@ -418,8 +414,9 @@ mod tests {
         assert_eq!(human_bytes(1234), "1.2 kB");
         assert_eq!(human_bytes(12_345_678), "12.3 MB");
         assert_eq!(human_bytes(999_990), "1.0 MB");
-        assert_eq!(time_steps(1.0, 0.1), 10);
-        assert_eq!(time_steps(1.0, 0.3), 4);
-        assert_eq!(time_steps(0.1, 1.0), 1);
+        // Steps as the run counts them (the last one may be shorter).
+        assert_eq!(num_steps(0.1, 1.0), 10);
+        assert_eq!(num_steps(0.3, 1.0), 4);
+        assert_eq!(num_steps(1.0, 0.1), 1);
     }
 }

@@ -3,7 +3,7 @@
 //! speed (viridis colour map, blue slow, yellow fast); [`write_surfaces_png`] draws the coupling
 //! surfaces gamma_s and gamma_f of a 3D run (the paper's figs. 7 and 8).
 
-use crate::flow::FlowDiscretization;
+use crate::discretize::flow::FlowDiscretization;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -18,25 +18,30 @@ pub fn viridis(s: f64) -> RGBColor {
 }
 
 /// Writes the speed of a 2D flow solution as a PNG `width` pixels wide, showing the whole mesh.
-pub fn write_speed_png(disc: &FlowDiscretization<2>, x: &[f64], path: &Path, width: u32) -> Result<(), String> {
+pub fn write_speed_png<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], path: &Path, width: u32) -> Result<(), String> {
     write_speed_png_window(disc, x, path, width, None, &[])
 }
 
 /// Writes the speed of a 2D flow solution as a PNG `width` pixels wide showing the rectangle
 /// `window = [[x0, y0], [x1, y1]]` (default: the whole mesh), with the polylines `outlines`
 /// (e.g. gamma_f) drawn in white over it. The colour scale spans the speeds in the picture.
-pub fn write_speed_png_window(
-    disc: &FlowDiscretization<2>,
+/// 2D only: a 3D discretisation is an error.
+pub fn write_speed_png_window<const D: usize>(
+    disc: &FlowDiscretization<D>,
     x: &[f64],
     path: &Path,
     width: u32,
     window: Option<[[f64; 2]; 2]>,
     outlines: &[Vec<[f64; 2]>],
 ) -> Result<(), String> {
-    let vf = &disc.layout.fields[0];
-    let nodes = &disc.velocity_nodes;
+    if D != 2 {
+        return Err(format!("speed pictures are drawn of 2D flows, not {D}D"));
+    }
+    let vf = &disc.velocity_field();
+    let nodes: Vec<[f64; 2]> = disc.velocity_nodes.iter().map(|p| [p[0], p[1]]).collect();
     let speed = |n: usize| (x[vf.dof(n, 0)].powi(2) + x[vf.dof(n, 1)].powi(2)).sqrt();
-    let (mut lo, mut hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
+    let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
+    let (mut lo, mut hi) = ([lo[0], lo[1]], [hi[0], hi[1]]);
     if let Some([a, b]) = window {
         (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
         if !(hi[0] > lo[0] && hi[1] > lo[1]) {

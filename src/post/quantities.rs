@@ -11,7 +11,7 @@
 //! - max speed: `max |u|` over the vertices, edge midpoints and centroids of the cells.
 
 use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec};
-use crate::flow::{FlowDiscretization, FlowError, FlowProblem};
+use crate::discretize::flow::{FlowDiscretization, FlowError, FlowProblem};
 use crate::physics::fluid::Formulation;
 use fdfsi_fem::element::MAX_DOFS;
 use fdfsi_fem::locate::{cells_containing, locate_point};
@@ -24,7 +24,7 @@ pub fn probe<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &Pro
     match spec.field {
         ProbeField::Velocity => {
             let (c, xi) = locate_point(&disc.mesh, &xp)?;
-            let vf = &disc.layout.fields[0];
+            let vf = &disc.velocity_field();
             let n = disc.velocity_element.num_dofs();
             let mut vals = [0.0; MAX_DOFS];
             let mut grads = [[0.0; D]; MAX_DOFS];
@@ -33,7 +33,7 @@ pub fn probe<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &Pro
         }
         ProbeField::Displacement => None,
         ProbeField::Pressure => {
-            let pf = &disc.layout.fields[1];
+            let pf = &disc.pressure_field();
             let cells = cells_containing(&disc.mesh, &xp);
             if cells.is_empty() {
                 return None;
@@ -84,7 +84,7 @@ pub fn boundary_force<const D: usize>(
     let mut step_problem = problem.clone();
     step_problem.params.inv_dt = state.inv_dt;
     let raw = disc.raw_residual(&step_problem, x, state.u_star.unwrap_or(x), state.time)?;
-    let vf = &disc.layout.fields[0];
+    let vf = &disc.velocity_field();
     let mut on_boundary = vec![false; vf.nodes.num_nodes];
     for bf in disc.mesh.boundary_facets(boundary)? {
         let nodes = vf.nodes.cell(bf.cell);
@@ -128,9 +128,9 @@ pub fn boundary_integral<const D: usize>(
     }
     let facets = disc.mesh.boundary_facets(&spec.boundary)?;
     let mut fv = disc.facet_values();
-    let vf = &disc.layout.fields[0];
-    let pf = &disc.layout.fields[1];
-    let applied: Vec<&crate::flow::TractionBc<D>> = problem.traction.iter().filter(|bc| bc.boundary == spec.boundary).collect();
+    let vf = &disc.velocity_field();
+    let pf = &disc.pressure_field();
+    let applied: Vec<&crate::discretize::flow::TractionBc<D>> = problem.traction.iter().filter(|bc| bc.boundary == spec.boundary).collect();
     let mut coords = Vec::new();
     let (mut num, mut den) = (0.0, 0.0);
     let mut psi = [0.0; 4];
@@ -200,7 +200,7 @@ pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64
     points.push(cell.centroid());
     let tab = disc.velocity_element.tabulate(&points);
     let n = disc.velocity_element.num_dofs();
-    let vf = &disc.layout.fields[0];
+    let vf = &disc.velocity_field();
     (0..disc.mesh.num_cells())
         .map(|c| {
             let nodes = vf.nodes.cell(c);
@@ -214,17 +214,20 @@ pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64
         .fold(0.0, f64::max)
 }
 
-/// Every quantity a case requests, in the order probes, boundary integrals, domain quantities,
-/// combinations.
+/// Every flow quantity a case requests, in the order probes, boundary integrals, domain
+/// quantities, combinations. Combinations may also use the quantities in `known` (evaluated
+/// elsewhere: the solid's probes, the built-in quantities of FSI runs). Displacement probes are
+/// left to the caller.
 pub fn evaluate_all<const D: usize>(
     output: &crate::case::OutputSpec,
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,
     x: &[f64],
     state: &StepState<'_>,
+    known: &[(String, f64)],
 ) -> Result<Vec<(String, f64)>, QuantityError> {
     let mut out: Vec<(String, f64)> = Vec::new();
-    for p in &output.probe {
+    for p in output.probe.iter().filter(|p| p.field != crate::case::ProbeField::Displacement) {
         let v = probe(disc, x, p).ok_or_else(|| QuantityError::ProbeOutside { name: p.name.clone(), point: p.point.clone() })?;
         out.push((p.name.clone(), v));
     }
@@ -235,7 +238,8 @@ pub fn evaluate_all<const D: usize>(
         out.push((q.name.clone(), domain_quantity(disc, x, q)));
     }
     for c in &output.combination {
-        let v = c.terms.iter().map(|(q, k)| k * out.iter().find(|(n, _)| n == q).map(|(_, v)| *v).unwrap_or(f64::NAN)).sum();
+        let value = |q: &str| out.iter().chain(known).find(|(n, _)| n == q).map_or(f64::NAN, |(_, v)| *v);
+        let v = c.terms.iter().map(|(q, k)| k * value(q)).sum();
         out.push((c.name.clone(), v));
     }
     Ok(out)
@@ -313,8 +317,8 @@ pub fn profile<const D: usize>(
     let facets = disc.mesh.boundary_facets(&spec.boundary)?;
     let order: Vec<(usize, bool)> = if D == 2 { chain_facets(disc, &facets) } else { (0..facets.len()).map(|k| (k, false)).collect() };
     let mut fv = disc.facet_values();
-    let vf = &disc.layout.fields[0];
-    let pf = &disc.layout.fields[1];
+    let vf = &disc.velocity_field();
+    let pf = &disc.pressure_field();
     let eta = problem.params.viscosity;
     let mut coords = Vec::new();
     let mut pts: Vec<ProfilePoint<D>> = Vec::new();

@@ -18,7 +18,7 @@ use std::sync::Once;
 use thiserror::Error;
 
 /// The font compiled into the binary.
-const FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSansMono.ttf");
+const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSansMono.ttf");
 const FAMILY: &str = "sans-serif";
 
 /// A plotting failure.

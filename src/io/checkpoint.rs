@@ -7,9 +7,10 @@
 //! - the step number `k` and time `t_k`;
 //! - the state: for a flow run the solution `x^k` and, for BDF2, `x^{k-1}`; for an FSI run the
 //!   solid displacement, deformation gradients and velocity, the fluid velocity and the solid
-//!   position its (adapted) mesh was built for;
+//!   position its (adapted) mesh was built for; for a solid run the load factor, the solution,
+//!   the deformation gradients (updated Lagrangian) and the predictor;
 //! - the run's running totals (Newton iterations, residuals, phase timings) for `summary.json`;
-//! - the builds of fdfsi that ran it so far (see [`crate::provenance`]).
+//! - the builds of fdfsi that ran it so far (see [`crate::io::provenance`]).
 //!
 //! Floating-point values are written in their shortest round-trip decimal form and read back
 //! exactly (serde_json's `float_roundtrip`), so a resumed run repeats the arithmetic of an
@@ -19,8 +20,10 @@
 //! The file is written to a temporary name and renamed, so a run killed while writing leaves the
 //! previous checkpoint intact.
 
-use crate::output::{write_atomic, OutputError};
-use crate::run::Timings;
+use crate::discretize::fsi::FsiRestart;
+use crate::discretize::solid::LoadState;
+use crate::io::{write_atomic, OutputError};
+use crate::time::Timings;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -51,24 +54,6 @@ pub enum CheckpointError {
     Output(#[from] OutputError),
 }
 
-/// The state of an FSI run after a step (see [`crate::fsi::FsiState`]).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct FsiRestart {
-    pub solid_x: Vec<f64>,
-    pub solid_f: Vec<[[f64; 3]; 3]>,
-    pub solid_v: Vec<f64>,
-    /// The fluid velocity of the last step and the solid displacement its adapted mesh was built
-    /// for (the mesh is rebuilt from it); `None` while the fluid is at rest.
-    pub fluid: Option<FluidRestart>,
-}
-
-/// The fluid velocity of an FSI step on the mesh adapted to `solid_base`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct FluidRestart {
-    pub solid_base: Vec<f64>,
-    pub velocity: Vec<f64>,
-}
-
 /// What is saved of a run's state.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase")]
@@ -77,6 +62,8 @@ pub enum RestartState {
     Flow { x: Vec<f64>, level: crate::time::TimeLevel },
     /// An FSI run.
     Fsi(FsiRestart),
+    /// A solid run: the state after the last load step.
+    Solid(LoadState),
 }
 
 impl RestartState {
@@ -84,6 +71,7 @@ impl RestartState {
         match self {
             RestartState::Flow { .. } => "flow",
             RestartState::Fsi(_) => "FSI",
+            RestartState::Solid(_) => "solid",
         }
     }
 }
@@ -123,10 +111,10 @@ pub struct Checkpoint {
     pub state: RestartState,
     pub progress: Progress,
     /// The builds of fdfsi that ran the steps so far, oldest first. A checkpoint written before
-    /// builds were recorded reads as one unknown build ([`crate::provenance::Build::unknown`]), so
+    /// builds were recorded reads as one unknown build ([`crate::io::provenance::Build::unknown`]), so
     /// that a run resumed from it is not taken for one made by known code.
-    #[serde(default = "crate::provenance::Build::unknown_parts")]
-    pub builds: Vec<crate::provenance::Build>,
+    #[serde(default = "crate::io::provenance::Build::unknown_parts")]
+    pub builds: Vec<crate::io::provenance::Build>,
 }
 
 impl Checkpoint {
@@ -175,6 +163,18 @@ impl Checkpoint {
         }
     }
 
+    /// The state of a solid run, checked against its dof count.
+    pub fn solid_state(&self, out_dir: &Path, num_dofs: usize) -> Result<LoadState, CheckpointError> {
+        let path = Self::path(out_dir).display().to_string();
+        match &self.state {
+            RestartState::Solid(s) if s.x.len() != num_dofs => {
+                Err(CheckpointError::Size { path, what: "the solid state", found: s.x.len(), expected: num_dofs })
+            }
+            RestartState::Solid(s) => Ok(s.clone()),
+            other => Err(CheckpointError::Kind { path, found: other.kind(), expected: "solid" }),
+        }
+    }
+
     /// The FSI state, checked against the solid's dof count.
     pub fn fsi_state(&self, out_dir: &Path, solid_dofs: usize) -> Result<&FsiRestart, CheckpointError> {
         let path = Self::path(out_dir).display().to_string();
@@ -214,7 +214,7 @@ mod tests {
                 level: crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) },
             },
             progress: Progress { newton_iterations: 7, residual_norms: vec![1e-11], timings: Timings::default() },
-            builds: vec![crate::provenance::Build::current()],
+            builds: vec![crate::io::provenance::Build::current()],
         };
         c.write(dir.path()).unwrap();
         let back = Checkpoint::read(dir.path()).unwrap();

@@ -41,6 +41,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use thiserror::Error;
 
+pub mod builtin;
+
 /// A case-file error.
 #[derive(Debug, Error)]
 pub enum CaseError {
@@ -121,9 +123,9 @@ pub struct SolidSpec {
     /// The Lagrange multiplier on gamma_f (FSI runs): `p1-discontinuous` (the paper's; default)
     /// or `p1-discontinuous-trace-mode` (2D: adds, per component and connected piece of gamma_f,
     /// the P2 trace function the paper's multiplier leaves free, so that the fluid velocity on
-    /// gamma_f equals the solid's at every node; see [`crate::fsi::MultiplierSpace`]).
+    /// gamma_f equals the solid's at every node; see [`crate::discretize::fsi::MultiplierSpace`]).
     #[serde(default, skip_serializing_if = "is_default")]
-    pub multiplier: crate::fsi::MultiplierSpace,
+    pub multiplier: crate::discretize::fsi::MultiplierSpace,
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
@@ -200,11 +202,11 @@ pub struct LoadingSpec {
     pub steps: usize,
     /// `total` or `updated` (the paper's updated-Lagrangian form).
     #[serde(default = "updated")]
-    pub mode: crate::solid::Lagrangian,
+    pub mode: crate::discretize::solid::Lagrangian,
 }
 
-fn updated() -> crate::solid::Lagrangian {
-    crate::solid::Lagrangian::Updated
+fn updated() -> crate::discretize::solid::Lagrangian {
+    crate::discretize::solid::Lagrangian::Updated
 }
 
 impl Default for LoadingSpec {
@@ -573,6 +575,17 @@ pub enum BoundaryIntegralKind {
     AppliedTraction,
 }
 
+/// The kinds of run ([`Case::kind`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunKind {
+    /// A fluid, with a fixed solid if any: steady or time-dependent flow.
+    Flow,
+    /// A solid alone, quasi-static (load stepping).
+    Solid,
+    /// A fluid and a moving solid coupled by the Lagrange multiplier.
+    Fsi,
+}
+
 impl Case {
     /// Parses a case from TOML text; `file` names the source in error messages.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Case, CaseError> {
@@ -597,6 +610,28 @@ impl Case {
     /// The case as TOML (written next to the results).
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# case could not be serialised: {e}\n"))
+    }
+
+    /// The kind of run the case describes: a solid alone (no fluid `[mesh]`), FSI (a fluid and a
+    /// solid with a material `model`), or flow (a fluid, with a fixed solid if any).
+    pub fn kind(&self) -> RunKind {
+        match (&self.mesh, &self.solid) {
+            (None, _) => RunKind::Solid,
+            (Some(_), Some(s)) if s.model != SolidModel::Fixed => RunKind::Fsi,
+            _ => RunKind::Flow,
+        }
+    }
+
+    /// The quantities every run of this kind writes besides the case's own (they may appear in
+    /// `[[output.combination]]`): in FSI runs `coupling_force_x`, `_y` (`_z`), the force of the
+    /// fluid on the solid, and `coupling_facets`.
+    pub fn builtin_quantities(&self) -> Vec<String> {
+        if self.kind() != RunKind::Fsi {
+            return Vec::new();
+        }
+        let mut names: Vec<String> = ["x", "y", "z"][..self.dim()].iter().map(|c| format!("coupling_force_{c}")).collect();
+        names.push("coupling_facets".into());
+        names
     }
 
     /// Spatial dimension implied by the formulation.
@@ -728,7 +763,7 @@ impl Case {
                 problems.push(format!("probe '{}': component must be < {d}", p.name));
             }
         }
-        let builtin = if crate::fsi_run::is_fsi(self) { crate::fsi_run::builtin_quantities(d) } else { Vec::new() };
+        let builtin = self.builtin_quantities();
         let mut known: std::collections::HashSet<&str> = self.output.probe.iter().map(|p| p.name.as_str()).collect();
         known.extend(self.output.boundary_integral.iter().map(|b| b.name.as_str()));
         known.extend(self.output.domain.iter().map(|q| q.name.as_str()));
@@ -738,10 +773,10 @@ impl Case {
             }
         }
         known.extend(builtin.iter().map(String::as_str));
-        if crate::fsi_run::is_fsi(self) && self.time.is_none() {
+        if (self.kind() == RunKind::Fsi) && self.time.is_none() {
             problems.push("an FSI run (fluid mesh and a solid material model) needs a [time] table".into());
         }
-        if crate::fsi_run::is_fsi(self) && self.time.as_ref().is_some_and(|t| t.scheme != crate::time::TimeScheme::Euler) {
+        if (self.kind() == RunKind::Fsi) && self.time.as_ref().is_some_and(|t| t.scheme != crate::time::TimeScheme::Euler) {
             problems.push("an FSI run uses implicit Euler (the paper's scheme): set time.scheme = \"euler\"".into());
         }
         for b in &self.output.boundary_integral {
@@ -784,7 +819,7 @@ impl Case {
                     }
                 }
             }
-            if solid.multiplier == crate::fsi::MultiplierSpace::P1DiscontinuousTraceMode && self.dim() == 3 {
+            if solid.multiplier == crate::discretize::fsi::MultiplierSpace::P1DiscontinuousTraceMode && self.dim() == 3 {
                 problems.push("solid.multiplier = \"p1-discontinuous-trace-mode\" is 2D only (plane or axisymmetric)".into());
             }
             if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {

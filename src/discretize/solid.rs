@@ -1,7 +1,7 @@
 //! Hyperelastic solids on one Q2 mesh: problem definition, discretisation, quasi-static load
 //! stepping (total or updated Lagrangian), an implicit-Euler dynamic step, and error norms.
 //!
-//! Data flows one way, as in [`crate::flow`]: a [`SolidProblem`] (material, boundary conditions)
+//! Data flows one way, as in [`crate::discretize::flow`]: a [`SolidProblem`] (material, boundary conditions)
 //! and a reference mesh give a [`SolidDiscretization`] (topology, dof maps, pattern, colouring,
 //! the material coordinates of every quadrature point, facet tabulations; built once, never
 //! patched); [`solve_quasi_static`] ramps a load factor from 0 to 1 with Newton per increment
@@ -268,10 +268,15 @@ impl<const D: usize> SolidDiscretization<D> {
         &self.layout.fields[0]
     }
 
+    /// The pressure field (P1 discontinuous; mixed laws only).
+    pub fn pressure_field(&self) -> &fdfsi_fem::dofs::Field {
+        &self.layout.fields[1]
+    }
+
     /// Nodal positions of cell `c` in the configuration `X + base` (`base` a global vector whose
     /// displacement part is used; `None` = reference).
     pub fn cell_positions(&self, c: usize, base: Option<&[f64]>, out: &mut Vec<[f64; D]>) {
-        let vf = &self.layout.fields[0];
+        let vf = &self.displacement_field();
         out.clear();
         out.extend(vf.nodes.cell(c).iter().map(|&node| {
             let x0 = self.nodes_x0[node];
@@ -290,7 +295,7 @@ impl<const D: usize> SolidDiscretization<D> {
 
     /// Displacement of node `node` in the global vector `x`.
     pub fn displacement(&self, x: &[f64], node: usize) -> [f64; D] {
-        let vf = &self.layout.fields[0];
+        let vf = &self.displacement_field();
         std::array::from_fn(|a| x[vf.dof(node, a)])
     }
 
@@ -310,7 +315,7 @@ impl<const D: usize> SolidDiscretization<D> {
 
     /// Prescribed values (total displacement, or pressure pin) of the constrained dofs at `load`.
     pub fn dirichlet_values(&self, problem: &SolidProblem<D>, load: f64) -> Result<Vec<(usize, f64)>, SolidError> {
-        let vf = &self.layout.fields[0];
+        let vf = &self.displacement_field();
         let mut out = Vec::new();
         let mut seen = vec![false; self.num_dofs()];
         for bc in &problem.dirichlet {
@@ -330,7 +335,7 @@ impl<const D: usize> SolidDiscretization<D> {
             }
         }
         if let (Some(v), true) = (problem.pin_pressure, self.mixed) {
-            out.push((self.layout.fields[1].dof(0, 0), v));
+            out.push((self.pressure_field().dof(0, 0), v));
         }
         Ok(out)
     }
@@ -398,7 +403,7 @@ impl<const D: usize> SolidDiscretization<D> {
             },
         )?;
         // Boundary terms (few facets: serial).
-        let vf = &self.layout.fields[0];
+        let vf = &self.displacement_field();
         let nf = self.facet_weights.len();
         let mut x_ref = Vec::new();
         let mut x_cur: Vec<[f64; D]> = Vec::new();
@@ -508,7 +513,7 @@ impl<const D: usize> SolidDiscretization<D> {
     pub fn update_deformation(&self, base: &[f64], increment: &[f64], f_qp: &mut [Mat3]) -> Result<(), SolidAssemblyError> {
         let nq = self.points_per_cell();
         let nv = self.element.num_dofs();
-        let vf = &self.layout.fields[0];
+        let vf = &self.displacement_field();
         let mut cv = self.cell_values();
         let mut coords = Vec::new();
         let mut u = vec![0.0; nv * D];
@@ -642,70 +647,28 @@ pub fn solve_quasi_static_with<const D: usize>(
     mut on_step: impl FnMut(&StepRecord, &[f64]) -> Result<(), String>,
 ) -> Result<SolidSolution, SolidError> {
     disc.check_problem(problem)?;
-    let n = disc.num_dofs();
-    let nu_global = disc.layout.fields[0].num_dofs();
-    let mut state = vec![0.0; n];
-    let updated = stepping.mode == Lagrangian::Updated;
-    let mut f_qp = if updated { Some(vec![IDENTITY; disc.mesh.num_cells() * disc.points_per_cell()]) } else { None };
-    let mut constrained = vec![false; n];
-    for (d, _) in disc.dirichlet_values(problem, 0.0)? {
-        constrained[d] = true;
-    }
-    let mut load = 0.0;
+    let mut state = LoadState::at_rest(disc, stepping.mode);
     let mut inc = stepping.initial_increment.min(stepping.final_load);
     let mut steps = Vec::new();
     let mut step = 1;
-    let mut last_change: Option<(Vec<f64>, f64)> = None;
-    while load < stepping.final_load - 1e-14 * stepping.final_load.abs().max(1.0) {
-        let target = (load + inc).min(stepping.final_load);
-        let bcs = disc.dirichlet_values(problem, target)?;
-        let mut trial = state.clone();
-        if updated {
-            trial[..nu_global].iter_mut().for_each(|v| *v = 0.0);
-        }
-        // Predictor: extrapolate the displacement change of the last converged increment.
-        if let Some((delta, h)) = &last_change {
-            let s = (target - load) / h;
-            for i in 0..nu_global {
-                trial[i] += s * delta[i];
-            }
-        }
-        for &(d, v) in &bcs {
-            // Pressure pins are absolute; displacements are increments in updated mode.
-            trial[d] = if updated && d < nu_global { v - state[d] } else { v };
-        }
-        let base = if updated { Some(state.as_slice()) } else { None };
-        let result = newton::solve(&mut trial, &disc.pattern, solver, options, |x, k, rhs| {
-            disc.assemble_system(problem, target, base, f_qp.as_deref(), None, x, &constrained, k, rhs)
-        });
-        match result {
+    while state.load < stepping.final_load - 1e-14 * stepping.final_load.abs().max(1.0) {
+        let (load, target) = (state.load, (state.load + inc).min(stepping.final_load));
+        match disc.solve_increment(problem, &mut state, target, stepping.predictor, solver, options) {
             Ok(report) => {
-                let delta: Vec<f64> = if updated { trial[..nu_global].to_vec() } else { (0..nu_global).map(|i| trial[i] - state[i]).collect() };
-                last_change = if stepping.predictor { Some((delta, target - load)) } else { None };
-                if updated {
-                    let f = f_qp.as_mut().expect("updated mode stores F");
-                    disc.update_deformation(&state, &trial, f)?;
-                    for i in 0..nu_global {
-                        state[i] += trial[i];
-                    }
-                    state[nu_global..].copy_from_slice(&trial[nu_global..]);
-                } else {
-                    state = trial;
-                }
                 steps.push(StepRecord { step, load: target, increment: target - load, failure: None, newton: Some(report) });
-                if let Err(reason) = on_step(steps.last().expect("pushed"), &state) {
+                if let Err(reason) = on_step(steps.last().expect("pushed"), &state.x) {
                     return Err(SolidError::StepFailed { step, load: target, increment: target - load, reason });
                 }
-                load = target;
                 step += 1;
                 inc = (inc * stepping.growth).min(stepping.max_increment);
             }
             Err(e) => {
                 let reason = match &e {
-                    NewtonError::Assembly(SolidAssemblyError::Inverted { cell, point, det }) => {
+                    SolidError::Newton(NewtonError::Assembly(SolidAssemblyError::Inverted { cell, point, det })) => {
                         format!("element {cell} inverted (det F = {det:.3e} at quadrature point {point}) in step {step}")
                     }
-                    other => format!("{other} (step {step})"),
+                    SolidError::Newton(other) => format!("{other} (step {step})"),
+                    _ => return Err(e),
                 };
                 let increment = target - load;
                 steps.push(StepRecord { step, load: target, increment, failure: Some(reason.clone()), newton: None });
@@ -716,7 +679,87 @@ pub fn solve_quasi_static_with<const D: usize>(
             }
         }
     }
-    Ok(SolidSolution { x: state, load, steps, f_qp })
+    Ok(SolidSolution { x: state.x, load: state.load, steps, f_qp: state.f_qp })
+}
+
+/// Where quasi-static load stepping stands after a converged increment: what the next increment
+/// starts from, and what a restart restores.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LoadState {
+    /// The load factor reached.
+    pub load: f64,
+    /// Total displacement from the reference configuration and the pressure (layout numbering).
+    pub x: Vec<f64>,
+    /// Deformation gradient per quadrature point (updated-Lagrangian mode only).
+    pub f_qp: Option<Vec<Mat3>>,
+    /// The displacement change of the last converged increment and its load change (the
+    /// predictor of the next increment), when the predictor is on.
+    pub last_change: Option<(Vec<f64>, f64)>,
+}
+
+impl LoadState {
+    /// The unloaded reference configuration.
+    pub fn at_rest<const D: usize>(disc: &SolidDiscretization<D>, mode: Lagrangian) -> Self {
+        let f_qp = (mode == Lagrangian::Updated).then(|| vec![IDENTITY; disc.mesh.num_cells() * disc.points_per_cell()]);
+        LoadState { load: 0.0, x: vec![0.0; disc.num_dofs()], f_qp, last_change: None }
+    }
+}
+
+impl<const D: usize> SolidDiscretization<D> {
+    /// One load increment from `state` to the load factor `target`: Newton from the predictor
+    /// (the last increment's displacement change, scaled, when `predictor`) with the Dirichlet
+    /// values at `target`. Updated-Lagrangian when `state` holds deformation gradients (the
+    /// unknowns are then increments from `X + u_n`, and `F` is updated), total otherwise. On
+    /// failure `state` is unchanged.
+    pub fn solve_increment(
+        &self,
+        problem: &SolidProblem<D>,
+        state: &mut LoadState,
+        target: f64,
+        predictor: bool,
+        solver: &mut dyn LinearSolver,
+        options: &NewtonOptions,
+    ) -> Result<NewtonReport, SolidError> {
+        let nu = self.displacement_field().num_dofs();
+        let updated = state.f_qp.is_some();
+        let mut constrained = vec![false; self.num_dofs()];
+        let bcs = self.dirichlet_values(problem, target)?;
+        for &(d, _) in &bcs {
+            constrained[d] = true;
+        }
+        let mut trial = state.x.clone();
+        if updated {
+            trial[..nu].iter_mut().for_each(|v| *v = 0.0);
+        }
+        // Predictor: extrapolate the displacement change of the last converged increment.
+        if let Some((delta, h)) = &state.last_change {
+            let s = (target - state.load) / h;
+            for i in 0..nu {
+                trial[i] += s * delta[i];
+            }
+        }
+        for &(d, v) in &bcs {
+            // Pressure pins are absolute; displacements are increments in updated mode.
+            trial[d] = if updated && d < nu { v - state.x[d] } else { v };
+        }
+        let base = if updated { Some(state.x.as_slice()) } else { None };
+        let report = newton::solve(&mut trial, &self.pattern, solver, options, |x, k, rhs| {
+            self.assemble_system(problem, target, base, state.f_qp.as_deref(), None, x, &constrained, k, rhs)
+        })?;
+        let delta: Vec<f64> = if updated { trial[..nu].to_vec() } else { (0..nu).map(|i| trial[i] - state.x[i]).collect() };
+        state.last_change = if predictor { Some((delta, target - state.load)) } else { None };
+        if let Some(f) = state.f_qp.as_mut() {
+            self.update_deformation(&state.x, &trial, f)?;
+            for i in 0..nu {
+                state.x[i] += trial[i];
+            }
+            state.x[nu..].copy_from_slice(&trial[nu..]);
+        } else {
+            state.x = trial;
+        }
+        state.load = target;
+        Ok(report)
+    }
 }
 
 /// One implicit-Euler step of the solid with inertia (total Lagrangian):
@@ -736,7 +779,7 @@ pub fn solve_dynamic_step<const D: usize>(
 ) -> Result<(Vec<f64>, Vec<f64>, NewtonReport), SolidError> {
     disc.check_problem(problem)?;
     let n = disc.num_dofs();
-    let nu_global = disc.layout.fields[0].num_dofs();
+    let nu_global = disc.displacement_field().num_dofs();
     let mut x = x_n.to_vec();
     let mut constrained = vec![false; n];
     for (d, v) in disc.dirichlet_values(problem, load)? {
@@ -780,7 +823,7 @@ pub fn solid_errors<const D: usize>(
     degree: usize,
 ) -> Result<SolidErrors, SolidError> {
     let mut cv = CellValues::new(fdfsi_fem::quadrature::for_cell(disc.mesh.cell_type, degree), &disc.element, &disc.element);
-    let vf = &disc.layout.fields[0];
+    let vf = &disc.displacement_field();
     let axi = disc.formulation == Formulation::Axisymmetric;
     let mut coords = Vec::new();
     let mut e = SolidErrors::default();
@@ -816,7 +859,7 @@ pub fn solid_errors<const D: usize>(
                 e.displacement_h1 += w * ((u[1] - ue[1]) / r).powi(2);
             }
             if let (Some(pe), true) = (exact.pressure, disc.mixed) {
-                let pf = &disc.layout.fields[1];
+                let pf = &disc.pressure_field();
                 let xc = disc.centroid_x0[c];
                 let mut p = x[pf.dof(c * (D + 1), 0)];
                 for d in 0..D {
@@ -834,7 +877,7 @@ pub fn solid_errors<const D: usize>(
 
 /// Pressure of a mixed solution at material point `x0` of cell `c`.
 pub fn pressure_at<const D: usize>(disc: &SolidDiscretization<D>, x: &[f64], c: usize, x0: &[f64; D]) -> f64 {
-    let pf = &disc.layout.fields[1];
+    let pf = &disc.pressure_field();
     let xc = disc.centroid_x0[c];
     let mut p = x[pf.dof(c * (D + 1), 0)];
     for d in 0..D {

@@ -30,11 +30,11 @@
 //! [`crate::physics::coupling`]); [`FsiDiscretization::multiplier_force`] is the force of the
 //! fluid on the body.
 
-use crate::checkpoint::{FluidRestart, FsiRestart};
-use crate::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
+use super::layout::{Block, SystemLayout};
+use crate::discretize::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
+use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
-use crate::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::adapt::{
@@ -47,6 +47,7 @@ use fdfsi_fem::mesh::{Mesh, MeshError, NO_CELL};
 use fdfsi_fem::quadrature;
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use fdfsi_fem::values::det_inv;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 use thiserror::Error;
 
@@ -219,6 +220,24 @@ pub struct FluidSnapshot<const D: usize> {
     pub velocity: Vec<f64>,
 }
 
+/// The state of an FSI run after a step (see [`crate::discretize::fsi::FsiState`]).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FsiRestart {
+    pub solid_x: Vec<f64>,
+    pub solid_f: Vec<[[f64; 3]; 3]>,
+    pub solid_v: Vec<f64>,
+    /// The fluid velocity of the last step and the solid displacement its adapted mesh was built
+    /// for (the mesh is rebuilt from it); `None` while the fluid is at rest.
+    pub fluid: Option<FluidRestart>,
+}
+
+/// The fluid velocity of an FSI step on the mesh adapted to `solid_base`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FluidRestart {
+    pub solid_base: Vec<f64>,
+    pub velocity: Vec<f64>,
+}
+
 /// The state at `t_n`.
 #[derive(Clone, Debug)]
 pub struct FsiState<const D: usize> {
@@ -265,7 +284,7 @@ impl<const D: usize> FsiState<D> {
             None => None,
             Some(f) => {
                 let disc = FsiDiscretization::build(model, &f.solid_base)?;
-                let vel = &disc.flow.layout.fields[0];
+                let vel = &disc.flow.velocity_field();
                 if vel.num_dofs() != f.velocity.len() {
                     return Err(FsiError::Restart(format!(
                         "the checkpoint's fluid velocity has {} values but the rebuilt mesh has {}",
@@ -345,14 +364,6 @@ fn measure<const D: usize>(p: &[[f64; D]; D]) -> f64 {
     }
 }
 
-/// The adapted mesh with the gamma_f facets tagged as the boundary
-/// [`crate::adaptation::GAMMA_F`] (one side per facet).
-pub fn tag_gamma_f<const D: usize>(adapted: &Adapted<D>) -> Mesh<D> {
-    let mut mesh = adapted.mesh.clone();
-    fdfsi_fem::adapt::tag_gamma_f(&mut mesh, &adapted.gamma_f);
-    mesh
-}
-
 /// What one step's assembly needs besides the unknowns.
 pub struct StepInput<'a, const D: usize> {
     /// The fluid problem with `params.inv_dt = 1/dt`.
@@ -377,9 +388,8 @@ pub struct FsiDiscretization<const D: usize> {
     /// Fluid discretisation of the adapted mesh (boundary `gamma_f` tagged).
     pub flow: FlowDiscretization<D>,
     pub coupling: CouplingElements<D>,
-    pub fluid_dofs: usize,
-    pub solid_dofs: usize,
-    pub multiplier_dofs: usize,
+    /// The blocks of the system's unknowns.
+    pub layout: SystemLayout,
     /// Multiplier dofs fixed to zero (trace-mode multipliers of chains with a fluid Dirichlet
     /// node, see [`MultiplierSpace`]); [`step`] constrains them.
     pub inactive_multiplier_dofs: Vec<usize>,
@@ -419,12 +429,12 @@ impl<const D: usize> FsiDiscretization<D> {
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
         }
-        let flow = FlowDiscretization::build(tag_gamma_f(&adapted), model.problem.fluid.formulation)?;
+        let flow = FlowDiscretization::build(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation)?;
         let mut coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
         let fluid_dofs = flow.num_dofs();
         let solid_dofs = model.solid.num_dofs();
         let ne = coupling.num_elements();
-        let vel = &flow.layout.fields[0];
+        let vel = &flow.velocity_field();
         let mut inactive_multiplier_dofs = Vec::new();
         // Fluid velocity dofs held by Dirichlet conditions: the trace they leave free decides the
         // trace-mode multipliers and the multiplier kernel.
@@ -435,7 +445,7 @@ impl<const D: usize> FsiDiscretization<D> {
             }
             Self::trace_mode(&mut coupling, &adapted.gamma_f);
             // A (chain, component) whose trace has a fluid Dirichlet node has no free trace mode.
-            let first = fluid_dofs + solid_dofs + ne * D * D;
+            let first = fluid_dofs + solid_dofs + ne * D * D; // the first trace-mode multiplier
             let mut inactive = vec![false; coupling.num_chains * D];
             let nf = coupling.nf;
             for e in 0..ne {
@@ -452,10 +462,17 @@ impl<const D: usize> FsiDiscretization<D> {
             inactive_multiplier_dofs = (0..inactive.len()).filter(|&k| inactive[k]).map(|k| first + k).collect();
         }
         let kernel = multiplier_kernel(&coupling, &adapted.gamma_f, vel, &fixed);
-        let kernel_first = ne * D * D + coupling.num_chains * D;
-        let multiplier_dofs = kernel_first + kernel.len();
-        let (os, ol) = (fluid_dofs, fluid_dofs + solid_dofs);
-        let n = ol + multiplier_dofs;
+        let layout = SystemLayout::new(&[
+            (Block::FluidVelocity, vel.num_dofs()),
+            (Block::FluidPressure, flow.pressure_field().num_dofs()),
+            (Block::SolidDisplacement, model.solid.displacement_field().num_dofs()),
+            (Block::SolidPressure, solid_dofs - model.solid.displacement_field().num_dofs()),
+            (Block::Multiplier, ne * D * D),
+            (Block::TraceModes, coupling.num_chains * D),
+            (Block::KernelUnknowns, kernel.len()),
+        ]);
+        let (os, ol, n) = (layout.offset(Block::SolidDisplacement), layout.offset(Block::Multiplier), layout.num_dofs());
+        let kernel_first = layout.offset(Block::KernelUnknowns) - ol;
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
         // displacement of every solid cell its points land in.
         let sf = model.solid.displacement_field();
@@ -505,9 +522,7 @@ impl<const D: usize> FsiDiscretization<D> {
             adapted,
             flow,
             coupling,
-            fluid_dofs,
-            solid_dofs,
-            multiplier_dofs,
+            layout,
             inactive_multiplier_dofs,
             kernel,
             pattern,
@@ -586,15 +601,27 @@ impl<const D: usize> FsiDiscretization<D> {
 
     /// Number of unknowns.
     pub fn num_dofs(&self) -> usize {
-        self.fluid_dofs + self.solid_dofs + self.multiplier_dofs
+        self.layout.num_dofs()
+    }
+    /// Number of fluid unknowns (velocity and pressure): the fluid is the first part.
+    pub fn fluid_dofs(&self) -> usize {
+        self.layout.span(Block::FluidVelocity, Block::FluidPressure).len()
+    }
+    /// Number of solid unknowns (displacement and pressure).
+    pub fn solid_dofs(&self) -> usize {
+        self.layout.span(Block::SolidDisplacement, Block::SolidPressure).len()
+    }
+    /// Number of multiplier unknowns (with the trace modes and the kernel unknowns).
+    pub fn multiplier_dofs(&self) -> usize {
+        self.layout.span(Block::Multiplier, Block::KernelUnknowns).len()
     }
     /// First solid dof.
     pub fn solid_offset(&self) -> usize {
-        self.fluid_dofs
+        self.layout.offset(Block::SolidDisplacement)
     }
     /// First multiplier dof.
     pub fn multiplier_offset(&self) -> usize {
-        self.fluid_dofs + self.solid_dofs
+        self.layout.offset(Block::Multiplier)
     }
     /// Global dof of multiplier component `a` at node `k` of coupling element `e`.
     pub fn multiplier_dof(&self, e: usize, k: usize, a: usize) -> usize {
@@ -604,7 +631,7 @@ impl<const D: usize> FsiDiscretization<D> {
     /// Global dof of component `a` of the trace-mode multiplier of chain `ch`
     /// ([`MultiplierSpace::P1DiscontinuousTraceMode`]).
     pub fn mode_multiplier_dof(&self, ch: usize, a: usize) -> usize {
-        self.multiplier_offset() + self.coupling.num_elements() * D * D + ch * D + a
+        self.layout.offset(Block::TraceModes) + ch * D + a
     }
 
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the coupled problem; rows of constrained
@@ -653,7 +680,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let mut re = vec![0.0; nloc];
         let mut dofs = vec![0usize; nloc];
         let mut loc = vec![0.0; nloc];
-        let vel = &self.flow.layout.fields[0];
+        let vel = &self.flow.velocity_field();
         let sf = model.solid.displacement_field();
         let inv_dt = 1.0 / input.dt;
         for e in 0..c.num_elements() {
@@ -754,7 +781,7 @@ impl<const D: usize> FsiDiscretization<D> {
 
     /// Global unknown `sigma_j` of the `j`-th removed multiplier mode (see [`Self::kernel`]).
     pub fn kernel_dof(&self, j: usize) -> usize {
-        self.multiplier_offset() + self.multiplier_dofs - self.kernel.len() + j
+        self.layout.offset(Block::KernelUnknowns) + j
     }
 
     /// What the global unknown `i` is, in words with a position (for error messages): a fluid
@@ -773,37 +800,32 @@ impl<const D: usize> FsiDiscretization<D> {
             let (node, _) = node_and_component(f, i);
             format!("{side} pressure dof {} of cell {}", node % f.nodes.per_cell, node / f.nodes.per_cell)
         };
-        let (os, ol) = (self.solid_offset(), self.multiplier_offset());
-        if i < os {
-            let (v, p) = (&self.flow.layout.fields[0], &self.flow.layout.fields[1]);
-            if v.range().contains(&i) {
-                let (node, a) = node_and_component(v, i);
-                return format!("the fluid velocity {} at {}", axes[a], at(&self.flow.velocity_nodes[node]));
+        let Some((block, k)) = self.layout.locate(i) else {
+            return format!("out of range (the system has {} unknowns)", self.num_dofs());
+        };
+        // Field offsets are within the fluid's or the solid's own numbering.
+        let solid_i = i - self.solid_offset();
+        match block {
+            Block::FluidVelocity => {
+                let (node, a) = node_and_component(self.flow.velocity_field(), i);
+                format!("the fluid velocity {} at {}", axes[a], at(&self.flow.velocity_nodes[node]))
             }
-            return cell_dof(p, i, "fluid");
-        }
-        if i < ol {
-            let fields = &model.solid.layout.fields;
-            if fields[0].range().contains(&(i - os)) {
-                let (node, a) = node_and_component(&fields[0], i - os);
-                return format!("the solid displacement {} at reference position {}", axes[a], at(&model.solid.nodes_x0[node]));
+            Block::FluidPressure => cell_dof(self.flow.pressure_field(), i, "fluid"),
+            Block::SolidDisplacement => {
+                let (node, a) = node_and_component(model.solid.displacement_field(), solid_i);
+                format!("the solid displacement {} at reference position {}", axes[a], at(&model.solid.nodes_x0[node]))
             }
-            return cell_dof(&fields[1], i - os, "solid");
-        }
-        let (m, ne) = (i - ol, self.coupling.num_elements());
-        if m < ne * D * D {
-            let (e, k, a) = (m / (D * D), m / D % D, m % D);
-            let vertex = self.adapted.gamma_f[e].vertices[k];
-            return format!("the multiplier {} at vertex {k} of gamma_f facet {e}, {}", axes[a], at(&self.adapted.mesh.points[vertex]));
-        }
-        if i < self.kernel_dof(0) {
-            let c = m - ne * D * D;
-            return format!("the trace-mode multiplier {} of gamma_f chain {}", axes[c % D], c / D);
-        }
-        let j = i - self.kernel_dof(0);
-        match self.kernel.get(j).and_then(|y| y.first()) {
-            Some(&(q, _)) => format!("the unknown removing multiplier mode {j} (around gamma_f facet {})", q / (D * D)),
-            None => format!("out of range (the system has {} unknowns)", self.num_dofs()),
+            Block::SolidPressure => cell_dof(model.solid.pressure_field(), solid_i, "solid"),
+            Block::Multiplier => {
+                let (e, v, a) = (k / (D * D), k / D % D, k % D);
+                let vertex = self.adapted.gamma_f[e].vertices[v];
+                format!("the multiplier {} at vertex {v} of gamma_f facet {e}, {}", axes[a], at(&self.adapted.mesh.points[vertex]))
+            }
+            Block::TraceModes => format!("the trace-mode multiplier {} of gamma_f chain {}", axes[k % D], k / D),
+            Block::KernelUnknowns => match self.kernel.get(k).and_then(|y| y.first()) {
+                Some(&(q, _)) => format!("the unknown removing multiplier mode {k} (around gamma_f facet {})", q / (D * D)),
+                None => format!("the unknown removing multiplier mode {k}"),
+            },
         }
     }
 
@@ -1047,15 +1069,15 @@ pub fn step<const D: usize>(
     // Transfer the previous velocity to the new velocity nodes.
     let clock = Instant::now();
     let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
-    let mut u_old = vec![0.0; disc.fluid_dofs];
+    let mut u_old = vec![0.0; disc.fluid_dofs()];
     if let Some(prev) = &state.fluid {
         let v = transfer_p2plus(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes)?;
-        u_old[disc.flow.layout.fields[0].range()].copy_from_slice(&v);
+        u_old[disc.flow.velocity_field().range()].copy_from_slice(&v);
     }
     seconds.transfer = clock.elapsed().as_secs_f64();
     // Initial iterate and constraints.
     let mut x = vec![0.0; n];
-    x[..disc.fluid_dofs].copy_from_slice(&u_old);
+    x[..disc.fluid_dofs()].copy_from_slice(&u_old);
     let mut constrained = vec![false; n];
     // Constrained values, set again after Newton: the linear solves (with iterative refinement)
     // may leave round-off on them, and a solid end held on an axis must stay exactly on it.
@@ -1115,7 +1137,7 @@ pub fn step<const D: usize>(
     }
     let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { inc[i] / dt } else { 0.0 }).collect();
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let vel = &disc.flow.layout.fields[0];
+    let vel = &disc.flow.velocity_field();
     let snapshot = FluidSnapshot {
         solid_base: state.solid_x.clone(),
         mesh: disc.flow.mesh.clone(),
@@ -1128,9 +1150,9 @@ pub fn step<const D: usize>(
         dt,
         newton: report,
         adapt: disc.adapted.stats.clone(),
-        fluid_dofs: disc.fluid_dofs,
-        solid_dofs: disc.solid_dofs,
-        multiplier_dofs: disc.multiplier_dofs,
+        fluid_dofs: disc.fluid_dofs(),
+        solid_dofs: disc.solid_dofs(),
+        multiplier_dofs: disc.multiplier_dofs(),
         coupling_elements: disc.coupling.num_elements(),
         coupling_points: disc.coupling.num_points(),
         pattern_nnz: disc.pattern.nnz(),
@@ -1161,7 +1183,7 @@ pub struct WallShear {
 /// cell on each side, at a Gauss rule of `degree` on each facet. `x` is the fluid vector.
 pub fn wall_shear_stress(flow: &FlowDiscretization<2>, x: &[f64], gamma_f: &[GammaFacet<2>], viscosity: f64, degree: usize) -> Vec<WallShear> {
     let rule = quadrature::segment(degree);
-    let vel = &flow.layout.fields[0];
+    let vel = &flow.velocity_field();
     let nf = flow.velocity_element.num_dofs();
     let mut vals = [0.0; MAX_DOFS];
     let mut grads = [[0.0; 2]; MAX_DOFS];

@@ -1,0 +1,24 @@
+//! The cases built into the binary (`fdfsi cases`), the files of `cases/`.
+
+/// The case built into the binary: `fdfsi run` with no case file runs it.
+pub const DEFAULT_CASE: &str = include_str!("../../cases/channel-stokes.toml");
+
+/// Built-in cases: (name, TOML text). `fdfsi cases` lists them.
+pub const BUILTIN_CASES: &[(&str, &str)] = &[
+    ("channel-stokes", include_str!("../../cases/channel-stokes.toml")),
+    ("pipe-axisymmetric-stokes", include_str!("../../cases/pipe-axisymmetric-stokes.toml")),
+    ("quarter-pipe-3d-stokes", include_str!("../../cases/quarter-pipe-3d-stokes.toml")),
+    ("cylinder-stokes-gmsh", include_str!("../../cases/cylinder-stokes-gmsh.toml")),
+    ("schaefer-turek-2d1", include_str!("../../cases/schaefer-turek-2d1.toml")),
+    ("womersley-axisymmetric", include_str!("../../cases/womersley-axisymmetric.toml")),
+    ("skewed-plate-dirichlet", include_str!("../../cases/skewed-plate-dirichlet.toml")),
+    ("model-problem-1", include_str!("../../cases/model-problem-1.toml")),
+    ("model-problem-2", include_str!("../../cases/model-problem-2.toml")),
+    ("model-problem-3", include_str!("../../cases/model-problem-3.toml")),
+    ("model-problem-4", include_str!("../../cases/model-problem-4.toml")),
+    ("model-problem-4-fine", include_str!("../../cases/model-problem-4-fine.toml")),
+    ("cylinder-re100", include_str!("../../cases/cylinder-re100.toml")),
+    ("slab-3d-poiseuille", include_str!("../../cases/slab-3d-poiseuille.toml")),
+    ("cook-membrane", include_str!("../../cases/cook-membrane.toml")),
+    ("cylinder-inflation-axisymmetric", include_str!("../../cases/cylinder-inflation-axisymmetric.toml")),
+];

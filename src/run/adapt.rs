@@ -1,0 +1,124 @@
+//! `fdfsi adapt`: the case's fluid mesh adapted to its solid (paper section 2.2.1), written for
+//! inspection.
+//!
+//! `fdfsi adapt CASE --out DIR` writes `original.vtu` and `adapted.vtu` (the fluid mesh before and
+//! after, as linear cells), `gamma_s.vtu`, `gamma_f.vtu` and `summary.json` (the counts of
+//! [`AdaptStats`] and the measures of gamma_s and gamma_f). With `--at RUN_DIR`, the mesh of the
+//! next step of an FSI run from its checkpoint.
+
+use super::{RunError, RunOptions};
+use crate::adapt::AdaptedFluid;
+use crate::case::{Case, CaseError, RunKind};
+use crate::discretize::fsi::FsiError;
+use crate::io::checkpoint::Checkpoint;
+use crate::io::{write_atomic, OutputError};
+use crate::setup::{adapt_fluid, build_mesh, fsi_model};
+use fdfsi_fem::adapt::AdaptStats;
+use fdfsi_fem::gmsh::AnyMesh;
+use fdfsi_fem::mesh::Mesh;
+use fdfsi_fem::vtk::{write_vtu, UnstructuredGrid, VtkCellType, VtkError};
+use serde::Serialize;
+use std::path::Path;
+
+/// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the mesh files and
+/// counts into `out_dir` (see [`crate::adapt`]).
+pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, RunError> {
+    Ok(match build_mesh(case, case_dir)? {
+        AnyMesh::D2(m) => write_adapt_report(&adapt_fluid(case, m, case_dir)?, out_dir)?,
+        AnyMesh::D3(m) => write_adapt_report(&adapt_fluid(case, m, case_dir)?, out_dir)?,
+    })
+}
+
+/// `fdfsi adapt --at RUN_DIR`: the fluid mesh of an FSI run adapted to the solid of its
+/// checkpoint (the mesh the run's next step starts from), written like [`adapt_case`]. To look
+/// at the adaptation of a step that failed: the files show the cut cells, gamma_s and gamma_f,
+/// and `stats.min_quality` the worst cell.
+pub fn adapt_checkpoint(run_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, RunError> {
+    let (case, options) = RunOptions::resume(run_dir)?;
+    let checkpoint = options.resume.as_ref().expect("resume options hold the checkpoint");
+    if case.kind() != RunKind::Fsi {
+        return Err(RunError::Case(CaseError::Invalid {
+            file: Checkpoint::path(run_dir).display().to_string(),
+            message: "`fdfsi adapt --at` needs the checkpoint of an FSI run (a case with a fluid mesh and a solid surface)".into(),
+        }));
+    }
+    Ok(match build_mesh(&case, &options.case_dir)? {
+        AnyMesh::D2(m) => write_adapt_report(&adapted_at(&case, m, &options.case_dir, checkpoint, run_dir)?, out_dir)?,
+        AnyMesh::D3(m) => write_adapt_report(&adapted_at(&case, m, &options.case_dir, checkpoint, run_dir)?, out_dir)?,
+    })
+}
+
+/// The original fluid mesh adapted to the solid of a checkpoint written in `run_dir` (what the
+/// run's next step starts from), with gamma_f tagged.
+fn adapted_at<const D: usize>(
+    case: &Case,
+    fluid_mesh: Mesh<D>,
+    case_dir: &std::path::Path,
+    checkpoint: &Checkpoint,
+    run_dir: &std::path::Path,
+) -> Result<AdaptedFluid<D>, RunError> {
+    let model = fsi_model(case, &fluid_mesh, case_dir)?;
+    let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
+    let solid = model.current_solid_mesh(&restart.solid_x);
+    let surface = model.gamma_s(&restart.solid_x)?;
+    let adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt);
+    Ok(adapted.map_err(FsiError::from)?)
+}
+
+/// What `fdfsi adapt` writes to `summary.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct AdaptSummary {
+    pub original_cells: usize,
+    pub adapted_cells: usize,
+    pub gamma_s_pieces: usize,
+    pub gamma_s_measure: f64,
+    pub gamma_f_measure: f64,
+    pub stats: AdaptStats,
+}
+
+/// The vertex mesh of `mesh` as linear VTK cells.
+fn linear_grid<const D: usize>(mesh: &Mesh<D>) -> Result<UnstructuredGrid, VtkError> {
+    let mut grid = UnstructuredGrid::new(pad(&mesh.points));
+    let ty = if D == 2 { VtkCellType::Triangle } else { VtkCellType::Tetra };
+    for c in 0..mesh.num_cells() {
+        grid.push_cell(ty, mesh.cell_vertices(c))?;
+    }
+    grid.add_cell_data("region", 1, mesh.cell_tags.iter().map(|&t| t as f64).collect())?;
+    Ok(grid)
+}
+
+fn pad<const D: usize>(points: &[[f64; D]]) -> Vec<[f64; 3]> {
+    points.iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect()
+}
+
+/// Segments (2D) or triangles (3D) as a VTK grid.
+fn piece_grid<const D: usize>(points: &[[f64; D]], pieces: &[[usize; D]]) -> Result<UnstructuredGrid, VtkError> {
+    let mut grid = UnstructuredGrid::new(pad(points));
+    let ty = if D == 2 { VtkCellType::Line } else { VtkCellType::Triangle };
+    for p in pieces {
+        grid.push_cell(ty, p)?;
+    }
+    Ok(grid)
+}
+
+/// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the files listed in the
+/// module documentation.
+pub fn write_adapt_report<const D: usize>(a: &AdaptedFluid<D>, out_dir: &Path) -> Result<AdaptSummary, RunError> {
+    std::fs::create_dir_all(out_dir).map_err(|source| OutputError::Io { path: out_dir.display().to_string(), source })?;
+    write_vtu(&out_dir.join("original.vtu"), &linear_grid(&a.original)?)?;
+    write_vtu(&out_dir.join("adapted.vtu"), &linear_grid(&a.adapted.mesh)?)?;
+    write_vtu(&out_dir.join("gamma_s.vtu"), &piece_grid(&a.surface.points, &a.surface.pieces)?)?;
+    let gf: Vec<[usize; D]> = a.adapted.gamma_f.iter().map(|g| g.vertices).collect();
+    write_vtu(&out_dir.join("gamma_f.vtu"), &piece_grid(&a.adapted.mesh.points, &gf)?)?;
+    let summary = AdaptSummary {
+        original_cells: a.original.num_cells(),
+        adapted_cells: a.adapted.mesh.num_cells(),
+        gamma_s_pieces: a.surface.num_pieces(),
+        gamma_s_measure: a.surface.measure(),
+        gamma_f_measure: a.adapted.gamma_f_measure(),
+        stats: a.adapted.stats.clone(),
+    };
+    let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
+    write_atomic(&out_dir.join("summary.json"), json.as_bytes())?;
+    Ok(summary)
+}

@@ -1,0 +1,229 @@
+//! Flow runs: a fluid `[mesh]` (adapted to a fixed solid, if the case has one), steady or in
+//! time ([`FlowStepper`]). Results in `--out DIR`:
+//! - `solution.pvd` + `solution_fluid_NNNNNN.vtu` (see [`crate::io::fields::fluid_grid`]), at
+//!   `t = 0` and every `time.output_every` steps;
+//! - `history.csv`: a row for the initial state (step 0) and one per step;
+//! - `profiles/NAME.csv` of the last step; `speed.png` in 2D;
+//! - `summary.json` as for every run.
+
+use super::record::{march_and_record, Recorded, RunOutputs, Start};
+use super::{log_newton, RunError, RunObserver, RunOptions, RunSummary};
+use crate::case::Case;
+use crate::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
+use crate::io::checkpoint::RestartState;
+use crate::io::fields::fluid_grid;
+use crate::io::{write_atomic, OutputError};
+use crate::post::quantities::{evaluate_all, StepState};
+use crate::setup::{flow_problem, fluid_mesh};
+use crate::time::flow::FlowStepper;
+use crate::time::march::StepDone;
+use crate::time::{Schedule, TimeLevel, Timings};
+use fdfsi_fem::gmsh::AnyMesh;
+use fdfsi_fem::mesh::Mesh;
+use fdfsi_fem::vtk::PvdSeries;
+use std::path::Path;
+use std::time::Instant;
+
+/// Runs a flow case.
+pub fn run_flow(case: &Case, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let t = Instant::now();
+    let (mesh, adapted) = fluid_mesh(case, &options.case_dir)?;
+    if let Some(st) = adapted {
+        obs.log(&format!(
+            "adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} coupling facets, min quality {:.3}",
+            st.cut_edges, st.moved_nodes, st.new_nodes, st.new_cells, st.coupling_facets, st.min_quality
+        ));
+    }
+    let mesh_seconds = t.elapsed().as_secs_f64();
+    let mut summary = match mesh {
+        AnyMesh::D2(m) => run_dim::<2>(case, m, options, obs)?,
+        AnyMesh::D3(m) => run_dim::<3>(case, m, options, obs)?,
+    };
+    summary.timings.mesh = mesh_seconds;
+    Ok(summary)
+}
+
+fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let problem = flow_problem(case, &mesh, &options.case_dir)?;
+    let t = Instant::now();
+    let cells = mesh.num_cells();
+    let disc = FlowDiscretization::build(mesh, case.physics.formulation)?;
+    let discretize = t.elapsed().as_secs_f64();
+    let dofs = flow_dofs(&disc);
+    obs.log(&format!(
+        "mesh: {cells} cells; dofs: velocity {}, pressure {}, total {} (nnz {}); {discretize:.2} s",
+        dofs[0].1,
+        dofs[1].1,
+        disc.num_dofs(),
+        disc.pattern.nnz()
+    ));
+    let mut lu = case.solver.linear_solver();
+    let outputs = FlowOutputs { case, problem: &problem };
+    let mut recorded = match &case.time {
+        None => steady(case, &disc, outputs, options, obs, &mut lu)?,
+        Some(ts) => {
+            let start = Start::of(options, obs);
+            let (x, level) = match &options.resume {
+                Some(c) => c.flow_state(&options.out_dir, disc.num_dofs())?,
+                None => (vec![0.0; disc.num_dofs()], TimeLevel::default()),
+            };
+            let mut stepper = FlowStepper::new(&disc, &problem, &mut lu, case.solver.newton.clone(), ts.scheme, x, level);
+            let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
+            march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, true)?
+        }
+    };
+    recorded.timings.discretize = discretize;
+    let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
+    Ok(recorded.summary(case, D, cells, symbolic))
+}
+
+/// The unknowns of a flow discretisation per field, as `summary.json` and `fdfsi check` list
+/// them.
+pub(crate) fn flow_dofs<const D: usize>(disc: &FlowDiscretization<D>) -> Vec<(String, usize)> {
+    disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect()
+}
+
+/// A steady solve, recorded as step 0 of a run of one step.
+fn steady<const D: usize>(
+    case: &Case,
+    disc: &FlowDiscretization<D>,
+    mut outputs: FlowOutputs<'_, D>,
+    options: &RunOptions,
+    obs: &mut dyn RunObserver,
+    lu: &mut dyn crate::solve::linear::LinearSolver,
+) -> Result<Recorded, RunError> {
+    let sol = solve_steady(disc, outputs.problem, lu, &case.solver.newton)?;
+    let rep = &sol.newton;
+    log_newton(obs, rep);
+    let mut timings = Timings::default();
+    timings.add_newton(rep);
+    let clock = Instant::now();
+    let state = Steady { disc, x: sol.x.clone() };
+    let done = StepDone { step: 0, total: 1, time: 0.0, dt: 0.0, cuts: 0, newton: vec![rep.clone()], phases: Timings::default() };
+    let values = outputs.quantities(&state, &done)?;
+    let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
+    let row: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
+    crate::io::History::new(&options.out_dir.join("history.csv"), &names)?.push(0, 0.0, rep.iterations, done.residual(), &row)?;
+    let mut series = PvdSeries::new(&options.out_dir, "solution");
+    outputs.write_fields(&state, &done, &mut series)?;
+    outputs.finish(&state, &options.out_dir, obs)?;
+    for (name, v) in &values {
+        obs.log(&format!("{name} = {v:.10e}"));
+    }
+    timings.output = clock.elapsed().as_secs_f64();
+    Ok(Recorded {
+        steps: 1,
+        newton_iterations: rep.iterations,
+        residual_norms: rep.residual_norms.clone(),
+        quantities: values,
+        timings,
+        dofs: flow_dofs(disc),
+    })
+}
+
+/// The state of a steady solve, for [`FlowOutputs`].
+struct Steady<'a, const D: usize> {
+    disc: &'a FlowDiscretization<D>,
+    x: Vec<f64>,
+}
+
+/// What [`FlowOutputs`] reads of a flow state.
+trait FlowState<const D: usize> {
+    fn disc(&self) -> &FlowDiscretization<D>;
+    fn x(&self) -> &[f64];
+    /// `a0/dt` and `u*` of the last step (zero and none when steady).
+    fn history(&self) -> StepState<'_>;
+    /// What a checkpoint saves after `step` at `time`.
+    fn restart(&self, step: usize, time: f64) -> RestartState;
+}
+
+impl<const D: usize> FlowState<D> for Steady<'_, D> {
+    fn disc(&self) -> &FlowDiscretization<D> {
+        self.disc
+    }
+    fn x(&self) -> &[f64] {
+        &self.x
+    }
+    fn history(&self) -> StepState<'_> {
+        StepState::default()
+    }
+    fn restart(&self, step: usize, time: f64) -> RestartState {
+        RestartState::Flow { x: self.x.clone(), level: TimeLevel { step, time, x_prev: None } }
+    }
+}
+
+impl<const D: usize> FlowState<D> for FlowStepper<'_, D> {
+    fn disc(&self) -> &FlowDiscretization<D> {
+        self.disc
+    }
+    fn x(&self) -> &[f64] {
+        &self.x
+    }
+    fn history(&self) -> StepState<'_> {
+        // Before the first step (the initial row) there is no step history.
+        if self.u_star.is_empty() {
+            return StepState::default();
+        }
+        StepState { time: 0.0, inv_dt: self.inv_dt, u_star: Some(&self.u_star) }
+    }
+    fn restart(&self, step: usize, time: f64) -> RestartState {
+        RestartState::Flow { x: self.x.clone(), level: self.level(step, time) }
+    }
+}
+
+/// The outputs of a flow run: the case's quantities, the fluid fields, profiles and `speed.png`.
+struct FlowOutputs<'a, const D: usize> {
+    case: &'a Case,
+    problem: &'a FlowProblem<D>,
+}
+
+impl<const D: usize, S: FlowState<D>> RunOutputs<S> for FlowOutputs<'_, D> {
+    fn quantities(&mut self, s: &S, done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
+        let state = StepState { time: done.time, ..s.history() };
+        Ok(evaluate_all(&self.case.output, s.disc(), self.problem, s.x(), &state, &[])?)
+    }
+
+    fn write_fields(&mut self, s: &S, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
+        series.add(done.time, "fluid", &fluid_grid(s.disc(), s.x())?)?;
+        Ok(())
+    }
+
+    fn restart(&self, s: &S, done: &StepDone) -> RestartState {
+        s.restart(done.step, done.time)
+    }
+
+    fn dofs(&self, s: &S) -> Vec<(String, usize)> {
+        flow_dofs(s.disc())
+    }
+
+    fn finish(&mut self, s: &S, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
+        if D == 2 {
+            let png = out_dir.join("speed.png");
+            crate::io::picture::write_speed_png(s.disc(), s.x(), &png, 1600)
+                .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
+        }
+        write_profiles(self.case, s.disc(), self.problem, s.x(), out_dir, obs)
+    }
+}
+
+/// Writes the case's `[[output.profile]]`s of the flow `x` to `out_dir/profiles/NAME.csv`.
+pub(crate) fn write_profiles<const D: usize>(
+    case: &Case,
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    x: &[f64],
+    out_dir: &Path,
+    obs: &mut dyn RunObserver,
+) -> Result<(), RunError> {
+    if case.output.profile.is_empty() {
+        return Ok(());
+    }
+    let dir = out_dir.join("profiles");
+    std::fs::create_dir_all(&dir).map_err(|source| OutputError::Io { path: dir.display().to_string(), source })?;
+    for spec in &case.output.profile {
+        let pts = crate::post::quantities::profile(disc, problem, x, spec)?;
+        write_atomic(&dir.join(format!("{}.csv", spec.name)), crate::post::quantities::profile_csv(&pts).as_bytes())?;
+        obs.log(&format!("profile {}: {} points along '{}'", spec.name, pts.len(), spec.boundary));
+    }
+    Ok(())
+}

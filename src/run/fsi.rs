@@ -1,0 +1,177 @@
+//! FSI runs: a case with a fluid `[mesh]`, a `[solid]` with a material `model` and a `[time]`
+//! table is run by the monolithic FSI step of [`crate::discretize::fsi`] (implicit Euler, the paper's).
+//!
+//! Each step adapts the ORIGINAL fluid mesh to the solid surface at `t_n`, transfers the fluid
+//! velocity, solves fluid, solid and multiplier in one Newton solve and moves the solid. Results:
+//! - `solution.pvd` with the pieces `fluid` (on each step's adapted mesh), `solid` (deformed) and
+//!   `gamma_f` (the coupling elements with the multiplier lambda, the traction of the fluid on the
+//!   solid: see [`crate::io::gamma_f_grid`]);
+//! - `history.csv`: one row per step with the requested quantities and the built-in
+//!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
+//!   integral of the multiplier over gamma_f, plus `coupling_facets`;
+//! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
+//!   gamma_f);
+//! - `summary.json` as for every run.
+//!
+//! Solid boundary values are constant in time in FSI runs (no load factor).
+
+use super::flow::write_profiles;
+use super::record::{march_and_record, RunOutputs, Start};
+use super::{RunError, RunObserver, RunOptions, RunSummary};
+use crate::case::Case;
+use crate::discretize::fsi::{FsiModel, FsiState, FsiStep};
+use crate::io::checkpoint::RestartState;
+use crate::io::fields::{fluid_grid, gamma_f_grid, solid_grid};
+use crate::io::OutputError;
+use crate::post::quantities::{evaluate_all, StepState};
+use crate::setup::{build_mesh, displacement_probes, fsi_model, SetupError};
+use crate::time::fsi::FsiStepper;
+use crate::time::march::StepDone;
+use crate::time::Schedule;
+use fdfsi_fem::gmsh::AnyMesh;
+use fdfsi_fem::mesh::Mesh;
+use fdfsi_fem::vtk::PvdSeries;
+use std::path::Path;
+use std::time::Instant;
+
+/// Runs an FSI case.
+pub fn run_fsi(case: &Case, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    match build_mesh(case, &options.case_dir)? {
+        AnyMesh::D2(m) => run_dim::<2>(case, m, options, obs),
+        AnyMesh::D3(m) => run_dim::<3>(case, m, options, obs),
+    }
+}
+
+fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let ts = case
+        .time
+        .as_ref()
+        .ok_or_else(|| SetupError::from(crate::case::CaseError::Invalid { file: "case".into(), message: "FSI runs need a [time] table".into() }))?;
+    let t = Instant::now();
+    let model = fsi_model(case, &fluid_mesh, &options.case_dir)?;
+    let mesh_seconds = t.elapsed().as_secs_f64();
+    let outputs = FsiOutputs { case, out_dir: &options.out_dir, model: &model, solid_probes: displacement_probes(case, &model.solid)? };
+    let mut lu = case.solver.linear_solver();
+    let start = Start::of(options, obs);
+    let state = match &options.resume {
+        None => FsiState::at_rest(&model),
+        Some(c) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
+    };
+    let mut stepper = FsiStepper::new(&model, &mut lu, case.solver.newton.clone(), state);
+    let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
+    let mut recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, false)?;
+    recorded.timings.mesh = mesh_seconds;
+    let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
+    Ok(recorded.summary(case, D, fluid_mesh.num_cells(), symbolic))
+}
+
+/// The outputs of an FSI run: the fluid's quantities on the step's adapted mesh, the solid's
+/// displacement probes, the built-in coupling quantities; the fluid, solid and gamma_f fields.
+struct FsiOutputs<'a, const D: usize> {
+    case: &'a Case,
+    out_dir: &'a Path,
+    model: &'a FsiModel<D>,
+    /// Displacement probes: (name, solid node, component).
+    solid_probes: Vec<(String, usize, usize)>,
+}
+
+/// The last (sub)step of an FSI stepper: there is one once a step is done.
+fn last_step<'s, const D: usize>(s: &'s FsiStepper<'_, D>) -> &'s FsiStep<D> {
+    s.last.as_ref().expect("outputs are read after a completed step")
+}
+
+impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
+    fn quantities(&mut self, s: &FsiStepper<'_, D>, done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
+        let st = last_step(s);
+        let r = &st.report;
+        let mut known: Vec<(String, f64)> =
+            self.solid_probes.iter().map(|(name, node, a)| (name.clone(), self.model.solid.displacement(&s.state.solid_x, *node)[*a])).collect();
+        let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]);
+        known.extend(self.case.builtin_quantities().into_iter().zip(builtin));
+        let fluid = st.disc.fluid_dofs();
+        let state = StepState { time: done.time, inv_dt: 1.0 / r.dt, u_star: Some(&st.u_old[..fluid]) };
+        let mut values = evaluate_all(&self.case.output, &st.disc.flow, &st.fluid_problem, &st.x[..fluid], &state, &known)?;
+        values.extend(known);
+        Ok(values)
+    }
+
+    fn write_fields(&mut self, s: &FsiStepper<'_, D>, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
+        let (st, time) = (last_step(s), done.time);
+        write_surfaces_picture(st, done.step, self.out_dir)?;
+        series.add(time, "fluid", &fluid_grid(&st.disc.flow, &st.x[..st.disc.fluid_dofs()])?)?;
+        series.add(time, "solid", &solid_grid(&self.model.solid, self.model.problem.solid.material.as_ref(), &s.state.solid_x)?)?;
+        series.add(time, "gamma_f", &gamma_f_grid(&st.disc, &st.x)?)?;
+        Ok(())
+    }
+
+    fn restart(&self, s: &FsiStepper<'_, D>, _done: &StepDone) -> RestartState {
+        RestartState::Fsi(s.state.to_restart())
+    }
+
+    fn dofs(&self, s: &FsiStepper<'_, D>) -> Vec<(String, usize)> {
+        s.last.as_ref().map(|st| st.disc.layout.dofs_per_part()).unwrap_or_default()
+    }
+
+    fn describe_step(&self, s: &FsiStepper<'_, D>, _done: &StepDone, obs: &mut dyn RunObserver) -> String {
+        let r = &last_step(s).report;
+        let (a, sec) = (&r.adapt, &r.seconds);
+        obs.detail(&format!(
+            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells; {} coupling points, max distance to gamma_s {:.2e}",
+            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, r.coupling_points, r.max_coupling_distance
+        ));
+        obs.detail(&format!(
+            "  phases: adapt {:.3} s, build {:.3} s, transfer {:.3} s, newton {:.3} s, update {:.3} s",
+            sec.adapt, sec.build, sec.transfer, sec.newton, sec.update
+        ));
+        format!(
+            "; {} coupling facets, dofs {} + {} + {}; force [{}]",
+            r.coupling_elements,
+            r.fluid_dofs,
+            r.solid_dofs,
+            r.multiplier_dofs,
+            r.multiplier_force.iter().map(|f| format!("{f:.6e}")).collect::<Vec<_>>().join(", ")
+        )
+    }
+
+    fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
+        let st = last_step(s);
+        write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
+        write_speed_picture(self.model, st, &s.state.solid_x, out_dir)
+    }
+}
+
+/// 2D: `speed.png` of the last step around the solid (its bounding box widened by twice its size
+/// on each side, clipped to the fluid mesh), with gamma_f drawn in white.
+fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, solid_x: &[f64], out_dir: &Path) -> Result<(), RunError> {
+    if D != 2 {
+        return Ok(());
+    }
+    let flow = &st.disc.flow;
+    let solid = model.current_solid_mesh(solid_x);
+    let (lo, hi) = fdfsi_fem::mesh::bounding_box(&solid.points);
+    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let window = [[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]];
+    let outlines: Vec<Vec<[f64; 2]>> =
+        st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| [flow.mesh.points[v][0], flow.mesh.points[v][1]]).collect()).collect();
+    let png = out_dir.join("speed.png");
+    crate::io::picture::write_speed_png_window(flow, &st.x[..st.disc.fluid_dofs()], &png, 1600, Some(window), &outlines)
+        .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
+}
+
+/// 3D: `pictures/gamma_step_NNNN.png`, gamma_s (at the start of step `k`, the surface the fluid
+/// mesh was adapted to) and gamma_f of step `k` (see [`crate::io::picture::write_surfaces_png`]).
+fn write_surfaces_picture<const D: usize>(st: &FsiStep<D>, k: usize, out_dir: &Path) -> Result<(), RunError> {
+    if D != 3 {
+        return Ok(());
+    }
+    let lift = |p: &[f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
+    let surface = &st.disc.surface;
+    let gamma_s: Vec<[[f64; 3]; 3]> = (0..surface.num_pieces()).map(|i| std::array::from_fn(|k| lift(&surface.corners(i)[k]))).collect();
+    let points = &st.disc.flow.mesh.points;
+    let gamma_f: Vec<[[f64; 3]; 3]> = st.disc.adapted.gamma_f.iter().map(|g| std::array::from_fn(|k| lift(&points[g.vertices[k]]))).collect();
+    let dir = out_dir.join("pictures");
+    let png = dir.join(format!("gamma_step_{k:04}.png"));
+    let io = |e: std::io::Error| RunError::from(OutputError::Io { path: png.display().to_string(), source: e });
+    std::fs::create_dir_all(&dir).map_err(io)?;
+    crate::io::picture::write_surfaces_png(&png, &gamma_s, &gamma_f, 700).map_err(|m| io(std::io::Error::other(m)))
+}

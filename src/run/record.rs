@@ -1,0 +1,248 @@
+//! What every time-dependent run records, written once for all kinds: the log, a `history.csv`
+//! row per step, the fields every `output_every` steps, checkpoints, and the numbers of
+//! `summary.json`.
+//!
+//! [`march_and_record`] drives a [`Stepper`] with [`march`]; what differs between flow, FSI and
+//! solid runs (their quantities, fields, restart state and dofs) is their [`RunOutputs`].
+
+use super::{log_newton, RunError, RunObserver, RunOptions, RunSummary};
+use crate::case::Case;
+use crate::io::checkpoint::{Checkpoint, Progress, RestartState, CHECKPOINT_VERSION};
+use crate::io::History;
+use crate::time::march::{march, MarchOptions, Schedule, StepDone, Stepper, Watch};
+use crate::time::Timings;
+use fdfsi_fem::vtk::PvdSeries;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+/// The outputs of one kind of run, read from its stepper `S`.
+pub(crate) trait RunOutputs<S> {
+    /// The quantities after a completed step: its `history.csv` row (and `summary.json`'s after
+    /// the last step).
+    fn quantities(&mut self, stepper: &S, done: &StepDone) -> Result<Vec<(String, f64)>, RunError>;
+    /// Adds the state's fields after `done` to the series.
+    fn write_fields(&mut self, stepper: &S, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError>;
+    /// What a checkpoint saves of the state after `done`.
+    fn restart(&self, stepper: &S, done: &StepDone) -> RestartState;
+    /// Unknowns per block of the system (of the last step), without the total.
+    fn dofs(&self, stepper: &S) -> Vec<(String, usize)>;
+    /// The end of the step's log line (after the Newton summary), and detail lines.
+    fn describe_step(&self, _stepper: &S, _done: &StepDone, _obs: &mut dyn RunObserver) -> String {
+        String::new()
+    }
+    /// After the last step: profiles and pictures.
+    fn finish(&mut self, _stepper: &S, _out_dir: &Path, _obs: &mut dyn RunObserver) -> Result<(), RunError> {
+        Ok(())
+    }
+}
+
+/// A run part's starting point: what a new run starts from, or what a checkpoint restores.
+pub(crate) struct Start {
+    /// The first step to take.
+    pub first: usize,
+    /// Phase times so far (of the earlier parts; `total` their wall time).
+    pub timings: Timings,
+    pub newton_iterations: usize,
+    pub residual_norms: Vec<f64>,
+}
+
+impl Start {
+    /// The start of the run, or after the checkpoint of `options` (its history and field series
+    /// are then cut back to its step by [`march_and_record`]).
+    pub fn of(options: &RunOptions, obs: &mut dyn RunObserver) -> Self {
+        match &options.resume {
+            None => Start { first: 1, timings: Timings::default(), newton_iterations: 0, residual_norms: Vec::new() },
+            Some(c) => {
+                obs.log(&format!("resuming after step {} (t = {:.6e}) from {}", c.step, c.time, Checkpoint::path(&options.out_dir).display()));
+                let p = &c.progress;
+                Start {
+                    first: c.step + 1,
+                    timings: p.timings.clone(),
+                    newton_iterations: p.newton_iterations,
+                    residual_norms: p.residual_norms.clone(),
+                }
+            }
+        }
+    }
+}
+
+/// The run's records, as the [`Watch`] of its march.
+struct Recorder<'a, O> {
+    outputs: O,
+    obs: &'a mut dyn RunObserver,
+    options: &'a RunOptions,
+    case_toml: String,
+    history: Option<History>,
+    series: PvdSeries,
+    output_every: usize,
+    last: Vec<(String, f64)>,
+    newton_iterations: usize,
+    residual_norms: Vec<f64>,
+    part_start: Instant,
+}
+
+impl<O> Recorder<'_, O> {
+    /// Evaluates the quantities after `done`, appends the history row and (when due) the fields.
+    fn record<S>(&mut self, stepper: &S, done: &StepDone, fields: bool) -> Result<(), RunError>
+    where
+        O: RunOutputs<S>,
+    {
+        let values = self.outputs.quantities(stepper, done)?;
+        if self.history.is_none() {
+            let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
+            self.history = Some(History::new(&self.options.out_dir.join("history.csv"), &names)?);
+        }
+        let row: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
+        self.history.as_mut().expect("created above").push(done.step, done.time, done.iterations(), done.residual(), &row)?;
+        if fields {
+            self.outputs.write_fields(stepper, done, &mut self.series)?;
+        }
+        self.last = values;
+        Ok(())
+    }
+}
+
+impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
+    type Error = RunError;
+
+    fn step_done(&mut self, stepper: &S, done: &StepDone, _timings: &Timings) -> Result<(), RunError> {
+        for n in &done.newton {
+            log_newton(self.obs, n);
+        }
+        let tail = self.outputs.describe_step(stepper, done, self.obs);
+        self.newton_iterations += done.iterations();
+        self.residual_norms.push(done.residual());
+        let due = done.step % self.output_every == 0 || done.step == done.total;
+        self.record(stepper, done, due)?;
+        let cut = if done.cuts > 0 { format!(" ({} cuts, dt = {:.3e})", done.cuts, done.dt) } else { String::new() };
+        self.obs.log(&format!(
+            "step {}/{} t = {:.6e}: newton {} |R| = {:.2e}{cut}{tail}; {:.2} s elapsed",
+            done.step,
+            done.total,
+            done.time,
+            done.iterations(),
+            done.residual(),
+            self.part_start.elapsed().as_secs_f64()
+        ));
+        self.obs.step(done.step, done.total, done.time);
+        Ok(())
+    }
+
+    fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), RunError> {
+        let options = self.options;
+        let case_dir = std::path::absolute(&options.case_dir).unwrap_or_else(|_| options.case_dir.clone());
+        let builds = crate::io::provenance::builds_so_far(options.resume.as_ref().map_or(&[], |c| &c.builds));
+        let progress = Progress::after_step(self.newton_iterations, &self.residual_norms, timings, self.part_start);
+        let state = self.outputs.restart(stepper, done);
+        let c = Checkpoint {
+            version: CHECKPOINT_VERSION,
+            case: self.case_toml.clone(),
+            case_dir,
+            step: done.step,
+            time: done.time,
+            state,
+            progress,
+            builds,
+        };
+        Ok(c.write(&options.out_dir)?)
+    }
+}
+
+/// What a run part measured, for its [`RunSummary`].
+pub(crate) struct Recorded {
+    pub steps: usize,
+    pub newton_iterations: usize,
+    pub residual_norms: Vec<f64>,
+    pub quantities: Vec<(String, f64)>,
+    pub timings: Timings,
+    pub dofs: Vec<(String, usize)>,
+}
+
+/// Marches `stepper` through `schedule` from `start` and records every step (see the module
+/// documentation). With `record_start`, a new run also records its initial state as step 0.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn march_and_record<S, O>(
+    case: &Case,
+    options: &RunOptions,
+    obs: &mut dyn RunObserver,
+    stepper: &mut S,
+    outputs: O,
+    schedule: &Schedule,
+    output_every: usize,
+    start: Start,
+    record_start: bool,
+) -> Result<Recorded, RunError>
+where
+    S: Stepper,
+    S::Error: Into<super::StepFailure>,
+    O: RunOutputs<S>,
+{
+    let part_start = Instant::now();
+    let (history, series) = match &options.resume {
+        Some(c) => (Some(History::resume(&options.out_dir.join("history.csv"), c.step)?), PvdSeries::resume(&options.out_dir, "solution", c.time)?),
+        None => (None, PvdSeries::new(&options.out_dir, "solution")),
+    };
+    let mut recorder = Recorder {
+        outputs,
+        obs,
+        options,
+        case_toml: case.to_toml(),
+        history,
+        series,
+        output_every: output_every.max(1),
+        last: Vec::new(),
+        newton_iterations: start.newton_iterations,
+        residual_norms: start.residual_norms,
+        part_start,
+    };
+    let mut timings = start.timings;
+    if record_start && options.resume.is_none() {
+        let clock = Instant::now();
+        let done = StepDone { step: 0, total: schedule.num_steps(), time: 0.0, dt: 0.0, cuts: 0, newton: Vec::new(), phases: Timings::default() };
+        recorder.record(stepper, &done, true)?;
+        timings.output += clock.elapsed().as_secs_f64();
+    }
+    let march_options = MarchOptions { checkpoint_every: options.checkpoint_every, stop: options.stop.clone() };
+    march(stepper, schedule, start.first, &march_options, &mut timings, &mut recorder).map_err(|e| RunError::from_march(e, &options.out_dir))?;
+    let clock = Instant::now();
+    recorder.outputs.finish(stepper, &options.out_dir, recorder.obs)?;
+    timings.output += clock.elapsed().as_secs_f64();
+    for (name, v) in &recorder.last {
+        recorder.obs.log(&format!("{name} = {v:.10e}"));
+    }
+    Ok(Recorded {
+        steps: schedule.num_steps(),
+        newton_iterations: recorder.newton_iterations,
+        residual_norms: recorder.residual_norms,
+        quantities: recorder.last,
+        timings,
+        dofs: recorder.outputs.dofs(stepper),
+    })
+}
+
+impl Recorded {
+    /// The summary of a run on `cells` cells of a `dim`-dimensional mesh whose solver did
+    /// `symbolic_factorizations`; dofs get their `total`.
+    pub fn summary(self, case: &Case, dim: usize, cells: usize, symbolic_factorizations: usize) -> RunSummary {
+        let total: usize = self.dofs.iter().map(|(_, n)| n).sum();
+        let mut dofs: BTreeMap<String, usize> = self.dofs.into_iter().collect();
+        dofs.insert("total".into(), total);
+        RunSummary {
+            title: case.title.clone(),
+            formulation: format!("{:?}", case.physics.formulation),
+            dimension: dim,
+            cells,
+            dofs,
+            steps: self.steps,
+            newton_iterations: self.newton_iterations,
+            residual_norms: self.residual_norms,
+            symbolic_factorizations,
+            quantities: self.quantities.into_iter().collect(),
+            timings: self.timings,
+            timings_per_step: None,
+            peak_memory_mib: None,
+            provenance: None,
+        }
+    }
+}

@@ -1,0 +1,24 @@
+//! The FSI model of a case: fluid and solid problems, the coupling surface and the multiplier
+//! space.
+
+use super::{flow_problem, invalid, SetupError};
+use crate::case::Case;
+use crate::discretize::fsi::{FsiModel, FsiProblem};
+use fdfsi_fem::adapt::AdaptOptions;
+use fdfsi_fem::mesh::Mesh;
+
+/// The FSI model of a case on its (original) fluid mesh; relative paths in the case are resolved
+/// against `case_dir`.
+pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::path::Path) -> Result<FsiModel<D>, SetupError> {
+    let spec = case.solid.as_ref().ok_or_else(|| invalid("no [solid] table".into()))?;
+    let ts = case.time.as_ref().ok_or_else(|| invalid("FSI runs need a [time] table".into()))?;
+    if ts.scheme != crate::time::TimeScheme::Euler {
+        return Err(invalid("FSI runs use implicit Euler (the paper's scheme): set time.scheme = \"euler\"".into()));
+    }
+    let surface = spec.surface.clone().ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
+    let fluid = flow_problem(case, fluid_mesh, case_dir)?;
+    let solid_mesh = super::solid_mesh::<D>(spec, case_dir)?;
+    let solid = super::solid_problem::<D>(case, spec, false)?;
+    let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(spec.multiplier))
+}

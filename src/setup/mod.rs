@@ -1,0 +1,196 @@
+//! From a case to the objects of the numerical layers: meshes, flow and solid problems, the FSI
+//! model and the probes. `fdfsi check`, `fdfsi run` and `fdfsi adapt` build them here alike.
+
+use crate::adapt::AdaptedFluid;
+use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, TimeFn};
+use crate::discretize::flow::{DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn};
+use crate::discretize::fsi::FsiError;
+use crate::discretize::solid::SolidError;
+use crate::physics::fluid::FluidParams;
+use fdfsi_fem::adapt::{AdaptError, AdaptOptions, AdaptStats, Background, Surface};
+use fdfsi_fem::generate;
+use fdfsi_fem::gmsh::{read_msh, AnyMesh, GmshError};
+use fdfsi_fem::mesh::{Mesh, Topology};
+use std::path::Path;
+use std::sync::Arc;
+use thiserror::Error;
+
+mod fsi;
+mod solid;
+
+pub use fsi::fsi_model;
+pub use solid::{displacement_probes, material, solid_mesh, solid_problem};
+
+/// A case that cannot be built: what is wrong, and where.
+#[derive(Debug, Error)]
+pub enum SetupError {
+    #[error(transparent)]
+    Case(#[from] CaseError),
+    #[error(transparent)]
+    Gmsh(#[from] GmshError),
+    #[error("{file}: the mesh is {found}D but physics.formulation needs {expected}D")]
+    MeshDimension { file: String, found: usize, expected: usize },
+    #[error(transparent)]
+    Flow(#[from] FlowError),
+    #[error(transparent)]
+    Solid(#[from] SolidError),
+    #[error(transparent)]
+    Fsi(#[from] FsiError),
+    #[error("solid: {0}")]
+    Adapt(#[from] AdaptError),
+    #[error("solid: {0}")]
+    SolidMesh(String),
+}
+
+/// A case error about the case file as a whole (the caller names the file).
+fn invalid(message: String) -> SetupError {
+    SetupError::Case(CaseError::Invalid { file: "case".into(), message })
+}
+
+/// Builds the case's fluid mesh.
+pub fn build_mesh(case: &Case, case_dir: &Path) -> Result<AnyMesh, SetupError> {
+    let spec = case.mesh.as_ref().ok_or_else(|| CaseError::Invalid { file: "case".into(), message: "the case has no fluid [mesh]".into() })?;
+    Ok(match spec {
+        MeshSpec::Rectangle { x, y, n } => {
+            AnyMesh::D2(generate::rectangle_triangles(x[0], x[1], y[0], y[1], n[0], n[1], generate::DiagonalPattern::Alternating))
+        }
+        MeshSpec::Channel { length, height, n, grading } => AnyMesh::D2(generate::channel_triangles(*length, *height, n[0], n[1], *grading)),
+        MeshSpec::Box { x, y, z, n } => AnyMesh::D3(generate::box_tetrahedra(x[0], x[1], y[0], y[1], z[0], z[1], n[0], n[1], n[2])),
+        MeshSpec::Pipe { radius, length, n_radial, n_axial, quarter } => {
+            AnyMesh::D3(generate::pipe_tetrahedra(*radius, *length, *n_radial, *n_axial, *quarter))
+        }
+        MeshSpec::Gmsh { file } => {
+            let path = if file.is_absolute() { file.clone() } else { case_dir.join(file) };
+            let mesh = read_msh(&path)?;
+            let found = match &mesh {
+                AnyMesh::D2(_) => 2,
+                AnyMesh::D3(_) => 3,
+            };
+            if found != case.dim() {
+                return Err(SetupError::MeshDimension { file: path.display().to_string(), found, expected: case.dim() });
+            }
+            mesh
+        }
+    })
+}
+
+/// The fluid mesh of a case: built, and adapted to the solid's surface when the case has one
+/// (the facets on gamma_s then form the boundary `gamma_f`), with the counts of the adaptation.
+pub fn fluid_mesh(case: &Case, case_dir: &Path) -> Result<(AnyMesh, Option<AdaptStats>), SetupError> {
+    let mesh = build_mesh(case, case_dir)?;
+    if case.solid.is_none() {
+        return Ok((mesh, None));
+    }
+    Ok(match mesh {
+        AnyMesh::D2(m) => {
+            let a = adapt_fluid(case, m, case_dir)?.adapted;
+            (AnyMesh::D2(a.mesh), Some(a.stats))
+        }
+        AnyMesh::D3(m) => {
+            let a = adapt_fluid(case, m, case_dir)?.adapted;
+            (AnyMesh::D3(a.mesh), Some(a.stats))
+        }
+    })
+}
+
+/// A vector of compiled expressions, times a time function, as a field of position and time.
+fn vector_fn<const D: usize>(exprs: Vec<Expr>, time: TimeFn) -> VectorFn<D> {
+    Arc::new(move |x: &[f64; D], t: f64| {
+        let s = time.eval(t);
+        std::array::from_fn(|a| s * exprs[a].eval(x, t))
+    })
+}
+
+fn compile_all(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, CaseError> {
+    values.iter().map(|v| Expr::compile(v).map_err(|message| CaseError::Invalid { file: "case".into(), message })).collect()
+}
+
+/// The flow problem a case describes on `mesh`; time-function tables are read relative to
+/// `case_dir`.
+pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path) -> Result<FlowProblem<D>, SetupError> {
+    let mut dirichlet = Vec::new();
+    let mut traction = Vec::new();
+    let all: Vec<usize> = (0..D).collect();
+    let zero: VectorFn<D> = Arc::new(|_: &[f64; D], _| [0.0; D]);
+    // Exterior facets whose normal velocity is not prescribed fix the pressure level.
+    let mut pressure_fixed = false;
+    let mut covered = 0usize;
+    for b in &case.boundary {
+        mesh.boundary_tag(&b.name).map_err(FlowError::from)?;
+        let count = mesh.boundary_facets(&b.name).map_err(FlowError::from)?.len();
+        let bc = |components: Vec<usize>, value: VectorFn<D>| DirichletBc { boundary: b.name.clone(), components, value };
+        let time = match &b.time_function {
+            Some(f) => TimeFn::load(f, case_dir)?,
+            None => TimeFn::Constant,
+        };
+        match b.kind {
+            BoundaryType::Velocity => {
+                dirichlet.push(bc(all.clone(), vector_fn(compile_all(&b.value)?, time)));
+                covered += count;
+            }
+            BoundaryType::NoSlip => {
+                dirichlet.push(bc(all.clone(), zero.clone()));
+                covered += count;
+            }
+            BoundaryType::Axis => {
+                dirichlet.push(bc(vec![1], zero.clone()));
+                covered += count;
+            }
+            BoundaryType::Symmetry => {
+                dirichlet.push(bc(vec![b.normal_axis.unwrap_or(0)], zero.clone()));
+                covered += count;
+            }
+            BoundaryType::Traction => {
+                let f = vector_fn::<D>(compile_all(&b.value)?, time);
+                traction.push(TractionBc { boundary: b.name.clone(), traction: Arc::new(move |x, _n, t| f(x, t)) });
+                pressure_fixed = true;
+            }
+            BoundaryType::Pressure => {
+                let p = compile_all(&b.value)?.remove(0);
+                traction.push(TractionBc {
+                    boundary: b.name.clone(),
+                    traction: Arc::new(move |x: &[f64; D], n: &[f64; D], t| {
+                        let pv = time.eval(t) * p.eval(x, t);
+                        std::array::from_fn(|a| -pv * n[a])
+                    }),
+                });
+                pressure_fixed = true;
+            }
+            BoundaryType::Free => pressure_fixed = true,
+        }
+    }
+    let exterior = Topology::build(mesh).exterior_facets().len();
+    if covered < exterior {
+        pressure_fixed = true; // some boundary is traction-free by default
+    }
+    let body_force = match &case.body_force {
+        Some(f) => Some(vector_fn::<D>(compile_all(f)?, TimeFn::Constant)),
+        None => None,
+    };
+    let fluid = case.fluid.as_ref().ok_or_else(|| CaseError::Invalid { file: "case".into(), message: "the case has no [fluid] table".into() })?;
+    Ok(FlowProblem {
+        formulation: case.physics.formulation,
+        params: FluidParams {
+            viscosity: fluid.viscosity,
+            density: fluid.density,
+            inv_dt: 0.0,
+            convection: case.physics.model == FlowModel::NavierStokes,
+            viscous_form: fluid.viscous_form,
+        },
+        body_force,
+        dirichlet,
+        traction,
+        pin_pressure: !pressure_fixed,
+    })
+}
+
+/// Adapts `fluid` to the case's solid and tags gamma_f on the adapted mesh (which then replaces
+/// `adapted.mesh`'s boundary list with the parent's tags plus `gamma_f`).
+pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path) -> Result<AdaptedFluid<D>, SetupError> {
+    let spec = case.solid.as_ref().ok_or_else(|| SetupError::SolidMesh("the case has no [solid] table".into()))?;
+    let solid = solid_mesh::<D>(spec, case_dir)?;
+    let name = spec.surface.as_deref().ok_or_else(|| SetupError::SolidMesh("solid.surface is not set".into()))?;
+    let surface = Surface::from_mesh_boundary(&solid, name)?;
+    let background = Background::new(&fluid)?;
+    Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat))?)
+}

@@ -1,0 +1,127 @@
+//! The solid of a case: its placed mesh, material law, boundary conditions and probes.
+
+use super::{invalid, SetupError};
+use crate::case::{Case, Expr, ProbeField, SolidBoundaryType, SolidMeshSpec, SolidModel, SolidSpec};
+use crate::discretize::solid::{SolidDiscretization, SolidProblem};
+use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
+use fdfsi_fem::element::ReferenceCell;
+use fdfsi_fem::generate;
+use fdfsi_fem::gmsh::{read_msh, AnyMesh};
+use fdfsi_fem::mesh::{GeometryOrder, Mesh};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Builds the solid mesh of a case at its placed position.
+pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<Mesh<D>, SetupError> {
+    let any = match &solid.mesh {
+        SolidMeshSpec::Rectangle { x, y, n } => AnyMesh::D2(generate::rectangle_quads(x[0], x[1], y[0], y[1], n[0], n[1], GeometryOrder::Quadratic)),
+        SolidMeshSpec::Quadrilateral { corners: c, n } => {
+            // Bilinear image of the unit square: x(s, t) = sum of corners times (1-s)(1-t), s(1-t), st, (1-s)t.
+            let mut m = generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, n[0], n[1], GeometryOrder::Quadratic);
+            for p in m.points.iter_mut() {
+                let (s, t) = (p[0], p[1]);
+                let w = [(1.0 - s) * (1.0 - t), s * (1.0 - t), s * t, (1.0 - s) * t];
+                *p = std::array::from_fn(|d| (0..4).map(|k| w[k] * c[k][d]).sum());
+            }
+            m.check().map_err(|e| SetupError::SolidMesh(format!("solid.mesh corners: {e} (give them counter-clockwise)")))?;
+            AnyMesh::D2(m)
+        }
+        SolidMeshSpec::Box { x, y, z, n } => {
+            AnyMesh::D3(generate::box_hexahedra(x[0], x[1], y[0], y[1], z[0], z[1], n[0], n[1], n[2], GeometryOrder::Quadratic))
+        }
+        SolidMeshSpec::QuarterDisc { radius, z, n_core, n_ring, n_layers } => {
+            AnyMesh::D3(generate::quarter_disc_hexahedra(*radius, z[0], z[1], *n_core, *n_ring, *n_layers))
+        }
+        SolidMeshSpec::Gmsh { file } => read_msh(&case_dir.join(file))?,
+    };
+    let boxed: Box<dyn std::any::Any> = match any {
+        AnyMesh::D2(m) => Box::new(m),
+        AnyMesh::D3(m) => Box::new(m),
+    };
+    let mut mesh = *boxed.downcast::<Mesh<D>>().map_err(|_| SetupError::SolidMesh(format!("the solid mesh is not {D}D")))?;
+    if !matches!(mesh.cell_type, ReferenceCell::Quadrilateral | ReferenceCell::Hexahedron) {
+        return Err(SetupError::SolidMesh(format!("solid meshes must be quadrilaterals or hexahedra, got {:?}", mesh.cell_type)));
+    }
+    place(&mut mesh, solid);
+    Ok(mesh)
+}
+
+/// Applies the case's placement: rotation by `rotate_deg` about `pivot` (2D), then `translate`.
+fn place<const D: usize>(mesh: &mut Mesh<D>, solid: &SolidSpec) {
+    let pivot: [f64; D] = std::array::from_fn(|d| solid.pivot.as_ref().and_then(|p| p.get(d).copied()).unwrap_or(0.0));
+    let shift: [f64; D] = std::array::from_fn(|d| solid.translate.as_ref().and_then(|p| p.get(d).copied()).unwrap_or(0.0));
+    let (s, c) = solid.rotate_deg.to_radians().sin_cos();
+    for p in mesh.points.iter_mut() {
+        if D == 2 && solid.rotate_deg != 0.0 {
+            let (dx, dy) = (p[0] - pivot[0], p[1] - pivot[1]);
+            p[0] = pivot[0] + c * dx - s * dy;
+            p[1] = pivot[1] + s * dx + c * dy;
+        }
+        for d in 0..D {
+            p[d] += shift[d];
+        }
+    }
+}
+
+/// The material law of a solid spec.
+pub fn material(spec: &SolidSpec) -> Result<Arc<dyn SolidMaterial>, SetupError> {
+    let g = spec.shear_modulus.ok_or_else(|| invalid("solid.shear_modulus is required".into()))?;
+    let k = spec.bulk_modulus;
+    let need_k = || k.ok_or_else(|| invalid(format!("solid.model = {:?} needs bulk_modulus", spec.model)));
+    Ok(match spec.model {
+        SolidModel::Fixed => return Err(invalid("solid.model = \"fixed\" has no material law to solve".into())),
+        SolidModel::NeoHookean => match k {
+            None => Arc::new(NeoHookeanMixed::incompressible(g)),
+            Some(k) => Arc::new(NeoHookeanMixed { shear_modulus: g, bulk_modulus: k }),
+        },
+        SolidModel::NeoHookeanCompressible => Arc::new(NeoHookeanCompressible::from_shear_bulk(g, need_k()?)),
+        SolidModel::SaintVenantKirchhoff => {
+            let k = need_k()?;
+            Arc::new(SaintVenantKirchhoff { mu: g, lambda: k - 2.0 * g / 3.0 })
+        }
+    })
+}
+
+fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, SetupError> {
+    values.iter().map(|v| Expr::compile(v).map_err(invalid)).collect()
+}
+
+/// The solid problem of a case: boundary values times the load factor when `ramp` (quasi-static
+/// runs), constant otherwise (FSI runs, where the solver passes the time in the load argument).
+pub fn solid_problem<const D: usize>(case: &Case, spec: &SolidSpec, ramp: bool) -> Result<SolidProblem<D>, SetupError> {
+    let scale = move |load: f64| if ramp { load } else { 1.0 };
+    let mut p = SolidProblem::new(case.physics.formulation, material(spec)?);
+    for b in &spec.boundary {
+        let exprs = compile(&b.value)?;
+        match b.kind {
+            SolidBoundaryType::Displacement => {
+                let comps: Vec<usize> = b.components.clone().unwrap_or_else(|| (0..D).collect());
+                p = p.with_displacement(&b.name, &comps, move |x, load| std::array::from_fn(|a| scale(load) * exprs[a].eval(x, 0.0)));
+            }
+            SolidBoundaryType::Traction => {
+                p = p.with_traction(&b.name, move |x, load| std::array::from_fn(|a| scale(load) * exprs[a].eval(x, 0.0)));
+            }
+            SolidBoundaryType::Pressure => {
+                let value = exprs[0].eval(&[0.0; 3], 0.0);
+                p = p.with_pressure(&b.name, move |load| scale(load) * value);
+            }
+        }
+    }
+    Ok(p)
+}
+
+/// The case's `displacement` probes as (name, solid node, component): each probe point must
+/// be a node of the solid mesh (reference configuration).
+pub fn displacement_probes<const D: usize>(case: &Case, disc: &SolidDiscretization<D>) -> Result<Vec<(String, usize, usize)>, SetupError> {
+    let mut out = Vec::new();
+    for p in case.output.probe.iter().filter(|p| p.field == ProbeField::Displacement) {
+        let x0: [f64; D] = std::array::from_fn(|d| p.point.get(d).copied().unwrap_or(0.0));
+        let node = disc.node_near(&x0);
+        let dist: f64 = (0..D).map(|d| (disc.nodes_x0[node][d] - x0[d]).powi(2)).sum::<f64>().sqrt();
+        if dist > 1e-9 * (1.0 + x0.iter().map(|v| v.abs()).fold(0.0, f64::max)) {
+            return Err(invalid(format!("probe '{}': {:?} is not a node of the solid mesh (nearest is {dist:.3e} away)", p.name, p.point)));
+        }
+        out.push((p.name.clone(), node, p.component));
+    }
+    Ok(out)
+}

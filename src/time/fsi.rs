@@ -1,0 +1,53 @@
+//! FSI runs stepped in time: [`FsiStepper`] takes the monolithic implicit-Euler step of
+//! [`crate::discretize::fsi::step`] (adapt, discretise, transfer, Newton, move the solid) per
+//! (sub)step.
+
+use super::march::{Advance, Stepper};
+use super::Timings;
+use crate::discretize::fsi::{step, FsiError, FsiModel, FsiState, FsiStep};
+use crate::solve::linear::LinearSolver;
+use crate::solve::newton::NewtonOptions;
+
+/// A coupled fluid and solid, advanced step by step.
+pub struct FsiStepper<'a, const D: usize> {
+    pub model: &'a FsiModel<D>,
+    pub solver: &'a mut dyn LinearSolver,
+    pub newton: NewtonOptions,
+    /// The state at the end of the last (sub)step.
+    pub state: FsiState<D>,
+    /// The last (sub)step: its discretisation, solution and report (`None` before the first).
+    pub last: Option<FsiStep<D>>,
+    marked: Option<FsiState<D>>,
+}
+
+impl<'a, const D: usize> FsiStepper<'a, D> {
+    pub fn new(model: &'a FsiModel<D>, solver: &'a mut dyn LinearSolver, newton: NewtonOptions, state: FsiState<D>) -> Self {
+        FsiStepper { model, solver, newton, state, last: None, marked: None }
+    }
+}
+
+impl<const D: usize> Stepper for FsiStepper<'_, D> {
+    type Error = FsiError;
+
+    fn advance(&mut self, t0: f64, t1: f64, _cut: bool) -> Result<Advance, FsiError> {
+        self.state.time = t0;
+        let (mut next, st) = step(self.model, &self.state, t1 - t0, self.solver, &self.newton)?;
+        next.time = t1;
+        let s = &st.report.seconds;
+        let phases = Timings { adapt: s.adapt, discretize: s.build, transfer: s.transfer, ..Default::default() };
+        let newton = st.report.newton.clone();
+        self.state = next;
+        self.last = Some(st);
+        Ok(Advance { newton, phases })
+    }
+
+    fn mark(&mut self) {
+        self.marked = Some(self.state.clone());
+    }
+
+    fn rewind(&mut self) {
+        if let Some(m) = &self.marked {
+            self.state = m.clone();
+        }
+    }
+}

@@ -1,0 +1,238 @@
+//! The one time loop: [`march`] advances a [`Stepper`] (a flow, FSI or solid run) from step to
+//! step and owns what every kind of run shares.
+//!
+//! - The schedule: step `k` ends at `t_k = min(k dt, end)`, whether or not the run was resumed,
+//!   so a resumed run repeats the arithmetic of an uninterrupted one.
+//! - Step cuts: a step that fails is retried as `2^c` equal sub-steps (`c = 1, ..., max_cuts`),
+//!   each marked as a sub-step of a cut step (multistep schemes take an Euler step there); a step
+//!   that still fails is [`MarchError::StepFailed`], naming the step and its time.
+//! - The Ctrl-C stop and checkpoints: after a step, [`Watch::checkpoint`] is called every
+//!   `checkpoint_every` steps and when a stop was requested; a requested stop then ends the march
+//!   with [`MarchError::Interrupted`].
+//! - Phase timers: the phases a stepper reports per step (assembly, factorisation and solve from
+//!   Newton, adaptation, discretisation and transfer), and the time its watch takes (output), are
+//!   summed into [`Timings`].
+//!
+//! What a step means and what is written after it belong to the stepper and the [`Watch`].
+
+use super::Timings;
+use crate::solve::newton::NewtonReport;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+use thiserror::Error;
+
+/// What one solved (sub)step reports.
+#[derive(Clone, Debug, Default)]
+pub struct Advance {
+    /// The Newton solve of the (sub)step.
+    pub newton: NewtonReport,
+    /// Time of the phases besides Newton's (adapt, discretize, transfer); the Newton phases are
+    /// taken from `newton`.
+    pub phases: Timings,
+}
+
+/// A kind of run, advanced one (sub)step at a time by [`march`].
+pub trait Stepper {
+    /// Why a (sub)step failed.
+    type Error: std::error::Error + 'static;
+
+    /// Solves the (sub)step from `t0` to `t1` from the current state and makes its solution the
+    /// current state. `cut` marks the sub-steps of a cut step. After an `Err` the state may be
+    /// anything: [`march`] rewinds it before it tries again.
+    fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, Self::Error>;
+
+    /// Remembers the current state (the start of a step) for [`Stepper::rewind`].
+    fn mark(&mut self);
+
+    /// Returns to the state of the last [`Stepper::mark`].
+    fn rewind(&mut self);
+}
+
+/// The steps of a march: size `dt` up to `end`, and how often a failing step may be cut.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Schedule {
+    pub dt: f64,
+    pub end: f64,
+    /// A failing step is retried in 2, 4, ..., `2^max_cuts` sub-steps.
+    pub max_cuts: usize,
+}
+
+impl Schedule {
+    /// Number of steps to reach `end` (the last one may be shorter).
+    pub fn num_steps(&self) -> usize {
+        num_steps(self.dt, self.end)
+    }
+
+    /// The time at the end of step `k`: `min(k dt, end)`.
+    pub fn time(&self, k: usize) -> f64 {
+        (k as f64 * self.dt).min(self.end)
+    }
+}
+
+/// Number of steps of size `dt` to reach `t_end` (the last one may be shorter).
+pub fn num_steps(dt: f64, t_end: f64) -> usize {
+    (t_end / dt - 1e-9).ceil() as usize
+}
+
+/// A completed step, as the [`Watch`] sees it.
+#[derive(Clone, Debug)]
+pub struct StepDone {
+    /// Step number (1-based, counted from the start of the run).
+    pub step: usize,
+    /// Number of steps of the run.
+    pub total: usize,
+    /// Time at the end of the step.
+    pub time: f64,
+    /// Size of the step's last (sub)step.
+    pub dt: f64,
+    /// How often the step was halved.
+    pub cuts: usize,
+    /// The Newton solves of its (sub)steps.
+    pub newton: Vec<NewtonReport>,
+    /// Its phase times (summed over the sub-steps).
+    pub phases: Timings,
+}
+
+impl StepDone {
+    /// Newton iterations of the step, summed over its sub-steps.
+    pub fn iterations(&self) -> usize {
+        self.newton.iter().map(|r| r.iterations).sum()
+    }
+
+    /// The final residual norm of the step.
+    pub fn residual(&self) -> f64 {
+        self.newton.last().and_then(|r| r.residual_norms.last().copied()).unwrap_or(0.0)
+    }
+}
+
+/// What [`march`] reports to after each step: log, `history.csv`, fields, checkpoints.
+pub trait Watch<S: Stepper> {
+    /// Why writing the results of a step failed.
+    type Error: std::error::Error + 'static;
+
+    /// Called after every completed step, with the stepper at the step's end.
+    fn step_done(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), Self::Error>;
+
+    /// Saves a restart point after `done` (after [`Watch::step_done`]); `timings` are the run's
+    /// phase times so far (output included).
+    fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), Self::Error>;
+}
+
+/// Checkpoints and the stop request of a march.
+#[derive(Clone, Debug, Default)]
+pub struct MarchOptions {
+    /// Call [`Watch::checkpoint`] after every this many steps.
+    pub checkpoint_every: Option<usize>,
+    /// When set (e.g. by a Ctrl-C handler), the march stops after the current step, with a
+    /// checkpoint.
+    pub stop: Option<Arc<AtomicBool>>,
+}
+
+impl MarchOptions {
+    fn stop_requested(&self) -> bool {
+        self.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst))
+    }
+}
+
+/// Why a march ended early.
+#[derive(Debug, Error)]
+pub enum MarchError<E: std::error::Error + 'static, W: std::error::Error + 'static> {
+    #[error("step {step} (t = {time:.6e}) failed after {cuts} time-step cuts: {source}")]
+    StepFailed {
+        step: usize,
+        time: f64,
+        cuts: usize,
+        #[source]
+        source: E,
+    },
+    #[error(transparent)]
+    Watch(W),
+    #[error("stopped after step {step} (t = {time:.6e})")]
+    Interrupted { step: usize, time: f64 },
+    #[error("time step must be positive and end time after start, got dt = {dt}, end = {end}")]
+    BadSchedule { dt: f64, end: f64 },
+}
+
+/// Advances `stepper` from the end of step `first - 1` (time `schedule.time(first - 1)`; `first =
+/// 1` for a new run) to the end of the schedule (see the module documentation). `timings` holds
+/// the phase times so far and receives each step's.
+pub fn march<S: Stepper, W: Watch<S>>(
+    stepper: &mut S,
+    schedule: &Schedule,
+    first: usize,
+    options: &MarchOptions,
+    timings: &mut Timings,
+    watch: &mut W,
+) -> Result<(), MarchError<S::Error, W::Error>> {
+    if !(schedule.dt > 0.0 && schedule.end > 0.0) {
+        return Err(MarchError::BadSchedule { dt: schedule.dt, end: schedule.end });
+    }
+    let total = schedule.num_steps();
+    for step in first.max(1)..=total {
+        let (t0, t1) = (schedule.time(step - 1), schedule.time(step));
+        let done = advance_step(stepper, step, total, t0, t1, schedule.max_cuts)?;
+        timings.add(&done.phases);
+        // A stop requested while the step's results are written is seen after the next step.
+        let stop = options.stop_requested();
+        let clock = Instant::now();
+        watch.step_done(stepper, &done, timings).map_err(MarchError::Watch)?;
+        timings.output += clock.elapsed().as_secs_f64();
+        if stop || options.checkpoint_every.is_some_and(|n| n > 0 && step % n == 0) {
+            let clock = Instant::now();
+            watch.checkpoint(stepper, &done, timings).map_err(MarchError::Watch)?;
+            timings.output += clock.elapsed().as_secs_f64();
+        }
+        if stop {
+            return Err(MarchError::Interrupted { step, time: t1 });
+        }
+    }
+    Ok(())
+}
+
+/// Step `step` from `t0` to `t1`: whole, or cut into `2^c` sub-steps when it fails.
+fn advance_step<S: Stepper, W: std::error::Error>(
+    stepper: &mut S,
+    step: usize,
+    total: usize,
+    t0: f64,
+    t1: f64,
+    max_cuts: usize,
+) -> Result<StepDone, MarchError<S::Error, W>> {
+    let mut done = StepDone { step, total, time: t1, dt: t1 - t0, cuts: 0, newton: Vec::new(), phases: Timings::default() };
+    stepper.mark();
+    let mut failure = match stepper.advance(t0, t1, false) {
+        Ok(a) => {
+            done.record(a);
+            return Ok(done);
+        }
+        Err(e) => e,
+    };
+    'cuts: for cuts in 1..=max_cuts {
+        let parts = 1usize << cuts;
+        let h = (t1 - t0) / parts as f64;
+        (done.cuts, done.dt) = (cuts, h);
+        done.newton.clear();
+        stepper.rewind();
+        for k in 1..=parts {
+            let (a, b) = (t0 + (k - 1) as f64 * h, if k == parts { t1 } else { t0 + k as f64 * h });
+            match stepper.advance(a, b, true) {
+                Ok(adv) => done.record(adv),
+                Err(e) => {
+                    failure = e;
+                    continue 'cuts;
+                }
+            }
+        }
+        return Ok(done);
+    }
+    Err(MarchError::StepFailed { step, time: t1, cuts: max_cuts, source: failure })
+}
+
+impl StepDone {
+    fn record(&mut self, a: Advance) {
+        self.phases.add(&a.phases);
+        self.phases.add_newton(&a.newton);
+        self.newton.push(a.newton);
+    }
+}

@@ -1,0 +1,60 @@
+//! Time integration: the schemes, the steppers of each kind of run and the one time loop,
+//! [`march`], that drives them.
+//!
+//! The fluid schemes are written as `rho a0/dt (u^{n+1} - u*)`:
+//! - implicit Euler: `a0 = 1`, `u* = u^n`;
+//! - BDF2: `(3 u^{n+1} - 4 u^n + u^{n-1}) / (2 dt)`, so `a0 = 3/2`, `u* = (4 u^n - u^{n-1}) / 3`;
+//!
+//! so the fluid kernel's `inv_dt (u - u_old)` term serves both with `inv_dt = a0/dt`,
+//! `u_old = u*`. BDF2 starts with one Euler step (it needs two time levels), and takes Euler
+//! steps again in the sub-steps of a cut step and the step after it, since its formula assumes
+//! equal steps. FSI runs use implicit Euler throughout (the paper's).
+//!
+//! The steppers: [`flow::FlowStepper`] (a flow on one mesh), [`fsi::FsiStepper`] (the monolithic
+//! FSI step of [`crate::discretize::fsi`]) and [`solid::QuasiStaticStepper`] (load increments of
+//! a solid; the "time" is the load factor).
+
+use serde::{Deserialize, Serialize};
+
+pub mod flow;
+pub mod fsi;
+pub mod march;
+pub mod solid;
+mod timings;
+
+pub use flow::{solve_unsteady, solve_unsteady_from, StepReport, TimeError, TimeOptions};
+pub use march::{march, num_steps, Schedule};
+pub use timings::Timings;
+
+/// Time-integration scheme.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TimeScheme {
+    /// Implicit (backward) Euler, first order: the paper's scheme.
+    #[default]
+    Euler,
+    /// Second-order backward differentiation.
+    Bdf2,
+}
+
+/// Where a flow's time loop stands after a completed step: what a restart needs besides the
+/// solution itself.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TimeLevel {
+    /// Completed steps (0 at the start).
+    pub step: usize,
+    /// Time reached.
+    pub time: f64,
+    /// The solution one step back, `u^{n-1}`, when the next step may use BDF2 (`None` at the
+    /// start and after a cut step).
+    pub x_prev: Option<Vec<f64>>,
+}
+
+/// `(a0 / dt, u*)` of a step of size `dt` from `x_n` (see the module doc): BDF2 when `scheme` is
+/// BDF2 and the previous level `x_prev` is known, implicit Euler otherwise.
+pub fn step_history(scheme: TimeScheme, dt: f64, x_n: &[f64], x_prev: Option<&[f64]>) -> (f64, Vec<f64>) {
+    match (scheme, x_prev) {
+        (TimeScheme::Bdf2, Some(xp)) => (1.5 / dt, x_n.iter().zip(xp).map(|(a, b)| (4.0 * a - b) / 3.0).collect()),
+        _ => (1.0 / dt, x_n.to_vec()),
+    }
+}
