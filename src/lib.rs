@@ -13,7 +13,7 @@
 //! - [`discretize`]: dof maps, patterns and assembly of the flow, the solid and the monolithic
 //!   FSI system with its named block layout (sections 2.1-2.2);
 //! - [`time`]: time schemes, the steppers of each kind of run and the one time loop that drives
-//!   them ([`time::march`]);
+//!   them ([`time::march::march`]);
 //! - [`verify`]: convergence studies against exact solutions.
 //!
 //! A run then goes case -> setup -> (adapt, discretize, solve, time) -> post/io:

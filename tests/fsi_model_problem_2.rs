@@ -137,6 +137,7 @@ fn eval_u(flow: &FlowDiscretization<2>, x: &[f64], c: usize, p: [f64; 2]) -> [f6
     u
 }
 
+#[allow(clippy::too_many_arguments)]
 fn diagnose(
     flow: &FlowDiscretization<2>,
     x: &[f64],

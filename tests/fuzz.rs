@@ -213,11 +213,14 @@ fn ops(max: usize) -> impl Strategy<Value = Vec<Op>> {
     proptest::collection::vec((any::<u8>(), any::<u32>(), any::<u32>()), 1..max)
 }
 
+/// Named strategies of inputs `(bytes, k)`.
+type Strategies = Vec<(&'static str, BoxedStrategy<(Vec<u8>, usize)>)>;
+
 /// Inputs `(bytes, k)`: arbitrary bytes and soups of `tokens` (`k = usize::MAX`), and
 /// mutations of `seeds` (`k` the seed's index): of the valid ones (the first `valid`; one to
 /// three edits, so that many stay close to valid and reach the later checks), and of all
 /// (malformed corpus entries; up to five edits).
-fn inputs(seeds: Vec<Vec<u8>>, valid: usize, tokens: &'static [&'static str]) -> Vec<(&'static str, BoxedStrategy<(Vec<u8>, usize)>)> {
+fn inputs(seeds: Vec<Vec<u8>>, valid: usize, tokens: &'static [&'static str]) -> Strategies {
     let bytes = proptest::collection::vec(any::<u8>(), 0..1024).prop_map(|b| (b, usize::MAX)).boxed();
     let soup = proptest::collection::vec(proptest::sample::select(tokens), 0..200).prop_map(|t| (t.concat().into_bytes(), usize::MAX)).boxed();
     let n = seeds.len();
@@ -231,11 +234,7 @@ fn inputs(seeds: Vec<Vec<u8>>, valid: usize, tokens: &'static [&'static str]) ->
 /// Runs `check` on the inputs of every strategy: one round of [`cases_per_round`] each with a
 /// fixed seed, then, while `FDFSI_FUZZ_SECONDS` lasts, rounds with fresh seeds. Returns the
 /// number of inputs run.
-fn fuzz(
-    name: &str,
-    strategies: Vec<(&'static str, BoxedStrategy<(Vec<u8>, usize)>)>,
-    check: impl Fn(&[u8], usize) -> Result<(), TestCaseError>,
-) -> usize {
+fn fuzz(name: &str, strategies: Strategies, check: impl Fn(&[u8], usize) -> Result<(), TestCaseError>) -> usize {
     let seconds = env_usize("FDFSI_FUZZ_SECONDS").unwrap_or(0);
     let start = Instant::now();
     let mut total = 0usize;

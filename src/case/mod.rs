@@ -930,7 +930,7 @@ fn intervals(table: &str, axes: &[(&str, &[f64; 2])], problems: &mut Vec<String>
 
 /// Cell counts: each >= 1, and `per_cell` times their product at most [`MAX_GENERATED_CELLS`].
 fn cell_counts(what: &str, n: &[usize], per_cell: usize, problems: &mut Vec<String>) {
-    if n.iter().any(|&k| k == 0) {
+    if n.contains(&0) {
         problems.push(format!("{what}: cell counts must be >= 1, got {n:?}"));
         return;
     }

@@ -224,6 +224,7 @@ impl<const D: usize> FlowDiscretization<D> {
 
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the flow problem at time `t`; rows of the
     /// constrained dofs become identity rows with zero right-hand side.
+    #[allow(clippy::too_many_arguments, reason = "the state, the history, the time and the constraints of one system")]
     pub fn assemble_system(
         &self,
         problem: &FlowProblem<D>,

@@ -809,6 +809,7 @@ pub struct SolidErrors {
 
 /// Exact fields for [`solid_errors`]: displacement `u(X)` and gradient `Grad u`, and optionally
 /// the pressure `p(X)` in the kernel's convention.
+#[allow(clippy::type_complexity, reason = "the exact fields as functions of position, written out")]
 pub struct ExactSolid<'a, const D: usize> {
     pub displacement: &'a dyn Fn(&[f64; D]) -> [f64; D],
     pub gradient: &'a dyn Fn(&[f64; D]) -> [[f64; D]; D],

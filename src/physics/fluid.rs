@@ -205,6 +205,7 @@ pub fn fluid_cell<const D: usize>(
 
 /// Traction (Neumann) facet kernel: subtracts `int_facet t . v (r)` from the residual rows of the
 /// velocity. `phi` at each point comes from `fv`; `traction(x, n)` gives `t`.
+#[allow(clippy::type_complexity, reason = "the traction as a function of position and normal")]
 pub fn traction_facet<const D: usize>(
     fv: &fdfsi_fem::values::FacetValues<D>,
     formulation: Formulation,

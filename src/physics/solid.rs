@@ -559,6 +559,7 @@ pub fn area_vector<const D: usize>(x: &[[f64; D]], pt: &FacetPoint<'_>, orientat
 /// i.e. the traction `-p n` on the deformed surface. Adds the residual to `re` (`nu` entries)
 /// and its exact derivative with respect to the nodal positions to `ke` (`nu x nu`, row stride
 /// `stride`). Allocation-free.
+#[allow(clippy::too_many_arguments, reason = "a kernel: its inputs are the facet's data, as in the formula")]
 pub fn follower_pressure_facet<const D: usize>(
     formulation: Formulation,
     x: &[[f64; D]],

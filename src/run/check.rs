@@ -293,7 +293,7 @@ impl Ctx<'_> {
             Some(ts) => {
                 let steps = num_steps(ts.dt, ts.end);
                 let every = ts.output_every.max(1);
-                (steps, "time steps", 1 + steps / every + usize::from(steps % every != 0), steps + 1)
+                (steps, "time steps", 1 + steps / every + usize::from(!steps.is_multiple_of(every)), steps + 1)
             }
         };
         Ok(CheckSummary {

@@ -5,7 +5,7 @@
 //! velocity, solves fluid, solid and multiplier in one Newton solve and moves the solid. Results:
 //! - `solution.pvd` with the pieces `fluid` (on each step's adapted mesh), `solid` (deformed) and
 //!   `gamma_f` (the coupling elements with the multiplier lambda, the traction of the fluid on the
-//!   solid: see [`crate::io::gamma_f_grid`]);
+//!   solid: see [`crate::io::fields::gamma_f_grid`]);
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
 //!   integral of the multiplier over gamma_f, plus `coupling_facets`;

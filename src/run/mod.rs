@@ -5,7 +5,7 @@
 //! meshes and problems ([`crate::setup`]), and marches one of three kinds of stepper
 //! ([`crate::time`]): flow ([`flow`]), FSI ([`fsi`]) or a solid alone ([`solid`]). What every
 //! kind records (log, `history.csv`, fields, checkpoints, the numbers of `summary.json`) is
-//! written once, in [`record`]. Each phase runs inside a named timer whose seconds go to
+//! written once, in `record`. Each phase runs inside a named timer whose seconds go to
 //! `summary.json`.
 
 use crate::case::{Case, CaseError, RunKind};

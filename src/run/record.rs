@@ -113,7 +113,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
         let tail = self.outputs.describe_step(stepper, done, self.obs);
         self.newton_iterations += done.iterations();
         self.residual_norms.push(done.residual());
-        let due = done.step % self.output_every == 0 || done.step == done.total;
+        let due = done.step.is_multiple_of(self.output_every) || done.step == done.total;
         self.record(stepper, done, due)?;
         let cut = if done.cuts > 0 { format!(" ({} cuts, dt = {:.3e})", done.cuts, done.dt) } else { String::new() };
         self.obs.log(&format!(

@@ -107,7 +107,7 @@ pub struct FactorStats {
     pub ordering_seconds: f64,
     pub symbolic_seconds: f64,
     /// Unknowns that remove multiplier modes (zero diagonal, zero-diagonal neighbours only), and
-    /// of those the ones in the supernode of their last multiplier ([`merge_supernodes`]).
+    /// of those the ones in the supernode of their last multiplier (`merge_supernodes`).
     pub mode_unknowns: usize,
     pub mode_unknowns_joined: usize,
 }
@@ -143,7 +143,7 @@ pub trait LinearSolver {
 /// Which factorisation [`FaerLu`] uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum LuMethod {
-    /// The static-structure supernodal LU ([`StaticLu`]) with a constrained symmetric ordering,
+    /// The static-structure supernodal LU (`StaticLu`) with a constrained symmetric ordering,
     /// falling back to faer's partial-pivoting LU when it fails or its accuracy check does.
     #[default]
     Auto,
@@ -195,7 +195,7 @@ impl PivotingLu {
 /// nonsingular when `K` is (positive real) and `B` has full rank, so no pivot is structurally
 /// zero. Where `B` lacks rank (the multiplier modes of an FSI system, which pair with no
 /// velocity), the unknown that constrains a mode shares the diagonal block of the mode's last
-/// multiplier ([`merge_supernodes`]). Pivoting is partial inside each supernode's diagonal block
+/// multiplier (`merge_supernodes`). Pivoting is partial inside each supernode's diagonal block
 /// only, so the structure is static.
 struct StaticSymbolic {
     n: usize,
@@ -695,7 +695,7 @@ enum Active {
 
 /// The sparse LU behind [`LinearSolver`], with the symbolic factorisation cached per pattern.
 ///
-/// [`LuMethod::Auto`] (the default) uses [`StaticLu`]: a supernodal LU on the symmetric structure
+/// [`LuMethod::Auto`] (the default) uses `StaticLu`: a supernodal LU on the symmetric structure
 /// of the pattern with a constrained fill-reducing ordering ([`LinearSolverOptions::ordering`],
 /// nested dissection by default; pressure and multiplier dofs after their velocity neighbours)
 /// and pivoting inside supernode diagonal blocks. Its fill is that of a Cholesky factor of `A`,

@@ -1,5 +1,5 @@
 //! Time integration: the schemes, the steppers of each kind of run and the one time loop,
-//! [`march`], that drives them.
+//! [`march::march`], that drives them.
 //!
 //! The fluid schemes are written as `rho a0/dt (u^{n+1} - u*)`:
 //! - implicit Euler: `a0 = 1`, `u* = u^n`;

@@ -1,5 +1,5 @@
 //! A solid alone, loaded quasi-statically: [`QuasiStaticStepper`] takes one load increment per
-//! step of [`super::march`], whose "time" is the load factor (0 to 1).
+//! step of [`super::march::march`], whose "time" is the load factor (0 to 1).
 
 use super::march::{Advance, Stepper};
 use super::Timings;

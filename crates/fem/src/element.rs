@@ -17,7 +17,7 @@
 //! | `q1_hexahedron`, `q2_hexahedron` | `[0,1]^3` | 8, 27 | Q1, Q2 (solid velocity, 3D) |
 //!
 //! Node order follows VTK (and so the quadratic cells write straight to `.vtu`): vertices, then
-//! edge midpoints in [`ReferenceCell::edges`] order, then face nodes in [`ReferenceCell::facets`]
+//! edge midpoints in [`ReferenceCell::edges`] order, then face nodes in [`ReferenceCell::facet`]
 //! order (tetrahedron) or VTK's face order (hexahedron), then the interior node.
 //!
 //! The P1-discontinuous pressure (value and gradient, `{1, x - x_c, y - y_c[, z - z_c]}` in
@@ -414,10 +414,8 @@ fn bary<const D: usize>(xi: &[f64; D]) -> ([f64; 4], [[f64; D]; 4]) {
 
 fn raw_p1_simplex<const D: usize>(xi: &[f64; D], v: &mut [f64], g: &mut [[f64; D]]) {
     let (l, dl) = bary(xi);
-    for i in 0..=D {
-        v[i] = l[i];
-        g[i] = dl[i];
-    }
+    v[..=D].copy_from_slice(&l[..=D]);
+    g[..=D].copy_from_slice(&dl[..=D]);
 }
 
 /// P2 on a simplex in Lagrange form: vertex `l_i (2 l_i - 1)`, edge `4 l_a l_b`.

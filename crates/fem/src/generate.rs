@@ -370,7 +370,7 @@ impl QuarterDiscSection {
                 let u = unit_vector(j, segs, true);
                 [radius * u[0], radius * u[1]]
             };
-            if k % 2 == 0 {
+            if k.is_multiple_of(2) {
                 v(k / 2)
             } else {
                 let (p, q) = (v(k / 2), v(k / 2 + 1));
