@@ -48,6 +48,7 @@ use fdfsi_fem::quadrature;
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use fdfsi_fem::values::det_inv;
 use serde::{Deserialize, Serialize};
+use std::sync::Mutex;
 use std::time::Instant;
 use thiserror::Error;
 
@@ -403,8 +404,34 @@ pub struct FsiDiscretization<const D: usize> {
     pub pattern: Pattern,
     flow_map: Vec<usize>,
     solid_map: Vec<usize>,
+    /// The values of the fluid and the solid block matrices, reused by every assembly.
+    block_values: [Mutex<Vec<f64>>; 2],
     /// Seconds spent on gamma_s and the adaptation in [`Self::build`].
     pub adapt_seconds: f64,
+}
+
+/// Assembles a block on `pattern` into `values` (reused from call to call: no allocation after
+/// the first) and adds it into `k` at the positions `map`.
+fn add_block<E>(
+    values: &Mutex<Vec<f64>>,
+    pattern: &Pattern,
+    map: &[usize],
+    k: &mut CscMatrix<'_>,
+    assemble: impl FnOnce(&mut CscMatrix<'_>) -> Result<(), E>,
+) -> Result<(), E> {
+    let mut kb = CscMatrix { pattern, values: values.lock().map(|mut v| std::mem::take(&mut *v)).unwrap_or_default() };
+    kb.values.clear();
+    kb.values.resize(pattern.nnz(), 0.0);
+    let result = assemble(&mut kb);
+    if result.is_ok() {
+        for (v, &pos) in kb.values.iter().zip(map) {
+            k.values[pos] += v;
+        }
+    }
+    if let Ok(mut v) = values.lock() {
+        *v = kb.values;
+    }
+    result
 }
 
 /// Positions in `global` of the entries of `local` shifted by `offset` on both indices.
@@ -528,6 +555,7 @@ impl<const D: usize> FsiDiscretization<D> {
             pattern,
             flow_map,
             solid_map,
+            block_values: Default::default(),
             adapt_seconds,
         })
     }
@@ -647,29 +675,16 @@ impl<const D: usize> FsiDiscretization<D> {
     ) -> Result<(), FsiAssemblyError> {
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
         // Fluid block.
-        let mut kb = CscMatrix::zeros(&self.flow.pattern);
-        self.flow.assemble_system(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], &mut kb, &mut rhs[..os])?;
-        for (v, &pos) in kb.values.iter().zip(&self.flow_map) {
-            k.values[pos] += v;
-        }
+        add_block(&self.block_values[0], &self.flow.pattern, &self.flow_map, k, |kb| {
+            self.flow.assemble_system(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], kb, &mut rhs[..os])
+        })?;
         // Solid block (updated Lagrangian: increment from X + u_n, F_n per point).
-        let mut kb = CscMatrix::zeros(&model.solid.pattern);
         let inertia =
             input.solid_target.filter(|_| model.problem.solid.density > 0.0).map(|t| (model.problem.solid.density / (input.dt * input.dt), t));
-        model.solid.assemble_system(
-            &model.problem.solid,
-            input.time,
-            Some(input.solid_base),
-            Some(input.solid_f),
-            inertia,
-            &x[os..ol],
-            &constrained[os..ol],
-            &mut kb,
-            &mut rhs[os..ol],
-        )?;
-        for (v, &pos) in kb.values.iter().zip(&self.solid_map) {
-            k.values[pos] += v;
-        }
+        add_block(&self.block_values[1], &model.solid.pattern, &self.solid_map, k, |kb| {
+            let (base, f) = (Some(input.solid_base), Some(input.solid_f));
+            model.solid.assemble_system(&model.problem.solid, input.time, base, f, inertia, &x[os..ol], &constrained[os..ol], kb, &mut rhs[os..ol])
+        })?;
         // Coupling.
         let c = &self.coupling;
         let with_mode = !c.mode.is_empty();

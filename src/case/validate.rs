@@ -1,0 +1,393 @@
+//! [`Case::validate`]: the range and consistency checks that need no mesh, one function per table
+//! of the case file. The problems are collected in the order the tables are checked.
+
+use super::{
+    spelled, BoundaryIntegralKind, BoundaryType, Case, CaseError, Expr, MeshSpec, ProbeField, RunKind, Scalar, SolidBoundaryType, SolidMeshSpec,
+    SolidModel, SolidSpec, TimeFunction, MAX_GENERATED_CELLS, MAX_STEPS,
+};
+use crate::discretize::fsi::MultiplierSpace;
+use crate::physics::fluid::Formulation;
+use crate::time::TimeScheme;
+use std::collections::HashSet;
+
+impl Case {
+    /// Range and consistency checks that need no mesh. Returns every problem found.
+    pub fn validate(&self, file: &str) -> Result<(), CaseError> {
+        let mut problems = Problems(Vec::new());
+        fluid(self, &mut problems);
+        mesh(self, &mut problems);
+        boundaries(self, &mut problems);
+        body_force(self, &mut problems);
+        output(self, &mut problems);
+        solid(self, &mut problems);
+        time(self, &mut problems);
+        boundary_time_functions(self, &mut problems);
+        solver(self, &mut problems);
+        if problems.0.is_empty() {
+            Ok(())
+        } else {
+            Err(CaseError::Invalid { file: file.to_string(), message: problems.0.join("\n  ") })
+        }
+    }
+}
+
+/// The problems found so far, in the order found.
+struct Problems(Vec<String>);
+
+impl Problems {
+    /// Records a problem.
+    fn push(&mut self, message: impl Into<String>) {
+        self.0.push(message.into());
+    }
+
+    /// `v` must be a positive finite number.
+    fn positive(&mut self, v: f64, what: &str) {
+        if !(v > 0.0 && v.is_finite()) {
+            self.push(format!("{what} must be a positive number, got {v}"));
+        }
+    }
+
+    /// Each `(name, [lo, hi])` must be an increasing interval of finite numbers.
+    fn intervals(&mut self, table: &str, axes: &[(&str, &[f64; 2])]) {
+        for (name, [lo, hi]) in axes {
+            if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+                self.push(format!("{table}.{name} = [{lo}, {hi}] must be an increasing interval [lo, hi] of finite numbers"));
+            }
+        }
+    }
+
+    /// Cell counts: each >= 1, and `per_cell` times their product at most [`MAX_GENERATED_CELLS`].
+    fn cell_counts(&mut self, what: &str, n: &[usize], per_cell: usize) {
+        if n.contains(&0) {
+            self.push(format!("{what}: cell counts must be >= 1, got {n:?}"));
+            return;
+        }
+        let cells = n.iter().try_fold(per_cell, |acc, &k| acc.checked_mul(k));
+        if cells.is_none_or(|c| c > MAX_GENERATED_CELLS) {
+            self.push(format!("{what} = {n:?} makes more than {MAX_GENERATED_CELLS} cells"));
+        }
+    }
+}
+
+/// `[fluid]`: required with a fluid `[mesh]`; without one, a solid-only run needs a material model.
+fn fluid(c: &Case, p: &mut Problems) {
+    match (&c.mesh, &c.fluid, &c.solid) {
+        (Some(_), Some(f), _) => {
+            p.positive(f.density, "fluid.density");
+            p.positive(f.viscosity, "fluid.viscosity");
+        }
+        (Some(_), None, _) => p.push("a fluid mesh needs a [fluid] table (density, viscosity)"),
+        (None, _, Some(s)) if s.model != SolidModel::Fixed => {}
+        (None, _, _) => p.push("give a fluid [mesh], or a [solid] with a material model for a solid-only run"),
+    }
+}
+
+/// `[mesh]`: the generator's parameters, and its dimension against `physics.formulation`.
+fn mesh(c: &Case, p: &mut Problems) {
+    let Some(mesh) = &c.mesh else { return };
+    let mesh_dim = match mesh {
+        MeshSpec::Rectangle { x, y, n } => {
+            p.intervals("mesh", &[("x", x), ("y", y)]);
+            p.cell_counts("mesh.n", n, 2);
+            2
+        }
+        MeshSpec::Channel { length, height, n, grading } => {
+            p.positive(*length, "mesh.length");
+            p.positive(*height, "mesh.height");
+            p.positive(*grading, "mesh.grading");
+            p.cell_counts("mesh.n", n, 2);
+            2
+        }
+        MeshSpec::Box { x, y, z, n } => {
+            p.intervals("mesh", &[("x", x), ("y", y), ("z", z)]);
+            p.cell_counts("mesh.n", n, 6);
+            3
+        }
+        MeshSpec::Pipe { radius, length, n_radial, n_axial, .. } => {
+            p.positive(*radius, "mesh.radius");
+            p.positive(*length, "mesh.length");
+            if *n_radial == 0 || *n_axial == 0 {
+                p.push("mesh: n_radial and n_axial must be >= 1");
+            }
+            // About 6 n_radial^2 tetrahedra per layer.
+            p.cell_counts("mesh: n_radial^2 x n_axial", &[*n_radial, *n_radial, *n_axial], 6);
+            3
+        }
+        MeshSpec::Gmsh { .. } => return,
+    };
+    if mesh_dim != c.dim() {
+        p.push(format!(
+            "physics.formulation = {} needs a {}D mesh, but the mesh generator makes {mesh_dim}D meshes",
+            spelled(&c.physics.formulation),
+            c.dim()
+        ));
+    }
+}
+
+/// `[[boundary]]`: value counts per type, axis and symmetry conditions, expressions, unique names.
+fn boundaries(c: &Case, p: &mut Problems) {
+    let d = c.dim();
+    for b in &c.boundary {
+        let k = match b.kind {
+            BoundaryType::Velocity | BoundaryType::Traction => d,
+            BoundaryType::Pressure => 1,
+            _ => 0,
+        };
+        if b.value.len() != k {
+            p.push(format!(
+                "boundary '{}' (type = {}): `value` needs {k} entr{}, got {}",
+                b.name,
+                spelled(&b.kind),
+                if k == 1 { "y" } else { "ies" },
+                b.value.len()
+            ));
+        }
+        if b.kind == BoundaryType::Axis && c.physics.formulation != Formulation::Axisymmetric {
+            p.push(format!("boundary '{}': type = \"axis\" only applies to axisymmetric runs", b.name));
+        }
+        if b.kind == BoundaryType::Symmetry && !matches!(b.normal_axis, Some(a) if a < d) {
+            p.push(format!("boundary '{}': type = \"symmetry\" needs normal_axis in 0..{d}", b.name));
+        }
+        for v in &b.value {
+            if let Err(e) = Expr::compile(v) {
+                p.push(format!("boundary '{}': {e}", b.name));
+            }
+            if matches!(v, Scalar::Number(x) if !x.is_finite()) {
+                p.push(format!("boundary '{}': `value` entries must be finite numbers", b.name));
+            }
+        }
+    }
+    let mut names = HashSet::new();
+    for b in &c.boundary {
+        if !names.insert(&b.name) {
+            p.push(format!("boundary '{}' is given twice", b.name));
+        }
+    }
+}
+
+/// `[[boundary]]` `time_function`: its duration, period or rise must be positive.
+fn boundary_time_functions(c: &Case, p: &mut Problems) {
+    for b in &c.boundary {
+        match &b.time_function {
+            Some(TimeFunction::Ramp { duration: v })
+            | Some(TimeFunction::Sine { period: v, .. })
+            | Some(TimeFunction::QuarterSineHold { rise: v }) => {
+                p.positive(*v, &format!("boundary '{}': time_function duration/period/rise", b.name))
+            }
+            _ => {}
+        }
+    }
+}
+
+/// `body_force`: one expression per dimension.
+fn body_force(c: &Case, p: &mut Problems) {
+    let Some(f) = &c.body_force else { return };
+    let d = c.dim();
+    if f.len() != d {
+        p.push(format!("body_force needs {d} entries, got {}", f.len()));
+    }
+    for v in f {
+        if let Err(e) = Expr::compile(v) {
+            p.push(format!("body_force: {e}"));
+        }
+    }
+}
+
+/// `[output]`: probes, domain quantities, boundary integrals and combinations (with the `[time]`
+/// checks of an FSI run between them, where they have always been reported).
+fn output(c: &Case, p: &mut Problems) {
+    probes(c, p);
+    if c.mesh.is_none() {
+        for q in &c.output.domain {
+            p.push(format!("domain quantity '{}': needs a fluid [mesh]", q.name));
+        }
+    }
+    fsi_time(c, p);
+    let d = c.dim();
+    for b in &c.output.boundary_integral {
+        if b.kind == BoundaryIntegralKind::Force && b.component >= d {
+            p.push(format!("boundary_integral '{}': component must be < {d}", b.name));
+        }
+    }
+    combinations(c, p);
+}
+
+/// `[[output.probe]]`: point, field and component.
+fn probes(c: &Case, p: &mut Problems) {
+    let d = c.dim();
+    let moving_solid = c.solid.as_ref().is_some_and(|s| s.model != SolidModel::Fixed);
+    for probe in &c.output.probe {
+        if probe.point.len() != d {
+            p.push(format!("probe '{}': point needs {d} coordinates", probe.name));
+        }
+        if probe.point.iter().any(|x| !x.is_finite()) {
+            p.push(format!("probe '{}': point coordinates must be finite numbers", probe.name));
+        }
+        if probe.field == ProbeField::Displacement && !moving_solid {
+            p.push(format!("probe '{}': displacement probes need a solid with a material model (solid-only or FSI runs)", probe.name));
+        }
+        if matches!(probe.field, ProbeField::Velocity | ProbeField::Displacement) && probe.component >= d {
+            p.push(format!("probe '{}': component must be < {d}", probe.name));
+        }
+    }
+}
+
+/// `[time]` of an FSI run: required, with implicit Euler.
+fn fsi_time(c: &Case, p: &mut Problems) {
+    if c.kind() != RunKind::Fsi {
+        return;
+    }
+    if c.time.is_none() {
+        p.push("an FSI run (fluid mesh and a solid material model) needs a [time] table");
+    }
+    if c.time.as_ref().is_some_and(|t| t.scheme != TimeScheme::Euler) {
+        p.push("an FSI run uses implicit Euler (the paper's scheme): set time.scheme = \"euler\"");
+    }
+}
+
+/// `[[output.combination]]`: each term names a quantity defined before it.
+fn combinations(c: &Case, p: &mut Problems) {
+    let builtin = c.builtin_quantities();
+    let mut known: HashSet<&str> = c.output.probe.iter().map(|q| q.name.as_str()).collect();
+    known.extend(c.output.boundary_integral.iter().map(|q| q.name.as_str()));
+    known.extend(c.output.domain.iter().map(|q| q.name.as_str()));
+    known.extend(builtin.iter().map(String::as_str));
+    for comb in &c.output.combination {
+        for (q, _) in &comb.terms {
+            if !known.contains(q.as_str()) {
+                p.push(format!("combination '{}': unknown quantity '{q}' (define it before)", comb.name));
+            }
+        }
+        known.insert(&comb.name);
+    }
+}
+
+/// `[solid]`: coupling surface, material, multiplier, `eps_hat`, mesh, placement and load steps.
+fn solid(c: &Case, p: &mut Problems) {
+    let Some(solid) = &c.solid else { return };
+    if c.mesh.is_some() && solid.surface.is_none() {
+        p.push("solid.surface (the solid boundary coupled to the fluid) is required with a fluid");
+    }
+    if solid.model != SolidModel::Fixed {
+        solid_material(c, solid, p);
+    }
+    if solid.multiplier == MultiplierSpace::P1DiscontinuousTraceMode && c.dim() == 3 {
+        p.push("solid.multiplier = \"p1-discontinuous-trace-mode\" is 2D only (plane or axisymmetric)");
+    }
+    if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {
+        p.push(format!("solid.eps_hat must lie in (0, 0.5], got {}", solid.eps_hat));
+    }
+    solid_mesh(c, solid, p);
+    solid_placement(c, solid, p);
+    if solid.loading.steps > MAX_STEPS {
+        p.push(format!("solid.loading.steps = {} is more than {MAX_STEPS}", solid.loading.steps));
+    }
+}
+
+/// `[solid]` with a material model: moduli, `[solid.loading]` steps and `[[solid.boundary]]`.
+fn solid_material(c: &Case, solid: &SolidSpec, p: &mut Problems) {
+    let d = c.dim();
+    match solid.shear_modulus {
+        Some(g) => p.positive(g, "solid.shear_modulus"),
+        None => p.push(format!("solid.model = {} needs shear_modulus", spelled(&solid.model))),
+    }
+    if let Some(k) = solid.bulk_modulus {
+        p.positive(k, "solid.bulk_modulus");
+    } else if solid.model != SolidModel::NeoHookean {
+        p.push(format!("solid.model = {} needs bulk_modulus", spelled(&solid.model)));
+    }
+    if solid.loading.steps == 0 {
+        p.push("solid.loading.steps must be >= 1");
+    }
+    for b in &solid.boundary {
+        let k = if b.kind == SolidBoundaryType::Pressure { 1 } else { d };
+        if b.value.len() != k {
+            p.push(format!("solid boundary '{}': `value` needs {k} entries, got {}", b.name, b.value.len()));
+        }
+        if b.components.as_ref().is_some_and(|c| c.iter().any(|&a| a >= d)) {
+            p.push(format!("solid boundary '{}': components must be < {d}", b.name));
+        }
+    }
+}
+
+/// `[solid.mesh]`: the generator's parameters, and its dimension against the fluid's.
+fn solid_mesh(c: &Case, solid: &SolidSpec, p: &mut Problems) {
+    let sd = match &solid.mesh {
+        SolidMeshSpec::Rectangle { x, y, n } => {
+            p.intervals("solid.mesh", &[("x", x), ("y", y)]);
+            p.cell_counts("solid.mesh.n", n, 1);
+            2
+        }
+        SolidMeshSpec::Quadrilateral { corners, n } => {
+            if corners.iter().flatten().any(|c| !c.is_finite()) {
+                p.push("solid.mesh.corners must be finite numbers");
+            }
+            p.cell_counts("solid.mesh.n", n, 1);
+            2
+        }
+        SolidMeshSpec::Box { x, y, z, n } => {
+            p.intervals("solid.mesh", &[("x", x), ("y", y), ("z", z)]);
+            p.cell_counts("solid.mesh.n", n, 1);
+            3
+        }
+        SolidMeshSpec::QuarterDisc { radius, z, n_core, n_ring, n_layers } => {
+            p.positive(*radius, "solid.mesh.radius");
+            p.intervals("solid.mesh", &[("z", z)]);
+            let around = n_core.saturating_add(n_ring.saturating_mul(2));
+            p.cell_counts("solid.mesh [n_core, n_core + 2 n_ring, n_layers]", &[*n_core, around, *n_layers], 1);
+            if *n_ring == 0 {
+                p.push("solid.mesh.n_ring must be >= 1");
+            }
+            3
+        }
+        SolidMeshSpec::Gmsh { .. } => return,
+    };
+    let d = c.dim();
+    if sd != d {
+        p.push(format!("solid.mesh makes a {sd}D mesh but the fluid is {d}D"));
+    }
+}
+
+/// `[solid]` placement: `rotate_deg`, `pivot` and `translate`.
+fn solid_placement(c: &Case, solid: &SolidSpec, p: &mut Problems) {
+    let d = c.dim();
+    if d == 3 && solid.rotate_deg != 0.0 {
+        p.push("solid.rotate_deg applies to 2D runs only");
+    }
+    for (what, v) in [("pivot", &solid.pivot), ("translate", &solid.translate)] {
+        if v.as_ref().is_some_and(|v| v.len() != d) {
+            p.push(format!("solid.{what} needs {d} coordinates"));
+        }
+        if v.as_ref().is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+            p.push(format!("solid.{what} must be finite numbers"));
+        }
+    }
+    if !solid.rotate_deg.is_finite() {
+        p.push(format!("solid.rotate_deg must be a finite number, got {}", solid.rotate_deg));
+    }
+}
+
+/// `[time]`: step, end, output interval and the number of steps.
+fn time(c: &Case, p: &mut Problems) {
+    let Some(t) = &c.time else { return };
+    p.positive(t.dt, "time.dt");
+    p.positive(t.end, "time.end");
+    if t.output_every == 0 {
+        p.push("time.output_every must be >= 1");
+    }
+    let steps = t.end / t.dt;
+    if t.dt > 0.0 && t.end > 0.0 && t.end.is_finite() && steps > MAX_STEPS as f64 {
+        p.push(format!("time.end / time.dt = {steps:.3e} steps, more than the {MAX_STEPS} allowed (dt = {:e}, end = {})", t.dt, t.end));
+    }
+}
+
+/// `[solver]`: Newton iterations and tolerances, linear-solver threads.
+fn solver(c: &Case, p: &mut Problems) {
+    let n = &c.solver.newton;
+    if n.max_iterations == 0 || !(n.abs_tol > 0.0) || !(n.rel_tol > 0.0) {
+        p.push("solver.newton: max_iterations >= 1 and positive tolerances required");
+    }
+    if c.solver.linear.threads > 1024 {
+        p.push(format!("solver.linear: threads = {} (1 = sequential, 0 = all cores, at most 1024)", c.solver.linear.threads));
+    }
+}
