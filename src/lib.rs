@@ -26,14 +26,14 @@
 //! - [`run`]: the commands (`run`, `check`, `adapt`): observers, summaries, dispatch.
 pub use fdfsi_fem as fem;
 
-pub mod adapt;
-pub mod case;
-pub mod discretize;
-pub mod io;
 pub mod physics;
-pub mod post;
-pub mod run;
-pub mod setup;
 pub mod solve;
+pub mod adapt;
+pub mod discretize;
 pub mod time;
 pub mod verify;
+pub mod case;
+pub mod setup;
+pub mod post;
+pub mod io;
+pub mod run;

@@ -625,26 +625,16 @@ impl SolidSolution {
     }
 }
 
-/// Quasi-static load stepping with Newton per increment and increment cutting on failure.
+/// Quasi-static load stepping with Newton per increment ([`SolidDiscretization::solve_increment`]):
+/// increments grow by `stepping.growth` after a converged one and are halved after a failed
+/// one, down to `stepping.min_increment`. (Case-file solid runs take equal increments through
+/// [`crate::time::solid::QuasiStaticStepper`] instead.)
 pub fn solve_quasi_static<const D: usize>(
     disc: &SolidDiscretization<D>,
     problem: &SolidProblem<D>,
     stepping: &LoadStepping,
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
-) -> Result<SolidSolution, SolidError> {
-    solve_quasi_static_with(disc, problem, stepping, solver, options, |_, _| Ok(()))
-}
-
-/// [`solve_quasi_static`], calling `on_step(record, x)` after every converged increment with the
-/// total displacement and pressure `x` (layout numbering); an `Err(message)` stops the stepping.
-pub fn solve_quasi_static_with<const D: usize>(
-    disc: &SolidDiscretization<D>,
-    problem: &SolidProblem<D>,
-    stepping: &LoadStepping,
-    solver: &mut dyn LinearSolver,
-    options: &NewtonOptions,
-    mut on_step: impl FnMut(&StepRecord, &[f64]) -> Result<(), String>,
 ) -> Result<SolidSolution, SolidError> {
     disc.check_problem(problem)?;
     let mut state = LoadState::at_rest(disc, stepping.mode);
@@ -656,9 +646,6 @@ pub fn solve_quasi_static_with<const D: usize>(
         match disc.solve_increment(problem, &mut state, target, stepping.predictor, solver, options) {
             Ok(report) => {
                 steps.push(StepRecord { step, load: target, increment: target - load, failure: None, newton: Some(report) });
-                if let Err(reason) = on_step(steps.last().expect("pushed"), &state.x) {
-                    return Err(SolidError::StepFailed { step, load: target, increment: target - load, reason });
-                }
                 step += 1;
                 inc = (inc * stepping.growth).min(stepping.max_increment);
             }

@@ -12,9 +12,10 @@ use crate::case::Case;
 use crate::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::fluid_grid;
-use crate::io::{write_atomic, OutputError};
+use crate::io::{write_atomic, History, OutputError};
 use crate::post::quantities::{evaluate_all, StepState};
 use crate::setup::{flow_problem, fluid_mesh};
+use crate::solve::newton::NewtonReport;
 use crate::time::flow::FlowStepper;
 use crate::time::march::StepDone;
 use crate::time::{Schedule, TimeLevel, Timings};
@@ -60,7 +61,11 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let mut lu = case.solver.linear_solver();
     let outputs = FlowOutputs { case, problem: &problem };
     let mut recorded = match &case.time {
-        None => steady(case, &disc, outputs, options, obs, &mut lu)?,
+        None => {
+            let sol = solve_steady(&disc, &problem, &mut lu, &case.solver.newton)?;
+            let state = FlowStepper::new(&disc, &problem, &mut lu, case.solver.newton.clone(), Default::default(), sol.x, TimeLevel::default());
+            steady(state, sol.newton, outputs, options, obs)?
+        }
         Some(ts) => {
             let start = Start::of(options, obs);
             let (x, level) = match &options.resume {
@@ -83,92 +88,31 @@ pub(crate) fn flow_dofs<const D: usize>(disc: &FlowDiscretization<D>) -> Vec<(St
     disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect()
 }
 
-/// A steady solve, recorded as step 0 of a run of one step.
+/// A steady solution `state` (Newton's `report`), recorded as step 0 of a run of one step.
 fn steady<const D: usize>(
-    case: &Case,
-    disc: &FlowDiscretization<D>,
+    state: FlowStepper<'_, D>,
+    report: NewtonReport,
     mut outputs: FlowOutputs<'_, D>,
     options: &RunOptions,
     obs: &mut dyn RunObserver,
-    lu: &mut dyn crate::solve::linear::LinearSolver,
 ) -> Result<Recorded, RunError> {
-    let sol = solve_steady(disc, outputs.problem, lu, &case.solver.newton)?;
-    let rep = &sol.newton;
-    log_newton(obs, rep);
+    log_newton(obs, &report);
     let mut timings = Timings::default();
-    timings.add_newton(rep);
+    timings.add_newton(&report);
     let clock = Instant::now();
-    let state = Steady { disc, x: sol.x.clone() };
-    let done = StepDone { step: 0, total: 1, time: 0.0, dt: 0.0, cuts: 0, newton: vec![rep.clone()], phases: Timings::default() };
+    let done = StepDone { step: 0, total: 1, time: 0.0, dt: 0.0, cuts: 0, newton: vec![report], phases: Timings::default() };
     let values = outputs.quantities(&state, &done)?;
     let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
     let row: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
-    crate::io::History::new(&options.out_dir.join("history.csv"), &names)?.push(0, 0.0, rep.iterations, done.residual(), &row)?;
-    let mut series = PvdSeries::new(&options.out_dir, "solution");
-    outputs.write_fields(&state, &done, &mut series)?;
+    History::new(&options.out_dir.join("history.csv"), &names)?.push(0, 0.0, done.iterations(), done.residual(), &row)?;
+    outputs.write_fields(&state, &done, &mut PvdSeries::new(&options.out_dir, "solution"))?;
     outputs.finish(&state, &options.out_dir, obs)?;
     for (name, v) in &values {
         obs.log(&format!("{name} = {v:.10e}"));
     }
     timings.output = clock.elapsed().as_secs_f64();
-    Ok(Recorded {
-        steps: 1,
-        newton_iterations: rep.iterations,
-        residual_norms: rep.residual_norms.clone(),
-        quantities: values,
-        timings,
-        dofs: flow_dofs(disc),
-    })
-}
-
-/// The state of a steady solve, for [`FlowOutputs`].
-struct Steady<'a, const D: usize> {
-    disc: &'a FlowDiscretization<D>,
-    x: Vec<f64>,
-}
-
-/// What [`FlowOutputs`] reads of a flow state.
-trait FlowState<const D: usize> {
-    fn disc(&self) -> &FlowDiscretization<D>;
-    fn x(&self) -> &[f64];
-    /// `a0/dt` and `u*` of the last step (zero and none when steady).
-    fn history(&self) -> StepState<'_>;
-    /// What a checkpoint saves after `step` at `time`.
-    fn restart(&self, step: usize, time: f64) -> RestartState;
-}
-
-impl<const D: usize> FlowState<D> for Steady<'_, D> {
-    fn disc(&self) -> &FlowDiscretization<D> {
-        self.disc
-    }
-    fn x(&self) -> &[f64] {
-        &self.x
-    }
-    fn history(&self) -> StepState<'_> {
-        StepState::default()
-    }
-    fn restart(&self, step: usize, time: f64) -> RestartState {
-        RestartState::Flow { x: self.x.clone(), level: TimeLevel { step, time, x_prev: None } }
-    }
-}
-
-impl<const D: usize> FlowState<D> for FlowStepper<'_, D> {
-    fn disc(&self) -> &FlowDiscretization<D> {
-        self.disc
-    }
-    fn x(&self) -> &[f64] {
-        &self.x
-    }
-    fn history(&self) -> StepState<'_> {
-        // Before the first step (the initial row) there is no step history.
-        if self.u_star.is_empty() {
-            return StepState::default();
-        }
-        StepState { time: 0.0, inv_dt: self.inv_dt, u_star: Some(&self.u_star) }
-    }
-    fn restart(&self, step: usize, time: f64) -> RestartState {
-        RestartState::Flow { x: self.x.clone(), level: self.level(step, time) }
-    }
+    let residual_norms = done.newton[0].residual_norms.clone();
+    Ok(Recorded { steps: 1, newton_iterations: done.iterations(), residual_norms, quantities: values, timings, dofs: flow_dofs(state.disc) })
 }
 
 /// The outputs of a flow run: the case's quantities, the fluid fields, profiles and `speed.png`.
@@ -177,32 +121,35 @@ struct FlowOutputs<'a, const D: usize> {
     problem: &'a FlowProblem<D>,
 }
 
-impl<const D: usize, S: FlowState<D>> RunOutputs<S> for FlowOutputs<'_, D> {
-    fn quantities(&mut self, s: &S, done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
-        let state = StepState { time: done.time, ..s.history() };
-        Ok(evaluate_all(&self.case.output, s.disc(), self.problem, s.x(), &state, &[])?)
+impl<const D: usize> RunOutputs<FlowStepper<'_, D>> for FlowOutputs<'_, D> {
+    fn quantities(&mut self, s: &FlowStepper<'_, D>, done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
+        // Consistent boundary forces need the step's history; there is none before the first
+        // step (the initial row) and in a steady solve.
+        let u_star = (!s.u_star.is_empty()).then_some(s.u_star.as_slice());
+        let state = StepState { time: done.time, inv_dt: if u_star.is_some() { s.inv_dt } else { 0.0 }, u_star };
+        Ok(evaluate_all(&self.case.output, s.disc, self.problem, &s.x, &state, &[])?)
     }
 
-    fn write_fields(&mut self, s: &S, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
-        series.add(done.time, "fluid", &fluid_grid(s.disc(), s.x())?)?;
+    fn write_fields(&mut self, s: &FlowStepper<'_, D>, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
+        series.add(done.time, "fluid", &fluid_grid(s.disc, &s.x)?)?;
         Ok(())
     }
 
-    fn restart(&self, s: &S, done: &StepDone) -> RestartState {
-        s.restart(done.step, done.time)
+    fn restart(&self, s: &FlowStepper<'_, D>, done: &StepDone) -> RestartState {
+        RestartState::Flow { x: s.x.clone(), level: s.level(done.step, done.time) }
     }
 
-    fn dofs(&self, s: &S) -> Vec<(String, usize)> {
-        flow_dofs(s.disc())
+    fn dofs(&self, s: &FlowStepper<'_, D>) -> Vec<(String, usize)> {
+        flow_dofs(s.disc)
     }
 
-    fn finish(&mut self, s: &S, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
+    fn finish(&mut self, s: &FlowStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         if D == 2 {
             let png = out_dir.join("speed.png");
-            crate::io::picture::write_speed_png(s.disc(), s.x(), &png, 1600)
+            crate::io::picture::write_speed_png(s.disc, &s.x, &png, 1600)
                 .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
         }
-        write_profiles(self.case, s.disc(), self.problem, s.x(), out_dir, obs)
+        write_profiles(self.case, s.disc, self.problem, &s.x, out_dir, obs)
     }
 }
 
