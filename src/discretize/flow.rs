@@ -10,7 +10,7 @@ use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, 
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::dofs::{BlockLayout, Field, NodeMap};
-use fdfsi_fem::element::{ReferenceCell, ReferenceElement};
+use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
 use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
@@ -95,13 +95,7 @@ pub struct FlowDiscretization<const D: usize> {
 
 /// The P2+ velocity element of a fluid cell type.
 fn p2plus<const D: usize>(cell: ReferenceCell) -> Result<ReferenceElement<D>, FlowError> {
-    use std::any::Any;
-    let e: Box<dyn Any> = match cell {
-        ReferenceCell::Triangle if D == 2 => Box::new(ReferenceElement::<2>::p2plus_triangle()),
-        ReferenceCell::Tetrahedron if D == 3 => Box::new(ReferenceElement::<3>::p2plus_tetrahedron()),
-        other => return Err(FlowError::CellType(other)),
-    };
-    Ok(*e.downcast::<ReferenceElement<D>>().expect("dimension checked"))
+    ReferenceElement::new(cell, ElementFamily::P2Plus).ok_or(FlowError::CellType(cell))
 }
 
 /// Quadrature degree of the cell integrals: exact for the P2+ stiffness on affine cells

@@ -38,7 +38,7 @@ use crate::physics::solid::{
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::dofs::{BlockLayout, NodeMap};
-use fdfsi_fem::element::{ReferenceCell, ReferenceElement};
+use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
 use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
@@ -177,13 +177,7 @@ pub struct SolidDiscretization<const D: usize> {
 const CELL_DEGREE: usize = 5;
 
 fn q2_element<const D: usize>(cell: ReferenceCell) -> Result<ReferenceElement<D>, SolidError> {
-    use std::any::Any;
-    let e: Box<dyn Any> = match cell {
-        ReferenceCell::Quadrilateral if D == 2 => Box::new(ReferenceElement::<2>::q2_quadrilateral()),
-        ReferenceCell::Hexahedron if D == 3 => Box::new(ReferenceElement::<3>::q2_hexahedron()),
-        other => return Err(SolidError::CellType(other)),
-    };
-    Ok(*e.downcast::<ReferenceElement<D>>().expect("dimension checked"))
+    ReferenceElement::new(cell, ElementFamily::Q2).ok_or(SolidError::CellType(cell))
 }
 
 impl<const D: usize> SolidDiscretization<D> {

@@ -34,11 +34,7 @@ pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<
         }
         SolidMeshSpec::Gmsh { file } => read_msh(&case_dir.join(file))?,
     };
-    let boxed: Box<dyn std::any::Any> = match any {
-        AnyMesh::D2(m) => Box::new(m),
-        AnyMesh::D3(m) => Box::new(m),
-    };
-    let mut mesh = *boxed.downcast::<Mesh<D>>().map_err(|_| SetupError::SolidMesh(format!("the solid mesh is not {D}D")))?;
+    let mut mesh = any.into_dim::<D>().ok_or_else(|| SetupError::SolidMesh(format!("the solid mesh is not {D}D")))?;
     if !matches!(mesh.cell_type, ReferenceCell::Quadrilateral | ReferenceCell::Hexahedron) {
         return Err(SetupError::SolidMesh(format!("solid meshes must be quadrilaterals or hexahedra, got {:?}", mesh.cell_type)));
     }

@@ -196,8 +196,6 @@ pub struct DofEntity {
     pub index: u8,
 }
 
-type RawFn<const D: usize> = fn(&[f64; D], &mut [f64], &mut [[f64; D]]);
-
 /// A nodal reference element in `D` reference dimensions.
 #[derive(Clone)]
 pub struct ReferenceElement<const D: usize> {
@@ -205,7 +203,6 @@ pub struct ReferenceElement<const D: usize> {
     family: ElementFamily,
     nodes: Vec<[f64; D]>,
     entities: Vec<DofEntity>,
-    raw: RawFn<D>,
     /// `coeffs[j * n + k]`: weight of raw function `j` in basis function `k`; empty when the raw
     /// set is already nodal.
     coeffs: Vec<f64>,
@@ -228,29 +225,77 @@ pub struct Tabulation<const D: usize> {
 }
 
 impl<const D: usize> ReferenceElement<D> {
-    fn build(
-        cell: ReferenceCell,
-        family: ElementFamily,
-        nodes: Vec<[f64; D]>,
-        entities: Vec<DofEntity>,
-        raw: RawFn<D>,
-        needs_inversion: bool,
-    ) -> Self {
+    /// The element of `family` on `cell`, in `D` reference dimensions: `None` when `cell` is not
+    /// `D`-dimensional or has no such element (P on simplices, Q on quadrilaterals and
+    /// hexahedra, P2+ on triangles and tetrahedra). Code generic over `D` builds its elements here;
+    /// the named constructors below are these with the dimension fixed.
+    pub fn new(cell: ReferenceCell, family: ElementFamily) -> Option<Self> {
+        use ElementFamily::*;
+        use ReferenceCell::*;
+        if cell.dim() != D {
+            return None;
+        }
+        let (nv, ne) = (cell.vertices().len(), cell.edges().len());
+        let vertices = || vertex_entities(nv);
+        let interior = || std::iter::once(interior_entity(D));
+        let (nodes, entities): (Vec<[f64; D]>, Vec<DofEntity>) = match (cell, family) {
+            (Segment | Triangle | Tetrahedron, P1) | (Quadrilateral | Hexahedron, Q1) => (vertex_nodes(cell), vertices().collect()),
+            (Segment, P2) => ([vertex_nodes(cell), vec![cell.centroid()]].concat(), vertices().chain(interior()).collect()),
+            (Triangle | Tetrahedron, P2) => ([vertex_nodes(cell), edge_nodes(cell)].concat(), vertices().chain(edge_entities(ne)).collect()),
+            (Triangle, P2Plus) => (
+                [vertex_nodes(cell), edge_nodes(cell), vec![cell.centroid()]].concat(),
+                vertices().chain(edge_entities(ne)).chain(interior()).collect(),
+            ),
+            (Tetrahedron, P2Plus) => {
+                let v = cell.vertices();
+                let faces: Vec<[f64; D]> = TET_FACETS.iter().map(|f| std::array::from_fn(|d| (v[f[0]][d] + v[f[1]][d] + v[f[2]][d]) / 3.0)).collect();
+                let entities = vertices().chain(edge_entities(ne)).chain(face_entities(4)).chain(interior()).collect();
+                ([vertex_nodes(cell), edge_nodes(cell), faces, vec![cell.centroid()]].concat(), entities)
+            }
+            (Quadrilateral | Hexahedron, Q2) => {
+                let table: &[[f64; 3]] = if cell == Quadrilateral { &Q2_QUAD_NODES } else { &Q2_HEX_NODES };
+                let faces = face_entities(if cell == Quadrilateral { 0 } else { 6 });
+                (
+                    table.iter().map(|p| std::array::from_fn(|d| p[d])).collect(),
+                    vertices().chain(edge_entities(ne)).chain(faces).chain(interior()).collect(),
+                )
+            }
+            _ => return None,
+        };
+        Some(Self::build(cell, family, nodes, entities))
+    }
+
+    fn build(cell: ReferenceCell, family: ElementFamily, nodes: Vec<[f64; D]>, entities: Vec<DofEntity>) -> Self {
         let n = nodes.len();
         assert!(n <= MAX_DOFS && entities.len() == n);
-        let mut element = ReferenceElement { cell, family, nodes, entities, raw, coeffs: Vec::new() };
-        if needs_inversion {
+        let mut element = ReferenceElement { cell, family, nodes, entities, coeffs: Vec::new() };
+        // The raw sets are nodal except P2+'s (P2 and bubbles).
+        if family == ElementFamily::P2Plus {
             // V[i][j] = raw_j(node_i); solve V C = I.
             let mut v = vec![0.0; n * n];
             let mut vals = [0.0; MAX_DOFS];
             let mut grads = [[0.0; D]; MAX_DOFS];
             for i in 0..n {
-                raw(&element.nodes[i], &mut vals[..n], &mut grads[..n]);
+                element.raw(&element.nodes[i], &mut vals[..n], &mut grads[..n]);
                 v[i * n..(i + 1) * n].copy_from_slice(&vals[..n]);
             }
             element.coeffs = invert_small(&v, n);
         }
         element
+    }
+
+    /// The raw spanning set of the element's space at `xi` (see the module documentation).
+    fn raw(&self, xi: &[f64; D], v: &mut [f64], g: &mut [[f64; D]]) {
+        match (self.family, D) {
+            (ElementFamily::P1, _) => raw_p1_simplex(xi, v, g),
+            (ElementFamily::P2, 1) => raw_p2_segment(xi, v, g),
+            (ElementFamily::P2, _) => raw_p2_simplex(xi, v, g),
+            (ElementFamily::P2Plus, _) => raw_p2plus(xi, v, g),
+            (ElementFamily::Q1, 2) => raw_tensor(1, &QUAD_VERTS, xi, v, g),
+            (ElementFamily::Q1, _) => raw_tensor(1, &HEX_VERTS, xi, v, g),
+            (ElementFamily::Q2, 2) => raw_tensor(2, &Q2_QUAD_NODES, xi, v, g),
+            (ElementFamily::Q2, _) => raw_tensor(2, &Q2_HEX_NODES, xi, v, g),
+        }
     }
 
     /// The reference cell.
@@ -300,12 +345,12 @@ impl<const D: usize> ReferenceElement<D> {
     pub fn eval_into(&self, xi: &[f64; D], values: &mut [f64], grads: &mut [[f64; D]]) {
         let n = self.num_dofs();
         if self.coeffs.is_empty() {
-            (self.raw)(xi, &mut values[..n], &mut grads[..n]);
+            self.raw(xi, &mut values[..n], &mut grads[..n]);
             return;
         }
         let mut rv = [0.0; MAX_DOFS];
         let mut rg = [[0.0; D]; MAX_DOFS];
-        (self.raw)(xi, &mut rv[..n], &mut rg[..n]);
+        self.raw(xi, &mut rv[..n], &mut rg[..n]);
         for k in 0..n {
             let mut v = 0.0;
             let mut g = [0.0; D];
@@ -462,25 +507,19 @@ fn bubble<const D: usize>(l: &[f64; 4], dl: &[[f64; D]; 4], idx: &[usize], scale
     (v, g)
 }
 
-fn raw_p2plus_triangle(xi: &[f64; 2], v: &mut [f64], g: &mut [[f64; 2]]) {
-    raw_p2_simplex(xi, &mut v[..6], &mut g[..6]);
+/// P2 plus bubbles on a simplex: the cubic bubble `27 l0 l1 l2` of the triangle; on the
+/// tetrahedron the face bubbles `27 la lb lc` ([`TET_FACETS`] order) and the volume bubble
+/// `256 l0 l1 l2 l3`.
+fn raw_p2plus<const D: usize>(xi: &[f64; D], v: &mut [f64], g: &mut [[f64; D]]) {
+    let p2 = (D + 1) * (D + 2) / 2;
+    raw_p2_simplex(xi, &mut v[..p2], &mut g[..p2]);
     let (l, dl) = bary(xi);
-    let (b, db) = bubble(&l, &dl, &[0, 1, 2], 27.0);
-    v[6] = b;
-    g[6] = db;
-}
-
-fn raw_p2plus_tetrahedron(xi: &[f64; 3], v: &mut [f64], g: &mut [[f64; 3]]) {
-    raw_p2_simplex(xi, &mut v[..10], &mut g[..10]);
-    let (l, dl) = bary(xi);
-    for (f, face) in TET_FACETS.iter().enumerate() {
-        let (b, db) = bubble(&l, &dl, face, 27.0);
-        v[10 + f] = b;
-        g[10 + f] = db;
+    let faces: &[[usize; 3]] = if D == 3 { &TET_FACETS } else { &[] };
+    for (f, face) in faces.iter().enumerate() {
+        (v[p2 + f], g[p2 + f]) = bubble(&l, &dl, face, 27.0);
     }
-    let (b, db) = bubble(&l, &dl, &[0, 1, 2, 3], 256.0);
-    v[14] = b;
-    g[14] = db;
+    let (all, scale) = if D == 3 { (&[0, 1, 2, 3][..], 256.0) } else { (&[0, 1, 2][..], 27.0) };
+    (v[p2 + faces.len()], g[p2 + faces.len()]) = bubble(&l, &dl, all, scale);
 }
 
 /// 1D Lagrange basis on `[0,1]`: linear at nodes (0, 1), quadratic at nodes (0, 1, 1/2).
@@ -568,110 +607,60 @@ const Q2_HEX_NODES: [[f64; 3]; 27] = [
     [0.5, 0.5, 0.5],
 ];
 
-fn raw_q1_quad(xi: &[f64; 2], v: &mut [f64], g: &mut [[f64; 2]]) {
-    raw_tensor(1, &QUAD_VERTS, xi, v, g)
-}
-fn raw_q2_quad(xi: &[f64; 2], v: &mut [f64], g: &mut [[f64; 2]]) {
-    raw_tensor(2, &Q2_QUAD_NODES, xi, v, g)
-}
-fn raw_q1_hex(xi: &[f64; 3], v: &mut [f64], g: &mut [[f64; 3]]) {
-    raw_tensor(1, &HEX_VERTS, xi, v, g)
-}
-fn raw_q2_hex(xi: &[f64; 3], v: &mut [f64], g: &mut [[f64; 3]]) {
-    raw_tensor(2, &Q2_HEX_NODES, xi, v, g)
-}
-fn raw_p2_segment(xi: &[f64; 1], v: &mut [f64], g: &mut [[f64; 1]]) {
+fn raw_p2_segment<const D: usize>(xi: &[f64; D], v: &mut [f64], g: &mut [[f64; D]]) {
     let (l, dl) = lagrange_1d(2, xi[0]);
     for k in 0..3 {
         v[k] = l[k];
-        g[k] = [dl[k]];
+        g[k][0] = dl[k];
     }
 }
 
+/// `ReferenceElement::new` of a (cell, family) pair that exists.
+macro_rules! named {
+    ($($(#[$doc:meta])* $name:ident: $cell:ident, $family:ident;)*) => {
+        $($(#[$doc])* pub fn $name() -> Self {
+            Self::new(ReferenceCell::$cell, ElementFamily::$family).expect("the element exists")
+        })*
+    };
+}
+
 impl ReferenceElement<1> {
-    /// Linear segment (P1-discontinuous multiplier in 2D, straight boundary geometry).
-    pub fn p1_segment() -> Self {
-        let cell = ReferenceCell::Segment;
-        Self::build(cell, ElementFamily::P1, vertex_nodes(cell), vertex_entities(2).collect(), raw_p1_simplex::<1>, false)
-    }
-    /// Quadratic segment (curved boundary geometry in 2D); nodes 0, 1, 1/2.
-    pub fn p2_segment() -> Self {
-        let cell = ReferenceCell::Segment;
-        let mut nodes = vertex_nodes(cell);
-        nodes.push([0.5]);
-        let entities = vertex_entities(2).chain([interior_entity(1)]).collect();
-        Self::build(cell, ElementFamily::P2, nodes, entities, raw_p2_segment, false)
+    named! {
+        /// Linear segment (P1-discontinuous multiplier in 2D, straight boundary geometry).
+        p1_segment: Segment, P1;
+        /// Quadratic segment (curved boundary geometry in 2D); nodes 0, 1, 1/2.
+        p2_segment: Segment, P2;
     }
 }
 
 impl ReferenceElement<2> {
-    /// Linear triangle.
-    pub fn p1_triangle() -> Self {
-        let cell = ReferenceCell::Triangle;
-        Self::build(cell, ElementFamily::P1, vertex_nodes(cell), vertex_entities(3).collect(), raw_p1_simplex::<2>, false)
-    }
-    /// Quadratic triangle (6 nodes).
-    pub fn p2_triangle() -> Self {
-        let cell = ReferenceCell::Triangle;
-        let nodes = [vertex_nodes(cell), edge_nodes(cell)].concat();
-        let entities = vertex_entities(3).chain(edge_entities(3)).collect();
-        Self::build(cell, ElementFamily::P2, nodes, entities, raw_p2_simplex::<2>, false)
-    }
-    /// The 7-node P2+ triangle of the Crouzeix-Raviart pair: P2 plus the cubic bubble.
-    pub fn p2plus_triangle() -> Self {
-        let cell = ReferenceCell::Triangle;
-        let nodes = [vertex_nodes(cell), edge_nodes(cell), vec![cell.centroid()]].concat();
-        let entities = vertex_entities(3).chain(edge_entities(3)).chain([interior_entity(2)]).collect();
-        Self::build(cell, ElementFamily::P2Plus, nodes, entities, raw_p2plus_triangle, true)
-    }
-    /// Bilinear quadrilateral.
-    pub fn q1_quadrilateral() -> Self {
-        let cell = ReferenceCell::Quadrilateral;
-        Self::build(cell, ElementFamily::Q1, vertex_nodes(cell), vertex_entities(4).collect(), raw_q1_quad, false)
-    }
-    /// Biquadratic 9-node quadrilateral.
-    pub fn q2_quadrilateral() -> Self {
-        let cell = ReferenceCell::Quadrilateral;
-        let nodes = Q2_QUAD_NODES.iter().map(|p| [p[0], p[1]]).collect();
-        let entities = vertex_entities(4).chain(edge_entities(4)).chain([interior_entity(2)]).collect();
-        Self::build(cell, ElementFamily::Q2, nodes, entities, raw_q2_quad, false)
+    named! {
+        /// Linear triangle.
+        p1_triangle: Triangle, P1;
+        /// Quadratic triangle (6 nodes).
+        p2_triangle: Triangle, P2;
+        /// The 7-node P2+ triangle of the Crouzeix-Raviart pair: P2 plus the cubic bubble.
+        p2plus_triangle: Triangle, P2Plus;
+        /// Bilinear quadrilateral.
+        q1_quadrilateral: Quadrilateral, Q1;
+        /// Biquadratic 9-node quadrilateral.
+        q2_quadrilateral: Quadrilateral, Q2;
     }
 }
 
 impl ReferenceElement<3> {
-    /// Linear tetrahedron.
-    pub fn p1_tetrahedron() -> Self {
-        let cell = ReferenceCell::Tetrahedron;
-        Self::build(cell, ElementFamily::P1, vertex_nodes(cell), vertex_entities(4).collect(), raw_p1_simplex::<3>, false)
-    }
-    /// Quadratic tetrahedron (10 nodes, VTK order).
-    pub fn p2_tetrahedron() -> Self {
-        let cell = ReferenceCell::Tetrahedron;
-        let nodes = [vertex_nodes(cell), edge_nodes(cell)].concat();
-        let entities = vertex_entities(4).chain(edge_entities(6)).collect();
-        Self::build(cell, ElementFamily::P2, nodes, entities, raw_p2_simplex::<3>, false)
-    }
-    /// The 15-node P2+ tetrahedron: P2, a bubble on each face (node at the face centroid, in
-    /// [`TET_FACETS`] order) and a volume bubble (node at the centroid).
-    pub fn p2plus_tetrahedron() -> Self {
-        let cell = ReferenceCell::Tetrahedron;
-        let v = cell.vertices();
-        let face_nodes: Vec<[f64; 3]> = TET_FACETS.iter().map(|f| std::array::from_fn(|d| (v[f[0]][d] + v[f[1]][d] + v[f[2]][d]) / 3.0)).collect();
-        let nodes = [vertex_nodes(cell), edge_nodes(cell), face_nodes, vec![cell.centroid()]].concat();
-        let entities = vertex_entities(4).chain(edge_entities(6)).chain(face_entities(4)).chain([interior_entity(3)]).collect();
-        Self::build(cell, ElementFamily::P2Plus, nodes, entities, raw_p2plus_tetrahedron, true)
-    }
-    /// Trilinear hexahedron.
-    pub fn q1_hexahedron() -> Self {
-        let cell = ReferenceCell::Hexahedron;
-        Self::build(cell, ElementFamily::Q1, vertex_nodes(cell), vertex_entities(8).collect(), raw_q1_hex, false)
-    }
-    /// Triquadratic 27-node hexahedron (VTK order).
-    pub fn q2_hexahedron() -> Self {
-        let cell = ReferenceCell::Hexahedron;
-        let nodes = Q2_HEX_NODES.to_vec();
-        let entities = vertex_entities(8).chain(edge_entities(12)).chain(face_entities(6)).chain([interior_entity(3)]).collect();
-        Self::build(cell, ElementFamily::Q2, nodes, entities, raw_q2_hex, false)
+    named! {
+        /// Linear tetrahedron.
+        p1_tetrahedron: Tetrahedron, P1;
+        /// Quadratic tetrahedron (10 nodes, VTK order).
+        p2_tetrahedron: Tetrahedron, P2;
+        /// The 15-node P2+ tetrahedron: P2, a bubble on each face (node at the face centroid, in
+        /// [`TET_FACETS`] order) and a volume bubble (node at the centroid).
+        p2plus_tetrahedron: Tetrahedron, P2Plus;
+        /// Trilinear hexahedron.
+        q1_hexahedron: Hexahedron, Q1;
+        /// Triquadratic 27-node hexahedron (VTK order).
+        q2_hexahedron: Hexahedron, Q2;
     }
 }
 

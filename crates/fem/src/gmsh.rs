@@ -88,6 +88,32 @@ impl AnyMesh {
             AnyMesh::D2(_) => None,
         }
     }
+    /// The mesh as a `Mesh<D>`, for code generic over the dimension `D`; `None` when it has the
+    /// other dimension.
+    pub fn into_dim<const D: usize>(self) -> Option<Mesh<D>> {
+        match self {
+            AnyMesh::D2(m) if D == 2 => Some(m.in_dim()),
+            AnyMesh::D3(m) if D == 3 => Some(m.in_dim()),
+            _ => None,
+        }
+    }
+}
+
+impl<const E: usize> Mesh<E> {
+    /// The same mesh with its points as `D`-vectors (`D = E`).
+    fn in_dim<const D: usize>(self) -> Mesh<D> {
+        let points = self.points.iter().map(|p| std::array::from_fn(|d| p[d])).collect();
+        Mesh {
+            points,
+            cell_type: self.cell_type,
+            order: self.order,
+            cell_nodes: self.cell_nodes,
+            cell_tags: self.cell_tags,
+            region_names: self.region_names,
+            boundary: self.boundary,
+            boundary_names: self.boundary_names,
+        }
+    }
 }
 
 /// Errors of the Gmsh import. Every message starts with the file name.

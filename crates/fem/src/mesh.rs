@@ -233,22 +233,15 @@ pub fn geometry_nodes(cell: ReferenceCell, order: GeometryOrder) -> usize {
 
 /// The geometry element of a cell type and order, in dimension `D` (which must match the cell).
 pub fn geometry_element<const D: usize>(cell: ReferenceCell, order: GeometryOrder) -> ReferenceElement<D> {
-    use std::any::Any;
-    use GeometryOrder::*;
+    use crate::element::ElementFamily::*;
     use ReferenceCell::*;
-    let boxed: Box<dyn Any> = match (cell, order) {
-        (Segment, Linear) => Box::new(ReferenceElement::<1>::p1_segment()),
-        (Segment, Quadratic) => Box::new(ReferenceElement::<1>::p2_segment()),
-        (Triangle, Linear) => Box::new(ReferenceElement::<2>::p1_triangle()),
-        (Triangle, Quadratic) => Box::new(ReferenceElement::<2>::p2_triangle()),
-        (Quadrilateral, Linear) => Box::new(ReferenceElement::<2>::q1_quadrilateral()),
-        (Quadrilateral, Quadratic) => Box::new(ReferenceElement::<2>::q2_quadrilateral()),
-        (Tetrahedron, Linear) => Box::new(ReferenceElement::<3>::p1_tetrahedron()),
-        (Tetrahedron, Quadratic) => Box::new(ReferenceElement::<3>::p2_tetrahedron()),
-        (Hexahedron, Linear) => Box::new(ReferenceElement::<3>::q1_hexahedron()),
-        (Hexahedron, Quadratic) => Box::new(ReferenceElement::<3>::q2_hexahedron()),
+    let family = match (cell, order) {
+        (Segment | Triangle | Tetrahedron, GeometryOrder::Linear) => P1,
+        (Segment | Triangle | Tetrahedron, GeometryOrder::Quadratic) => P2,
+        (Quadrilateral | Hexahedron, GeometryOrder::Linear) => Q1,
+        (Quadrilateral | Hexahedron, GeometryOrder::Quadratic) => Q2,
     };
-    *boxed.downcast::<ReferenceElement<D>>().unwrap_or_else(|_| panic!("{cell:?} is not a {D}D cell"))
+    ReferenceElement::new(cell, family).unwrap_or_else(|| panic!("{cell:?} is not a {D}D cell"))
 }
 
 /// Local geometry nodes of facet `f` (vertices first, then quadratic facet nodes).

@@ -189,15 +189,22 @@ pub fn hexahedron(degree: usize) -> QuadratureRule<3> {
 /// The rule of degree `degree` on `cell`, whose dimension must be `D` (panics otherwise: a
 /// programming error, not an input error).
 pub fn for_cell<const D: usize>(cell: ReferenceCell, degree: usize) -> QuadratureRule<D> {
-    use std::any::Any;
-    let b: Box<dyn Any> = match cell {
-        ReferenceCell::Triangle => Box::new(triangle(degree)),
-        ReferenceCell::Quadrilateral => Box::new(quadrilateral(degree)),
-        ReferenceCell::Tetrahedron => Box::new(tetrahedron(degree)),
-        ReferenceCell::Hexahedron => Box::new(hexahedron(degree)),
-        ReferenceCell::Segment => Box::new(segment(degree)),
-    };
-    *b.downcast::<QuadratureRule<D>>().unwrap_or_else(|_| panic!("{cell:?} is not a {D}D cell"))
+    assert_eq!(cell.dim(), D, "{cell:?} is not a {D}D cell");
+    match cell {
+        ReferenceCell::Segment => segment(degree).in_dim(),
+        ReferenceCell::Triangle => triangle(degree).in_dim(),
+        ReferenceCell::Quadrilateral => quadrilateral(degree).in_dim(),
+        ReferenceCell::Tetrahedron => tetrahedron(degree).in_dim(),
+        ReferenceCell::Hexahedron => hexahedron(degree).in_dim(),
+    }
+}
+
+impl<const E: usize> QuadratureRule<E> {
+    /// The rule with its points as `D`-vectors (`D = E`: the same rule, for code generic over `D`).
+    fn in_dim<const D: usize>(self) -> QuadratureRule<D> {
+        let points = self.points.iter().map(|p| std::array::from_fn(|d| p[d])).collect();
+        QuadratureRule { cell: self.cell, degree: self.degree, points, weights: self.weights }
+    }
 }
 
 /// A rule of degree `degree` on the facet cell of `cell` (segment, triangle or quadrilateral),

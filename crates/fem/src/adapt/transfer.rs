@@ -12,7 +12,7 @@
 
 use super::AdaptError;
 use crate::dofs::NodeMap;
-use crate::element::{ReferenceCell, ReferenceElement, MAX_DOFS};
+use crate::element::{ElementFamily, ReferenceCell, ReferenceElement, MAX_DOFS};
 use crate::locate::simplex_reference_coords;
 use crate::mesh::Mesh;
 use rstar::{PointDistance, RTree, RTreeObject, AABB};
@@ -87,12 +87,8 @@ impl<const D: usize> CellLocator<D> {
 
 /// The P2+ element of dimension `D` (2 or 3).
 fn p2plus<const D: usize>() -> Option<ReferenceElement<D>> {
-    let boxed: Box<dyn std::any::Any> = match D {
-        2 => Box::new(ReferenceElement::<2>::p2plus_triangle()),
-        3 => Box::new(ReferenceElement::<3>::p2plus_tetrahedron()),
-        _ => return None,
-    };
-    boxed.downcast::<ReferenceElement<D>>().ok().map(|b| *b)
+    let cell = if D == 2 { ReferenceCell::Triangle } else { ReferenceCell::Tetrahedron };
+    ReferenceElement::new(cell, ElementFamily::P2Plus)
 }
 
 /// Evaluates the old P2+ velocity (`old_values[node * D + k]`, nodes numbered by `old_nodes`, a
