@@ -249,14 +249,16 @@ impl Ctx<'_> {
             let field_writes = (1..=steps).filter(|k| k % ts.output_every.max(1) == 0 || *k == steps).count();
             let description = format!(
                 "{}: FSI run, {} flow ({}) on a {D}D mesh of {cells} cells ({} after adaptation to the solid at t = 0); \
-                 solid {} on {} cells, coupled on '{surface}' by {} coupling elements of the Lagrange multiplier",
+                 solid {} on {} cells, coupled on '{surface}' by {} coupling elements of the Lagrange multiplier; \
+                 unknowns by block: {}",
                 case.title,
                 name_of(&case.physics.model),
                 name_of(&case.physics.formulation),
                 disc.flow.mesh.num_cells(),
                 material,
                 model.solid.mesh.num_cells(),
-                disc.coupling.num_elements()
+                disc.coupling.num_elements(),
+                disc.layout.blocks().filter(|(_, r)| !r.is_empty()).map(|(b, r)| format!("{} {}", b.name(), r.len())).collect::<Vec<_>>().join(", ")
             );
             return Ok(CheckSummary {
                 description,
