@@ -134,7 +134,8 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     }
 
     fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
-        let st = last_step(s);
+        // A run resumed after its last step takes no step: its profiles and picture are written.
+        let Some(st) = s.last.as_ref() else { return Ok(()) };
         write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
         write_speed_picture(self.model, st, &s.state.solid_x, out_dir)
     }
