@@ -197,14 +197,18 @@ fn fsi_run_stopped_and_resumed_repeats_the_history() {
 }
 
 /// A run stopped after its last step (its checkpoint is at the end) resumes with no step left to
-/// take and finishes: the same history, whole outputs.
+/// take and finishes: the same history, whole outputs, the last step's profiles and picture.
 #[test]
 fn fsi_run_stopped_after_its_last_step_resumes_and_finishes() {
     let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "model-problem-2").unwrap().1;
     let text = text.replace("end = 12.0", "end = 2.0").replace("n = [64, 16]", "n = [32, 8]");
-    let (full, parts, _) = interrupted_and_resumed(&text, &Path::new(env!("CARGO_MANIFEST_DIR")).join("cases"), 1);
+    let (full, parts, dir) = interrupted_and_resumed(&text, &Path::new(env!("CARGO_MANIFEST_DIR")).join("cases"), 1);
     assert_eq!(full.len(), 2);
     assert_same_history(&full, &parts, 0.0);
+    // The last step's outputs were written before the stop.
+    for file in ["profiles/wss_upstream_side.csv", "profiles/wss_downstream_side.csv", "speed.png"] {
+        assert!(dir.join(file).exists(), "{file} missing");
+    }
 }
 
 /// With `reuse_factorization = true` (model problems 3 and 4) an uninterrupted run may start a

@@ -261,7 +261,8 @@ pub struct TimeSpec {
     /// Write the fields every this many steps (>= 1; the last step is always written).
     #[serde(default = "one_usize")]
     pub output_every: usize,
-    /// How often a step whose Newton solve fails is halved before the run stops.
+    /// How often a step whose Newton solve fails is halved before the run stops (at most
+    /// [`MAX_CUTS`]).
     #[serde(default = "four")]
     pub max_cuts: usize,
 }
@@ -644,6 +645,9 @@ impl Case {
         }
     }
 }
+
+/// At most this many halvings of a failing step (`time.max_cuts`).
+pub const MAX_CUTS: usize = 20;
 
 /// At most this many time steps (`time.end / time.dt`) or load steps.
 pub const MAX_STEPS: usize = 100_000_000;

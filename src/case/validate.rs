@@ -3,7 +3,7 @@
 
 use super::{
     spelled, BoundaryIntegralKind, BoundaryType, Case, CaseError, Expr, MeshSpec, ProbeField, RunKind, Scalar, SolidBoundaryType, SolidMeshSpec,
-    SolidModel, SolidSpec, TimeFunction, MAX_GENERATED_CELLS, MAX_STEPS,
+    SolidModel, SolidSpec, TimeFunction, MAX_CUTS, MAX_GENERATED_CELLS, MAX_STEPS,
 };
 use crate::discretize::fsi::MultiplierSpace;
 use crate::physics::fluid::Formulation;
@@ -374,6 +374,9 @@ fn time(c: &Case, p: &mut Problems) {
     p.positive(t.end, "time.end");
     if t.output_every == 0 {
         p.push("time.output_every must be >= 1");
+    }
+    if t.max_cuts > MAX_CUTS {
+        p.push(format!("time.max_cuts = {} is more than {MAX_CUTS} (a step cut into 2^{MAX_CUTS} sub-steps)", t.max_cuts));
     }
     let steps = t.end / t.dt;
     if t.dt > 0.0 && t.end > 0.0 && t.end.is_finite() && steps > MAX_STEPS as f64 {

@@ -819,7 +819,7 @@ impl<const D: usize> FsiDiscretization<D> {
             return format!("out of range (the system has {} unknowns)", self.num_dofs());
         };
         // Field offsets are within the fluid's or the solid's own numbering.
-        let solid_i = i - self.solid_offset();
+        let solid_i = || i - self.solid_offset();
         match block {
             Block::FluidVelocity => {
                 let (node, a) = node_and_component(self.flow.velocity_field(), i);
@@ -827,10 +827,10 @@ impl<const D: usize> FsiDiscretization<D> {
             }
             Block::FluidPressure => cell_dof(self.flow.pressure_field(), i, "fluid"),
             Block::SolidDisplacement => {
-                let (node, a) = node_and_component(model.solid.displacement_field(), solid_i);
+                let (node, a) = node_and_component(model.solid.displacement_field(), solid_i());
                 format!("the solid displacement {} at reference position {}", axes[a], at(&model.solid.nodes_x0[node]))
             }
-            Block::SolidPressure => cell_dof(model.solid.pressure_field(), solid_i, "solid"),
+            Block::SolidPressure => cell_dof(model.solid.pressure_field(), solid_i(), "solid"),
             Block::Multiplier => {
                 let (e, v, a) = (k / (D * D), k / D % D, k % D);
                 let vertex = self.adapted.gamma_f[e].vertices[v];

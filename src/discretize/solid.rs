@@ -728,9 +728,13 @@ impl<const D: usize> SolidDiscretization<D> {
             self.assemble_system(problem, target, base, state.f_qp.as_deref(), None, x, &constrained, k, rhs)
         })?;
         let delta: Vec<f64> = if updated { trial[..nu].to_vec() } else { (0..nu).map(|i| trial[i] - state.x[i]).collect() };
+        if let Some(f) = &state.f_qp {
+            let mut f = f.clone();
+            self.update_deformation(&state.x, &trial, &mut f)?;
+            state.f_qp = Some(f);
+        }
         state.last_change = if predictor { Some((delta, target - state.load)) } else { None };
-        if let Some(f) = state.f_qp.as_mut() {
-            self.update_deformation(&state.x, &trial, f)?;
+        if updated {
             for i in 0..nu {
                 state.x[i] += trial[i];
             }

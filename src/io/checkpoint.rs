@@ -163,16 +163,28 @@ impl Checkpoint {
         }
     }
 
-    /// The state of a solid run, checked against its dof count.
-    pub fn solid_state(&self, out_dir: &Path, num_dofs: usize) -> Result<LoadState, CheckpointError> {
+    /// The state of a solid run, checked against the shape of the run's unloaded state
+    /// `at_rest`: its unknowns, its deformation gradients (one per quadrature point, updated
+    /// Lagrangian), a predictor no longer than the unknowns.
+    pub fn solid_state(&self, out_dir: &Path, at_rest: &LoadState) -> Result<LoadState, CheckpointError> {
         let path = Self::path(out_dir).display().to_string();
-        match &self.state {
-            RestartState::Solid(s) if s.x.len() != num_dofs => {
-                Err(CheckpointError::Size { path, what: "the solid state", found: s.x.len(), expected: num_dofs })
+        let s = match &self.state {
+            RestartState::Solid(s) => s,
+            other => return Err(CheckpointError::Kind { path, found: other.kind(), expected: "solid" }),
+        };
+        let gradients = |f: &Option<Vec<_>>| f.as_ref().map_or(0, Vec::len);
+        let n = at_rest.x.len();
+        let predictor = s.last_change.as_ref().map_or(0, |(d, _)| d.len());
+        for (what, found, expected) in [
+            ("the solid state", s.x.len(), n),
+            ("the deformation gradients", gradients(&s.f_qp), gradients(&at_rest.f_qp)),
+            ("the predictor", predictor, predictor.min(n)),
+        ] {
+            if found != expected {
+                return Err(CheckpointError::Size { path, what, found, expected });
             }
-            RestartState::Solid(s) => Ok(s.clone()),
-            other => Err(CheckpointError::Kind { path, found: other.kind(), expected: "solid" }),
         }
+        Ok(s.clone())
     }
 
     /// The FSI state, checked against the solid's dof count.

@@ -7,7 +7,7 @@
 //! - `summary.json` as for every run.
 
 use super::record::{march_and_record, Recorded, RunOutputs, Start};
-use super::{log_newton, RunError, RunObserver, RunOptions, RunSummary};
+use super::{newton_lines, RunError, RunObserver, RunOptions, RunSummary};
 use crate::case::Case;
 use crate::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
 use crate::io::checkpoint::RestartState;
@@ -45,6 +45,7 @@ pub fn run_flow(case: &Case, options: &RunOptions, obs: &mut dyn RunObserver) ->
 }
 
 fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
+    let part_start = Instant::now();
     let problem = flow_problem(case, &mesh, &options.case_dir)?;
     let t = Instant::now();
     let cells = mesh.num_cells();
@@ -67,7 +68,8 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
             steady(state, sol.newton, outputs, options, obs)?
         }
         Some(ts) => {
-            let start = Start::of(options, obs);
+            let mut start = Start::of(options, obs, part_start);
+            start.timings.discretize = discretize;
             let (x, level) = match &options.resume {
                 Some(c) => c.flow_state(&options.out_dir, disc.num_dofs())?,
                 None => (vec![0.0; disc.num_dofs()], TimeLevel::default()),
@@ -77,7 +79,7 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
             march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, true)?
         }
     };
-    recorded.timings.discretize = discretize;
+    recorded.timings.discretize = discretize; // this part's (a steady run has no start timings)
     let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
     Ok(recorded.summary(case, D, cells, symbolic))
 }
@@ -96,7 +98,9 @@ fn steady<const D: usize>(
     options: &RunOptions,
     obs: &mut dyn RunObserver,
 ) -> Result<Recorded, RunError> {
-    log_newton(obs, &report);
+    for line in newton_lines(&report) {
+        obs.log(&line);
+    }
     let mut timings = Timings::default();
     timings.add_newton(&report);
     let clock = Instant::now();

@@ -52,15 +52,15 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let mesh_seconds = t.elapsed().as_secs_f64();
     let outputs = FsiOutputs { case, out_dir: &options.out_dir, model: &model, solid_probes: displacement_probes(case, &model.solid)? };
     let mut lu = case.solver.linear_solver();
-    let start = Start::of(options, obs);
+    let mut start = Start::of(options, obs, t);
+    start.timings.mesh = mesh_seconds;
     let state = match &options.resume {
         None => FsiState::at_rest(&model),
         Some(c) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
     };
     let mut stepper = FsiStepper::new(&model, &mut lu, case.solver.newton.clone(), state);
     let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
-    let mut recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, false)?;
-    recorded.timings.mesh = mesh_seconds;
+    let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, false)?;
     let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
     Ok(recorded.summary(case, D, fluid_mesh.num_cells(), symbolic))
 }
@@ -134,8 +134,7 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     }
 
     fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
-        // A run resumed after its last step takes no step: its profiles and picture are written.
-        let Some(st) = s.last.as_ref() else { return Ok(()) };
+        let st = last_step(s);
         write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
         write_speed_picture(self.model, st, &s.state.solid_x, out_dir)
     }

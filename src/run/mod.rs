@@ -108,7 +108,7 @@ pub trait RunObserver {
 }
 
 /// One line per Newton iteration of `report`: `newton k: |R| = ..., |du| = ...`.
-fn newton_lines(report: &crate::solve::newton::NewtonReport) -> impl Iterator<Item = String> + '_ {
+pub(crate) fn newton_lines(report: &crate::solve::newton::NewtonReport) -> impl Iterator<Item = String> + '_ {
     report.residual_norms.iter().enumerate().map(|(k, r)| {
         let du = report.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
         format!("newton {k}: |R| = {r:.3e}{du}")

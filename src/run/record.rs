@@ -31,7 +31,7 @@ pub(crate) trait RunOutputs<S> {
     fn describe_step(&self, _stepper: &S, _done: &StepDone, _obs: &mut dyn RunObserver) -> String {
         String::new()
     }
-    /// After the last step: profiles and pictures.
+    /// At the last step (before its checkpoint): profiles and pictures.
     fn finish(&mut self, _stepper: &S, _out_dir: &Path, _obs: &mut dyn RunObserver) -> Result<(), RunError> {
         Ok(())
     }
@@ -39,6 +39,8 @@ pub(crate) trait RunOutputs<S> {
 
 /// A run part's starting point: what a new run starts from, or what a checkpoint restores.
 pub(crate) struct Start {
+    /// When this part began (its setup included): its wall time is counted from here.
+    pub part_start: Instant,
     /// The first step to take.
     pub first: usize,
     /// Phase times so far (of the earlier parts; `total` their wall time).
@@ -49,19 +51,16 @@ pub(crate) struct Start {
 
 impl Start {
     /// The start of the run, or after the checkpoint of `options` (its history and field series
-    /// are then cut back to its step by [`march_and_record`]).
-    pub fn of(options: &RunOptions, obs: &mut dyn RunObserver) -> Self {
+    /// are then cut back to its step by [`march_and_record`]), for a part that began at
+    /// `part_start`.
+    pub fn of(options: &RunOptions, obs: &mut dyn RunObserver, part_start: Instant) -> Self {
         match &options.resume {
-            None => Start { first: 1, timings: Timings::default(), newton_iterations: 0, residual_norms: Vec::new() },
+            None => Start { part_start, first: 1, timings: Timings::default(), newton_iterations: 0, residual_norms: Vec::new() },
             Some(c) => {
                 obs.log(&format!("resuming after step {} (t = {:.6e}) from {}", c.step, c.time, Checkpoint::path(&options.out_dir).display()));
                 let p = &c.progress;
-                Start {
-                    first: c.step + 1,
-                    timings: p.timings.clone(),
-                    newton_iterations: p.newton_iterations,
-                    residual_norms: p.residual_norms.clone(),
-                }
+                let (timings, newton_iterations, residual_norms) = (p.timings.clone(), p.newton_iterations, p.residual_norms.clone());
+                Start { part_start, first: c.step + 1, timings, newton_iterations, residual_norms }
             }
         }
     }
@@ -125,8 +124,14 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
             done.residual(),
             self.part_start.elapsed().as_secs_f64()
         ));
-        self.obs.step(done.step, done.total, done.time);
+        if done.step == done.total {
+            self.outputs.finish(stepper, &self.options.out_dir, self.obs)?;
+        }
         Ok(())
+    }
+
+    fn step_end(&mut self, done: &StepDone) {
+        self.obs.step(done.step, done.total, done.time);
     }
 
     fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), RunError> {
@@ -178,7 +183,7 @@ where
     S::Error: Into<super::StepFailure>,
     O: RunOutputs<S>,
 {
-    let part_start = Instant::now();
+    let part_start = start.part_start;
     let (history, series) = match &options.resume {
         Some(c) => (Some(History::resume(&options.out_dir.join("history.csv"), c.step)?), PvdSeries::resume(&options.out_dir, "solution", c.time)?),
         None => (None, PvdSeries::new(&options.out_dir, "solution")),
@@ -205,9 +210,6 @@ where
     }
     let march_options = MarchOptions { checkpoint_every: options.checkpoint_every, stop: options.stop.clone() };
     march(stepper, schedule, start.first, &march_options, &mut timings, &mut recorder).map_err(|e| RunError::from_march(e, &options.out_dir))?;
-    let clock = Instant::now();
-    recorder.outputs.finish(stepper, &options.out_dir, recorder.obs)?;
-    timings.output += clock.elapsed().as_secs_f64();
     for (name, v) in &recorder.last {
         recorder.obs.log(&format!("{name} = {v:.10e}"));
     }

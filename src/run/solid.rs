@@ -54,18 +54,19 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
     }
     let outputs = SolidOutputs { probes: displacement_probes(case, &disc)? };
-    let start = Start::of(options, obs);
+    let mut start = Start::of(options, obs, t);
+    start.timings.mesh = mesh_seconds;
+    let at_rest = LoadState::at_rest(&disc, spec.loading.mode);
     let state = match &options.resume {
-        None => LoadState::at_rest(&disc, spec.loading.mode),
-        Some(c) => c.solid_state(&options.out_dir, disc.num_dofs())?,
+        None => at_rest,
+        Some(c) => c.solid_state(&options.out_dir, &at_rest)?,
     };
     let mut lu = case.solver.linear_solver();
     let mut stepper = QuasiStaticStepper::new(&disc, &problem, &mut lu, case.solver.newton.clone(), state);
     let steps = spec.loading.steps;
     let schedule = Schedule { dt: 1.0 / steps as f64, end: 1.0, max_cuts: LOAD_STEP_CUTS };
     // The fields of the last step only.
-    let mut recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, steps, start, false)?;
-    recorded.timings.mesh = mesh_seconds;
+    let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, steps, start, false)?;
     let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
     Ok(recorded.summary(case, D, cells, symbolic))
 }

@@ -31,6 +31,7 @@ impl<const D: usize> Stepper for FsiStepper<'_, D> {
 
     fn advance(&mut self, t0: f64, t1: f64, _cut: bool) -> Result<Advance, FsiError> {
         self.state.time = t0;
+        self.last = None; // the last step's discretisation is not kept beside the new one
         let (mut next, st) = step(self.model, &self.state, t1 - t0, self.solver, &self.newton)?;
         next.time = t1;
         let s = &st.report.seconds;

@@ -117,6 +117,9 @@ pub trait Watch<S: Stepper> {
     /// Saves a restart point after `done` (after [`Watch::step_done`]); `timings` are the run's
     /// phase times so far (output included).
     fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), Self::Error>;
+
+    /// Called last for a step the march goes on from (not for one it stops after): progress.
+    fn step_end(&mut self, _done: &StepDone) {}
 }
 
 /// Checkpoints and the stop request of a march.
@@ -173,11 +176,10 @@ pub fn march<S: Stepper, W: Watch<S>>(
         let (t0, t1) = (schedule.time(step - 1), schedule.time(step));
         let done = advance_step(stepper, step, total, t0, t1, schedule.max_cuts)?;
         timings.add(&done.phases);
-        // A stop requested while the step's results are written is seen after the next step.
-        let stop = options.stop_requested();
         let clock = Instant::now();
         watch.step_done(stepper, &done, timings).map_err(MarchError::Watch)?;
         timings.output += clock.elapsed().as_secs_f64();
+        let stop = options.stop_requested();
         if stop || options.checkpoint_every.is_some_and(|n| n > 0 && step % n == 0) {
             let clock = Instant::now();
             watch.checkpoint(stepper, &done, timings).map_err(MarchError::Watch)?;
@@ -186,6 +188,7 @@ pub fn march<S: Stepper, W: Watch<S>>(
         if stop {
             return Err(MarchError::Interrupted { step, time: t1 });
         }
+        watch.step_end(&done);
     }
     Ok(())
 }
@@ -212,7 +215,8 @@ fn advance_step<S: Stepper, W: std::error::Error>(
         let parts = 1usize << cuts;
         let h = (t1 - t0) / parts as f64;
         (done.cuts, done.dt) = (cuts, h);
-        done.newton.clear();
+        // Only the level that succeeds is counted, as a step whole.
+        (done.newton, done.phases) = (Vec::new(), Timings::default());
         stepper.rewind();
         for k in 1..=parts {
             let (a, b) = (t0 + (k - 1) as f64 * h, if k == parts { t1 } else { t0 + k as f64 * h });
