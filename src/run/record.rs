@@ -134,6 +134,10 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
         self.obs.step(done.step, done.total, done.time);
     }
 
+    fn step_cut(&mut self, step: usize, cuts: usize, error: &S::Error) {
+        self.obs.log(&format!("step {step}: {error}; trying {} sub-steps", 1usize << cuts));
+    }
+
     fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), RunError> {
         let options = self.options;
         let case_dir = std::path::absolute(&options.case_dir).unwrap_or_else(|_| options.case_dir.clone());

@@ -120,6 +120,9 @@ pub trait Watch<S: Stepper> {
 
     /// Called last for a step the march goes on from (not for one it stops after): progress.
     fn step_end(&mut self, _done: &StepDone) {}
+
+    /// Step `step` (or a sub-step of it) failed with `error`; it is retried in `2^cuts` sub-steps.
+    fn step_cut(&mut self, _step: usize, _cuts: usize, _error: &S::Error) {}
 }
 
 /// Checkpoints and the stop request of a march.
@@ -174,7 +177,7 @@ pub fn march<S: Stepper, W: Watch<S>>(
     let total = schedule.num_steps();
     for step in first.max(1)..=total {
         let (t0, t1) = (schedule.time(step - 1), schedule.time(step));
-        let done = advance_step(stepper, step, total, t0, t1, schedule.max_cuts)?;
+        let done = advance_step(stepper, step, total, t0, t1, schedule.max_cuts, watch)?;
         timings.add(&done.phases);
         let clock = Instant::now();
         watch.step_done(stepper, &done, timings).map_err(MarchError::Watch)?;
@@ -194,14 +197,15 @@ pub fn march<S: Stepper, W: Watch<S>>(
 }
 
 /// Step `step` from `t0` to `t1`: whole, or cut into `2^c` sub-steps when it fails.
-fn advance_step<S: Stepper, W: std::error::Error>(
+fn advance_step<S: Stepper, W: Watch<S>>(
     stepper: &mut S,
     step: usize,
     total: usize,
     t0: f64,
     t1: f64,
     max_cuts: usize,
-) -> Result<StepDone, MarchError<S::Error, W>> {
+    watch: &mut W,
+) -> Result<StepDone, MarchError<S::Error, W::Error>> {
     let mut done = StepDone { step, total, time: t1, dt: t1 - t0, cuts: 0, newton: Vec::new(), phases: Timings::default() };
     stepper.mark();
     let mut failure = match stepper.advance(t0, t1, false) {
@@ -212,6 +216,7 @@ fn advance_step<S: Stepper, W: std::error::Error>(
         Err(e) => e,
     };
     'cuts: for cuts in 1..=max_cuts {
+        watch.step_cut(step, cuts, &failure);
         let parts = 1usize << cuts;
         let h = (t1 - t0) / parts as f64;
         (done.cuts, done.dt) = (cuts, h);
