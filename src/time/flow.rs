@@ -54,7 +54,13 @@ impl<const D: usize> Stepper for FlowStepper<'_, D> {
         let dt = t1 - t0;
         let x_n = self.x.clone();
         let (inv_dt, u_star) = if cut { (1.0 / dt, x_n.clone()) } else { step_history(self.scheme, dt, &x_n, self.x_prev.as_deref()) };
-        let newton = solve_step(self.disc, self.problem, &mut self.x, &u_star, inv_dt, t1, self.solver, &self.newton)?;
+        let newton = match solve_step(self.disc, self.problem, &mut self.x, &u_star, inv_dt, t1, self.solver, &self.newton) {
+            Ok(r) => r,
+            Err(e) => {
+                self.x = x_n; // the state at t0 again
+                return Err(e);
+            }
+        };
         // After a cut step BDF2 restarts with an Euler step.
         self.x_prev = if cut { None } else { Some(x_n) };
         (self.inv_dt, self.u_star) = (inv_dt, u_star);

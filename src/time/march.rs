@@ -38,11 +38,12 @@ pub trait Stepper {
     type Error: std::error::Error + 'static;
 
     /// Solves the (sub)step from `t0` to `t1` from the current state and makes its solution the
-    /// current state. `cut` marks the sub-steps of a cut step. After an `Err` the state may be
-    /// anything: [`march`] rewinds it before it tries again.
+    /// current state. `cut` marks the sub-steps of a cut step. After an `Err` the state is that
+    /// at `t0` again.
     fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, Self::Error>;
 
-    /// Remembers the current state (the start of a step) for [`Stepper::rewind`].
+    /// Remembers the current state (the start of a step that failed whole) for
+    /// [`Stepper::rewind`]: only a cut step needs it, so no step pays for a copy it does not use.
     fn mark(&mut self);
 
     /// Returns to the state of the last [`Stepper::mark`].
@@ -207,7 +208,6 @@ fn advance_step<S: Stepper, W: Watch<S>>(
     watch: &mut W,
 ) -> Result<StepDone, MarchError<S::Error, W::Error>> {
     let mut done = StepDone { step, total, time: t1, dt: t1 - t0, cuts: 0, newton: Vec::new(), phases: Timings::default() };
-    stepper.mark();
     let mut failure = match stepper.advance(t0, t1, false) {
         Ok(a) => {
             done.record(a);
@@ -215,6 +215,8 @@ fn advance_step<S: Stepper, W: Watch<S>>(
         }
         Err(e) => e,
     };
+    // The failed attempt left the state at t0: remember it for the sub-steps of every cut level.
+    stepper.mark();
     'cuts: for cuts in 1..=max_cuts {
         watch.step_cut(step, cuts, &failure);
         let parts = 1usize << cuts;
