@@ -6,13 +6,13 @@
 //! - `profiles/NAME.csv` of the last step; `speed.png` in 2D;
 //! - `summary.json` as for every run.
 
-use super::record::{march_and_record, Recorded, RunOutputs, Start};
+use super::record::{march_and_record, record_once, Recorded, RunOutputs, Start};
 use super::{newton_lines, RunError, RunObserver, RunOptions, RunSummary};
 use crate::case::Case;
 use crate::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::fluid_grid;
-use crate::io::{write_atomic, History, OutputError};
+use crate::io::{write_atomic, OutputError};
 use crate::post::quantities::{evaluate_all, StepState};
 use crate::setup::{flow_problem, fluid_mesh};
 use crate::solve::newton::NewtonReport;
@@ -94,7 +94,7 @@ pub(crate) fn flow_dofs<const D: usize>(disc: &FlowDiscretization<D>) -> Vec<(St
 fn steady<const D: usize>(
     state: FlowStepper<'_, D>,
     report: NewtonReport,
-    mut outputs: FlowOutputs<'_, D>,
+    outputs: FlowOutputs<'_, D>,
     options: &RunOptions,
     obs: &mut dyn RunObserver,
 ) -> Result<Recorded, RunError> {
@@ -105,18 +105,10 @@ fn steady<const D: usize>(
     timings.add_newton(&report);
     let clock = Instant::now();
     let done = StepDone { step: 0, total: 1, time: 0.0, dt: 0.0, cuts: 0, newton: vec![report], phases: Timings::default() };
-    let values = outputs.quantities(&state, &done)?;
-    let names: Vec<String> = values.iter().map(|(n, _)| n.clone()).collect();
-    let row: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
-    History::new(&options.out_dir.join("history.csv"), &names)?.push(0, 0.0, done.iterations(), done.residual(), &row)?;
-    outputs.write_fields(&state, &done, &mut PvdSeries::new(&options.out_dir, "solution"))?;
-    outputs.finish(&state, &options.out_dir, obs)?;
-    for (name, v) in &values {
-        obs.log(&format!("{name} = {v:.10e}"));
-    }
+    let quantities = record_once(outputs.case, options, obs, &state, outputs, &done)?;
     timings.output = clock.elapsed().as_secs_f64();
     let residual_norms = done.newton[0].residual_norms.clone();
-    Ok(Recorded { steps: 1, newton_iterations: done.iterations(), residual_norms, quantities: values, timings, dofs: flow_dofs(state.disc) })
+    Ok(Recorded { steps: 1, newton_iterations: done.iterations(), residual_norms, quantities, timings, dofs: flow_dofs(state.disc) })
 }
 
 /// The outputs of a flow run: the case's quantities, the fluid fields, profiles and `speed.png`.

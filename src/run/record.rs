@@ -82,6 +82,13 @@ struct Recorder<'a, O> {
 }
 
 impl<O> Recorder<'_, O> {
+    /// Logs the last step's quantities, `NAME = value` (the run's results).
+    fn log_quantities(&mut self) {
+        for (name, v) in &self.last {
+            self.obs.log(&format!("{name} = {v:.10e}"));
+        }
+    }
+
     /// Evaluates the quantities after `done`, appends the history row and (when due) the fields.
     fn record<S>(&mut self, stepper: &S, done: &StepDone, fields: bool) -> Result<(), RunError>
     where
@@ -214,9 +221,7 @@ where
     }
     let march_options = MarchOptions { checkpoint_every: options.checkpoint_every, stop: options.stop.clone() };
     march(stepper, schedule, start.first, &march_options, &mut timings, &mut recorder).map_err(|e| RunError::from_march(e, &options.out_dir))?;
-    for (name, v) in &recorder.last {
-        recorder.obs.log(&format!("{name} = {v:.10e}"));
-    }
+    recorder.log_quantities();
     Ok(Recorded {
         steps: schedule.num_steps(),
         newton_iterations: recorder.newton_iterations,
@@ -225,6 +230,36 @@ where
         timings,
         dofs: recorder.outputs.dofs(stepper),
     })
+}
+
+/// Records the state of a solve without time steps (a steady flow) as step 0 `done` of a run of
+/// one step, as [`march_and_record`] records a step: its `history.csv` row, its fields and the
+/// final outputs. Returns the quantities.
+pub(crate) fn record_once<S, O: RunOutputs<S>>(
+    case: &Case,
+    options: &RunOptions,
+    obs: &mut dyn RunObserver,
+    state: &S,
+    outputs: O,
+    done: &StepDone,
+) -> Result<Vec<(String, f64)>, RunError> {
+    let mut recorder = Recorder {
+        outputs,
+        obs,
+        options,
+        case_toml: case.to_toml(),
+        history: None,
+        series: PvdSeries::new(&options.out_dir, "solution"),
+        output_every: 1,
+        last: Vec::new(),
+        newton_iterations: 0,
+        residual_norms: Vec::new(),
+        part_start: Instant::now(),
+    };
+    recorder.record(state, done, true)?;
+    recorder.outputs.finish(state, &options.out_dir, recorder.obs)?;
+    recorder.log_quantities();
+    Ok(recorder.last)
 }
 
 impl Recorded {
