@@ -150,6 +150,12 @@ impl RunObserver for CliObserver {
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
+    // Solver internals (the reuse of factorisations, their cost) log through `tracing`, off unless
+    // FDFSI_LOG asks for them (e.g. FDFSI_LOG=debug).
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_env("FDFSI_LOG").unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("off")))
+        .with_writer(std::io::stderr)
+        .init();
     let (quiet, verbose) = (cli.quiet, cli.verbose);
     let log = |line: &str| {
         if !quiet {

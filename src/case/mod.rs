@@ -35,6 +35,9 @@
 //! ```
 
 use crate::physics::fluid::Formulation;
+use crate::solve::augmented::{AlOptions, AugmentedLagrangian};
+use crate::solve::krylov::KrylovOptions;
+use crate::solve::linear::{FaerLu, LinearSolver, LinearSolverOptions};
 use crate::solve::newton::NewtonOptions;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -429,24 +432,64 @@ pub struct SolverSpec {
     pub linear: LinearSpec,
 }
 
-/// Options of the sparse LU (`[solver.linear]`).
+/// The linear solver of each Newton iteration (`[solver.linear] method`).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum LinearMethod {
+    /// Sparse LU of the whole saddle-point system.
+    #[default]
+    Direct,
+    /// FGMRES with the augmented-Lagrangian block preconditioner ([`crate::solve::augmented`]):
+    /// an LU of the augmented primal block only. Systems without a split (solid runs, FSI for
+    /// now) use the direct solver.
+    AugmentedLagrangian,
+}
+
+/// Options of the linear solver (`[solver.linear]`).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(default, deny_unknown_fields)]
 pub struct LinearSpec {
+    /// `"direct"` or `"augmented-lagrangian"`.
+    pub method: LinearMethod,
     /// Threads of the LU's large dense blocks: 1 (default) = sequential, 0 = all cores.
     pub threads: usize,
+    /// Augmented Lagrangian: the dimensionless weight of the grad-div term.
+    pub gamma: f64,
+    /// Augmented Lagrangian: FGMRES stops at `|b - A x| <= krylov_tolerance |b|`.
+    pub krylov_tolerance: f64,
+    /// Augmented Lagrangian: most FGMRES iterations per linear solve.
+    pub krylov_max_iterations: usize,
+    /// Augmented Lagrangian: keep the factorisation of the augmented block while a solve takes at
+    /// most this many iterations (0: factorise at every Newton iteration).
+    pub refactor_iterations: usize,
 }
 
 impl Default for LinearSpec {
     fn default() -> Self {
-        LinearSpec { threads: 1 }
+        let al = AlOptions::default();
+        LinearSpec {
+            method: LinearMethod::default(),
+            threads: 1,
+            gamma: al.gamma,
+            krylov_tolerance: al.krylov.rel_tol,
+            krylov_max_iterations: al.krylov.max_iterations,
+            refactor_iterations: al.refactor_iterations,
+        }
     }
 }
 
 impl SolverSpec {
-    /// The LU of these options.
-    pub fn linear_solver(&self) -> crate::solve::linear::FaerLu {
-        crate::solve::linear::FaerLu::new(crate::solve::linear::LinearSolverOptions { threads: self.linear.threads, ..Default::default() })
+    /// The linear solver of these options.
+    pub fn linear_solver(&self) -> Box<dyn LinearSolver> {
+        let l = &self.linear;
+        let lu = LinearSolverOptions { threads: l.threads, ..Default::default() };
+        match l.method {
+            LinearMethod::Direct => Box::new(FaerLu::new(lu)),
+            LinearMethod::AugmentedLagrangian => {
+                let krylov = KrylovOptions { rel_tol: l.krylov_tolerance, max_iterations: l.krylov_max_iterations, ..Default::default() };
+                Box::new(AugmentedLagrangian::new(AlOptions { gamma: l.gamma, krylov, refactor_iterations: l.refactor_iterations, lu }))
+            }
+        }
     }
 }
 

@@ -7,6 +7,7 @@
 //! kernel of [`crate::physics::fluid`] and returns a [`FlowSolution`].
 
 use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
+use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::dofs::{BlockLayout, Field, NodeMap};
@@ -165,6 +166,33 @@ impl<const D: usize> FlowDiscretization<D> {
     /// Fresh facet values.
     pub fn facet_values(&self) -> FacetValues<D> {
         FacetValues::new(self.mesh.cell_type, &self.facet_points, &self.facet_weights, &self.velocity_element, &self.geometry_element)
+    }
+
+    /// The saddle-point split of the flow system for block preconditioners: the pressure as the
+    /// one multiplier block, with its cell mass matrices `M_K = int_K psi_k psi_l w dx` (`w` the
+    /// formulation's weight).
+    pub fn saddle_point_split(&self, formulation: Formulation) -> Result<SaddlePointSplit, FlowError> {
+        let mut block = MultiplierBlock::new("pressure");
+        let mut cv = self.cell_values(self.cell_rule.clone());
+        let (mut coords, mut psi, mut mass) = (Vec::new(), [0.0; 4], vec![0.0; (D + 1) * (D + 1)]);
+        let pf = self.pressure_field();
+        for c in 0..self.mesh.num_cells() {
+            self.mesh.cell_coords_into(c, &mut coords);
+            cv.reinit(&coords).map_err(|source| FlowError::Map { cell: c, source })?;
+            mass.iter_mut().for_each(|m| *m = 0.0);
+            for q in 0..cv.num_points() {
+                let w = cv.jxw[q] * formulation.weight(&cv.x[q]);
+                p1disc_basis(&cv.x[q], &cv.centroid, &mut psi);
+                for k in 0..=D {
+                    for l in 0..=D {
+                        mass[k * (D + 1) + l] += w * psi[k] * psi[l];
+                    }
+                }
+            }
+            let dofs: Vec<usize> = (0..=D).map(|k| pf.dof(c * (D + 1) + k, 0)).collect();
+            block.push_group(&dofs, &mass);
+        }
+        Ok(SaddlePointSplit { multipliers: vec![block] })
     }
 
     /// Sets the Dirichlet values at time `t` in `x` and returns which dofs they constrain (the
@@ -352,6 +380,7 @@ pub fn solve_steady<const D: usize>(
     options: &NewtonOptions,
 ) -> Result<FlowSolution, FlowError> {
     let (system, mut x) = SteadySystem::new(disc, problem)?;
+    solver.set_split(disc.saddle_point_split(problem.formulation)?);
     let report = newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs))?;
     if problem.pin_pressure {
         shift_pressure_to_zero_mean(disc, problem.formulation, &mut x)?;

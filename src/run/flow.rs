@@ -63,8 +63,8 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let outputs = FlowOutputs { case, problem: &problem };
     let mut recorded = match &case.time {
         None => {
-            let sol = solve_steady(&disc, &problem, &mut lu, &case.solver.newton)?;
-            let state = FlowStepper::new(&disc, &problem, &mut lu, case.solver.newton.clone(), Default::default(), sol.x, TimeLevel::default());
+            let sol = solve_steady(&disc, &problem, lu.as_mut(), &case.solver.newton)?;
+            let state = FlowStepper::new(&disc, &problem, lu.as_mut(), case.solver.newton.clone(), Default::default(), sol.x, TimeLevel::default());
             steady(state, sol.newton, outputs, options, obs)?
         }
         Some(ts) => {
@@ -74,13 +74,13 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
                 Some(c) => c.flow_state(&options.out_dir, disc.num_dofs())?,
                 None => (vec![0.0; disc.num_dofs()], TimeLevel::default()),
             };
-            let mut stepper = FlowStepper::new(&disc, &problem, &mut lu, case.solver.newton.clone(), ts.scheme, x, level);
+            let mut stepper = FlowStepper::new(&disc, &problem, lu.as_mut(), case.solver.newton.clone(), ts.scheme, x, level);
             let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
             march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, true)?
         }
     };
     recorded.timings.discretize = discretize; // this part's (a steady run has no start timings)
-    let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
+    let symbolic = lu.symbolic_factorizations();
     Ok(recorded.summary(case, D, cells, symbolic))
 }
 

@@ -111,7 +111,8 @@ pub trait RunObserver {
 pub(crate) fn newton_lines(report: &crate::solve::newton::NewtonReport) -> impl Iterator<Item = String> + '_ {
     report.residual_norms.iter().enumerate().map(|(k, r)| {
         let du = report.update_norms.get(k).map(|d| format!(", |du| = {d:.3e}")).unwrap_or_default();
-        format!("newton {k}: |R| = {r:.3e}{du}")
+        let krylov = report.krylov_iterations.get(k).filter(|&&n| n > 0).map(|n| format!(", krylov {n}")).unwrap_or_default();
+        format!("newton {k}: |R| = {r:.3e}{du}{krylov}")
     })
 }
 

@@ -62,12 +62,12 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         Some(c) => c.solid_state(&options.out_dir, &at_rest)?,
     };
     let mut lu = case.solver.linear_solver();
-    let mut stepper = QuasiStaticStepper::new(&disc, &problem, &mut lu, case.solver.newton.clone(), state);
+    let mut stepper = QuasiStaticStepper::new(&disc, &problem, lu.as_mut(), case.solver.newton.clone(), state);
     let steps = spec.loading.steps;
     let schedule = Schedule { dt: 1.0 / steps as f64, end: 1.0, max_cuts: LOAD_STEP_CUTS };
     // The fields of the last step only.
     let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, steps, start, false)?;
-    let symbolic = crate::solve::linear::LinearSolver::symbolic_factorizations(&lu);
+    let symbolic = lu.symbolic_factorizations();
     Ok(recorded.summary(case, D, cells, symbolic))
 }
 

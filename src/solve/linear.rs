@@ -57,11 +57,22 @@ pub struct LinearSolverOptions {
     /// elimination tree, where 3D factorisations spend most of their flops): 1 = sequential,
     /// 0 = all cores.
     pub threads: usize,
+    /// Check each static factorisation by a solve of a known system, and fall back to the
+    /// partial-pivoting LU when it is inaccurate. Off for the inner solve of a Krylov method,
+    /// whose convergence is the check.
+    pub check_accuracy: bool,
 }
 
 impl Default for LinearSolverOptions {
     fn default() -> Self {
-        LinearSolverOptions { refine_tolerance: 1e-12, fail_tolerance: 1e-6, max_refinements: 3, ordering: FillOrdering::default(), threads: 1 }
+        LinearSolverOptions {
+            refine_tolerance: 1e-12,
+            fail_tolerance: 1e-6,
+            max_refinements: 3,
+            ordering: FillOrdering::default(),
+            threads: 1,
+            check_accuracy: true,
+        }
     }
 }
 
@@ -117,6 +128,8 @@ pub struct FactorStats {
 pub struct SolveStats {
     pub residual: f64,
     pub refinements: usize,
+    /// Krylov iterations (0 for a direct solve).
+    pub krylov_iterations: usize,
 }
 
 /// A direct or iterative solver for `A x = b` on a fixed pattern.
@@ -138,6 +151,9 @@ pub trait LinearSolver {
     /// Reports whether the held factorisation that [`LinearSolver::offer_held_factorization`]
     /// offered served (the solve reached its accuracy) or the matrix had to be factorised.
     fn held_factorization_served(&mut self, _served: bool) {}
+    /// The saddle-point structure of the systems to come (block preconditioners use it; direct
+    /// solvers ignore it). Called whenever the discretisation changes.
+    fn set_split(&mut self, _split: super::augmented::SaddlePointSplit) {}
 }
 
 /// Which factorisation [`FaerLu`] uses.
@@ -779,6 +795,12 @@ impl FaerLu {
         }
     }
 
+    /// Solves with the current factorisation, without refinement or checks (an inner solve of a
+    /// preconditioner).
+    pub(super) fn solve_unrefined(&self, x: &mut [f64]) {
+        self.raw_solve(x);
+    }
+
     fn raw_solve(&self, x: &mut [f64]) {
         match self.active {
             Active::Static => self.static_lu.as_ref().expect("active").solve(x, &mut self.scratch.borrow_mut()),
@@ -854,7 +876,7 @@ impl Default for FaerLu {
 
 /// Identity of a pattern by content: a hash of its index arrays (O(nnz), negligible next to a
 /// factorisation), so a symbolic factorisation is reused exactly when the structure is the same.
-fn pattern_key(p: &Pattern) -> u64 {
+pub(super) fn pattern_key(p: &Pattern) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
     p.n.hash(&mut h);
@@ -905,7 +927,7 @@ impl LinearSolver for FaerLu {
             let static_result = s.factorize(a, par);
             if static_result.is_ok() {
                 self.active = Active::Static;
-                if self.check_accuracy(a) <= STATIC_CHECK_TOLERANCE {
+                if !self.options.check_accuracy || self.check_accuracy(a) <= STATIC_CHECK_TOLERANCE {
                     return Ok(());
                 }
             }
@@ -935,7 +957,7 @@ impl LinearSolver for FaerLu {
         if res > self.options.fail_tolerance {
             return Err(LinearSolveError::Inaccurate { residual: res, refinements, tolerance: self.options.fail_tolerance });
         }
-        Ok(SolveStats { residual: res, refinements })
+        Ok(SolveStats { residual: res, refinements, krylov_iterations: 0 })
     }
 
     fn symbolic_factorizations(&self) -> usize {

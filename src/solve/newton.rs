@@ -50,6 +50,8 @@ pub struct NewtonReport {
     pub residual_norms: Vec<f64>,
     /// Norm of each update.
     pub update_norms: Vec<f64>,
+    /// Krylov iterations of each linear solve (zeros for a direct solver).
+    pub krylov_iterations: Vec<usize>,
     /// Numeric factorisations done (one per iteration without `reuse_factorization`).
     pub factorizations: usize,
     /// Whether the factorisation held from an earlier solve was tried first and served (`None`:
@@ -128,7 +130,10 @@ where
             rhs_copy.clone_from(&rhs);
             // Any failure of the reused factors (inaccurate, or not finite) means: factorise.
             match solver.solve_in_place(&k, &mut rhs) {
-                Ok(_) => solved = true,
+                Ok(stats) => {
+                    solved = true;
+                    report.krylov_iterations.push(stats.krylov_iterations);
+                }
                 Err(_) => rhs.clone_from(&rhs_copy),
             }
             report.solve_seconds += t.elapsed().as_secs_f64();
@@ -144,7 +149,8 @@ where
             report.factorize_seconds += t.elapsed().as_secs_f64();
             report.factorizations += 1;
             let t = std::time::Instant::now();
-            solver.solve_in_place(&k, &mut rhs)?;
+            let stats = solver.solve_in_place(&k, &mut rhs)?;
+            report.krylov_iterations.push(stats.krylov_iterations);
             report.solve_seconds += t.elapsed().as_secs_f64();
             reusable = true;
         }

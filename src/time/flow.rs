@@ -24,6 +24,8 @@ pub struct FlowStepper<'a, const D: usize> {
     pub inv_dt: f64,
     pub u_star: Vec<f64>,
     marked: (Vec<f64>, Option<Vec<f64>>),
+    /// Whether the solver has the discretisation's saddle-point split.
+    split_given: bool,
 }
 
 impl<'a, const D: usize> FlowStepper<'a, D> {
@@ -38,7 +40,19 @@ impl<'a, const D: usize> FlowStepper<'a, D> {
         x: Vec<f64>,
         level: TimeLevel,
     ) -> Self {
-        FlowStepper { disc, problem, solver, newton, scheme, x, x_prev: level.x_prev, inv_dt: 0.0, u_star: Vec::new(), marked: Default::default() }
+        FlowStepper {
+            disc,
+            problem,
+            solver,
+            newton,
+            scheme,
+            x,
+            x_prev: level.x_prev,
+            inv_dt: 0.0,
+            u_star: Vec::new(),
+            marked: Default::default(),
+            split_given: false,
+        }
     }
 
     /// The time level after step `step` at `time` (what a restart needs besides `x`).
@@ -51,6 +65,10 @@ impl<const D: usize> Stepper for FlowStepper<'_, D> {
     type Error = FlowError;
 
     fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, FlowError> {
+        if !self.split_given {
+            self.solver.set_split(self.disc.saddle_point_split(self.problem.formulation)?);
+            self.split_given = true;
+        }
         let dt = t1 - t0;
         let x_n = self.x.clone();
         let (inv_dt, u_star) = if cut { (1.0 / dt, x_n.clone()) } else { step_history(self.scheme, dt, &x_n, self.x_prev.as_deref()) };

@@ -1,0 +1,638 @@
+//! Augmented-Lagrangian (AL) block preconditioning of the monolithic saddle-point systems, inside
+//! FGMRES ([`super::krylov`]).
+//!
+//! **The split.** The unknowns fall into the *multipliers* `Q` (fluid pressure, solid pressure,
+//! coupling multiplier: all discontinuous, so each block's mass matrix `M` is block diagonal, one
+//! small dense block per cell or facet, [`MultiplierBlock`]) and the *primal* rest `F` (velocities,
+//! displacements, and the few unknowns of no block: kernel and trace modes; and the multipliers
+//! of groups next to Dirichlet-constrained unknowns, which the Schur approximation below misses,
+//! see `pinned_multipliers`). With `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
+//!
+//! ```text
+//! K = [ A   B' ]      T = [ I   sigma gamma B' M^-1 ]      T K = [ A_gamma   B' + sigma gamma B' M^-1 C ]
+//!     [ B   C  ]          [ 0   I                   ]            [ B         C                          ]
+//! ```
+//!
+//! where `A_gamma = A + sigma gamma B' M^-1 B` is the primal block augmented by the (cell-local)
+//! grad-div term and `sigma = +-1` makes `sigma B' M^-1 B` positive semi-definite (`B' = sigma B^T`
+//! up to the Dirichlet rows). `T` is a row operation, so `T K x = T b` has the solution of `K x = b`.
+//!
+//! **The preconditioner** (right, block upper triangular, Benzi & Olshanskii 2006; Farrell,
+//! Mitchell & Wechsung 2019) is `P = T^-1 [A_gamma, (T K)_FQ; 0, S]` with the Schur complement
+//! `C - B A_gamma^-1 (T K)_FQ` approximated by `S^-1 = -sigma (eta + gamma) M^-1` per block. Its
+//! application to `r = (r_F, r_Q)`:
+//!
+//! ```text
+//! z_Q = S^-1 r_Q
+//! z_F = A_gamma^-1 ( r_F + B' v ),   v = sigma gamma M^-1 (r_Q - C z_Q) - z_Q
+//! ```
+//!
+//! `A_gamma^-1` is the static supernodal LU ([`super::linear::FaerLu`]) of the augmented block:
+//! it has few zero diagonals (the multipliers kept primal, ordered after their neighbours), and
+//! its factor is several times smaller than that of the whole system (Schaefer-Turek 2D-1 on the
+//! medium mesh: 2.2e9 flops and 12.4 M entries against 3.6e10 and 64 M).
+//!
+//! **Scaling.** `gamma` is dimensionless: per block, `gamma_b = gamma eta_b` with
+//! `eta_b = mean diag(A) / mean diag(B' M^-1 B)` over the primal unknowns the block couples to
+//! (for Stokes, the viscosity up to a constant; with inertia, `rho / dt` and convection enter it).
+//!
+//! **Reuse.** With [`AlOptions::refactor_iterations`] `> 0`, the factorisation of `A_gamma` is
+//! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
+//! solve tries the held factors for at most that many Krylov iterations, then factorises the
+//! current matrix and goes on from the iterate reached; after such a failure the next Newton
+//! iteration factorises at once. Off by default: in a steady Newton solve the Jacobian changes
+//! too much between iterations (Schaefer-Turek 2D-1: no faster with 3 or 6).
+
+use super::krylov::{fgmres, KrylovOptions, KrylovReport};
+use super::linear::{FaerLu, LinearSolveError, LinearSolver, LinearSolverOptions, SolveStats};
+use fdfsi_fem::sparse::{CscMatrix, Pattern};
+use std::cell::RefCell;
+
+/// Multipliers whose mass matrix is block diagonal: one dense block per group (a cell of a
+/// discontinuous pressure, a facet of the coupling multiplier).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MultiplierBlock {
+    pub name: String,
+    /// Dofs of group `g`: `dofs[offsets[g]..offsets[g + 1]]`.
+    pub dofs: Vec<usize>,
+    pub offsets: Vec<usize>,
+    /// The mass matrices of the groups, row-major, one after the other.
+    pub mass: Vec<f64>,
+}
+
+impl MultiplierBlock {
+    /// An empty block.
+    pub fn new(name: &str) -> Self {
+        MultiplierBlock { name: name.into(), dofs: Vec::new(), offsets: vec![0], mass: Vec::new() }
+    }
+
+    /// Appends a group: its dofs and its (row-major, `n x n`) mass matrix.
+    pub fn push_group(&mut self, dofs: &[usize], mass: &[f64]) {
+        debug_assert_eq!(mass.len(), dofs.len() * dofs.len());
+        self.dofs.extend_from_slice(dofs);
+        self.offsets.push(self.dofs.len());
+        self.mass.extend_from_slice(mass);
+    }
+
+    /// Number of groups.
+    pub fn num_groups(&self) -> usize {
+        self.offsets.len() - 1
+    }
+}
+
+/// The multiplier blocks of a monolithic system (every other unknown is primal).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SaddlePointSplit {
+    pub multipliers: Vec<MultiplierBlock>,
+}
+
+/// Options of the AL solver (`[solver.linear]`).
+#[derive(Clone, Debug)]
+pub struct AlOptions {
+    /// Dimensionless weight of the grad-div augmentation (see the module documentation).
+    pub gamma: f64,
+    pub krylov: KrylovOptions,
+    /// Keep the factorisation of the augmented block while solves take at most this many Krylov
+    /// iterations (0: refactorise at every Newton iteration).
+    pub refactor_iterations: usize,
+    /// Options of the LU of the augmented block (and of the direct solve of systems without a
+    /// split).
+    pub lu: LinearSolverOptions,
+}
+
+impl Default for AlOptions {
+    fn default() -> Self {
+        AlOptions { gamma: 1e5, krylov: KrylovOptions::default(), refactor_iterations: 0, lu: LinearSolverOptions::default() }
+    }
+}
+
+/// One group of free multiplier dofs, in the solver's numbering.
+#[derive(Clone, Debug)]
+struct Group {
+    block: usize,
+    /// Its dofs (global): `q_dofs[start..end]`.
+    start: usize,
+    end: usize,
+    /// Offset of its mass matrix in the split block's `mass`, and the positions of its free dofs
+    /// in the original group (pinned dofs dropped).
+    mass_offset: usize,
+    size: usize,
+    local: Vec<usize>,
+    /// The primal unknowns its rows couple to (`F` numbering, sorted).
+    coupled: Vec<usize>,
+    /// Positions in `K` of `B'_g` (`coupled x dofs`, row-major) and `B_g` (`dofs x coupled`);
+    /// `usize::MAX` where the pattern has no entry.
+    bt_pos: Vec<usize>,
+    b_pos: Vec<usize>,
+}
+
+/// Everything derived from the pattern and the split: index maps and the pattern of `A_gamma`.
+struct Structure {
+    key: u64,
+    pinned: Vec<usize>,
+    /// `F` numbering: `f_dofs[i]` global, `f_local[global]` or `usize::MAX` for multipliers.
+    f_dofs: Vec<usize>,
+    f_local: Vec<usize>,
+    /// Free multiplier dofs (group by group) and their groups.
+    q_dofs: Vec<usize>,
+    groups: Vec<Group>,
+    pattern: Pattern,
+    /// Position in `A_gamma` of each entry of `K` in `F x F` (`usize::MAX` elsewhere).
+    ff_pos: Vec<usize>,
+}
+
+/// The numeric state: the factorised augmented block and the per-group operators.
+struct Numeric {
+    lu: FaerLu,
+    /// Per block: `sigma`, `gamma_b`, `eta_b` used by the held factors.
+    scales: Vec<(f64, f64, f64)>,
+    /// Inverse mass matrices of the groups (free dofs), concatenated.
+    minv: Vec<f64>,
+    factorized: bool,
+    /// Whether the held factors are those of the matrix being solved (not reused).
+    fresh: bool,
+    /// Whether the last try of held factors failed (then the next Newton iteration factorises).
+    stale_failed: bool,
+    factorizations: usize,
+}
+
+/// The AL-preconditioned FGMRES solver; a plain LU ([`FaerLu`]) for systems without a split.
+pub struct AugmentedLagrangian {
+    options: AlOptions,
+    split: SaddlePointSplit,
+    structure: Option<Structure>,
+    numeric: RefCell<Numeric>,
+    direct: FaerLu,
+    use_direct: bool,
+    symbolic_count: usize,
+}
+
+impl AugmentedLagrangian {
+    /// A solver with the given options; it is the direct LU until a split is given
+    /// ([`LinearSolver::set_split`]).
+    pub fn new(options: AlOptions) -> Self {
+        let inner = LinearSolverOptions { check_accuracy: false, ..options.lu.clone() };
+        let numeric = Numeric {
+            lu: FaerLu::new(inner),
+            scales: Vec::new(),
+            minv: Vec::new(),
+            factorized: false,
+            fresh: false,
+            stale_failed: false,
+            factorizations: 0,
+        };
+        AugmentedLagrangian {
+            direct: FaerLu::new(options.lu.clone()),
+            options,
+            split: SaddlePointSplit::default(),
+            structure: None,
+            numeric: RefCell::new(numeric),
+            use_direct: true,
+            symbolic_count: 0,
+        }
+    }
+
+    /// Numeric factorisations of the augmented block so far.
+    pub fn factorizations(&self) -> usize {
+        self.numeric.borrow().factorizations
+    }
+
+    /// A one-line description of the factorisation of the augmented block.
+    pub fn describe(&self) -> String {
+        let n = self.numeric.borrow();
+        match &self.structure {
+            Some(s) => format!("augmented block: {} of {} unknowns; {}", s.f_dofs.len(), s.f_local.len(), n.lu.describe()),
+            None => self.direct.describe(),
+        }
+    }
+
+    fn build_structure(&self, a: &CscMatrix<'_>, key: u64, pinned: Vec<usize>) -> Structure {
+        let p = a.pattern;
+        let n = p.n;
+        let mut is_q = vec![false; n];
+        let mut q_dofs = Vec::new();
+        let mut groups = Vec::new();
+        for (b, block) in self.split.multipliers.iter().enumerate() {
+            let mut mass_offset = 0;
+            for g in 0..block.num_groups() {
+                let dofs = &block.dofs[block.offsets[g]..block.offsets[g + 1]];
+                let start = q_dofs.len();
+                let mut local = Vec::new();
+                for (i, &d) in dofs.iter().enumerate() {
+                    if pinned.binary_search(&d).is_err() && d < n && !is_q[d] {
+                        is_q[d] = true;
+                        q_dofs.push(d);
+                        local.push(i);
+                    }
+                }
+                if !local.is_empty() {
+                    groups.push(Group {
+                        block: b,
+                        start,
+                        end: q_dofs.len(),
+                        mass_offset,
+                        size: dofs.len(),
+                        local,
+                        coupled: Vec::new(),
+                        bt_pos: Vec::new(),
+                        b_pos: Vec::new(),
+                    });
+                }
+                mass_offset += dofs.len() * dofs.len();
+            }
+        }
+        let f_dofs: Vec<usize> = (0..n).filter(|&i| !is_q[i]).collect();
+        let mut f_local = vec![usize::MAX; n];
+        for (i, &d) in f_dofs.iter().enumerate() {
+            f_local[d] = i;
+        }
+        for g in &mut groups {
+            let mut c: Vec<usize> = q_dofs[g.start..g.end]
+                .iter()
+                .flat_map(|&q| p.row_idx[p.col_ptr[q]..p.col_ptr[q + 1]].iter().map(|&i| f_local[i]))
+                .filter(|&i| i != usize::MAX)
+                .collect();
+            c.sort_unstable();
+            c.dedup();
+            let qs = &q_dofs[g.start..g.end];
+            let at = |i: usize, j: usize| p.find(i, j).unwrap_or(usize::MAX);
+            let f_dofs = &f_dofs;
+            g.bt_pos = c.iter().flat_map(|&fi| qs.iter().map(move |&q| (f_dofs[fi], q))).map(|(i, q)| at(i, q)).collect();
+            g.b_pos = qs.iter().flat_map(|&q| c.iter().map(move |&fi| (q, f_dofs[fi]))).map(|(q, i)| at(q, i)).collect();
+            g.coupled = c;
+        }
+        // Columns of `A_gamma`: those of `K_FF`, plus the couplings of each group's grad-div
+        // term where `K_FF` lacks them (none for a pressure of the fluid's own cells).
+        let mut cols: Vec<Vec<usize>> = f_dofs
+            .iter()
+            .map(|&j| p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().map(|&i| f_local[i]).filter(|&i| i != usize::MAX).collect())
+            .collect();
+        let mut extra = Vec::new();
+        for g in &groups {
+            for &j in &g.coupled {
+                for &i in &g.coupled {
+                    if cols[j].binary_search(&i).is_err() {
+                        extra.push((j, i));
+                    }
+                }
+            }
+        }
+        for (j, i) in extra {
+            if let Err(pos) = cols[j].binary_search(&i) {
+                cols[j].insert(pos, i);
+            }
+        }
+        let mut col_ptr = Vec::with_capacity(f_dofs.len() + 1);
+        col_ptr.push(0);
+        let mut row_idx = Vec::with_capacity(cols.iter().map(Vec::len).sum());
+        for c in &cols {
+            row_idx.extend_from_slice(c);
+            col_ptr.push(row_idx.len());
+        }
+        drop(cols);
+        let pattern = Pattern { n: f_dofs.len(), col_ptr, row_idx };
+        let mut ff_pos = vec![usize::MAX; p.nnz()];
+        for (jl, &j) in f_dofs.iter().enumerate() {
+            for k in p.col_ptr[j]..p.col_ptr[j + 1] {
+                let il = f_local[p.row_idx[k]];
+                if il != usize::MAX {
+                    ff_pos[k] = pattern.find(il, jl).expect("K_FF entry in the augmented pattern");
+                }
+            }
+        }
+        Structure { key, pinned, f_dofs, f_local, q_dofs, groups, pattern, ff_pos }
+    }
+
+    /// Multiplier dofs that stay primal: those with identity rows (a pinned pressure), and all
+    /// dofs of the groups coupled to a Dirichlet-constrained unknown. In such a group the free
+    /// primal unknowns may not control every multiplier mode (a corner cell: only the bubble is
+    /// free, and `int_K div(bubble) = 0`), so `B A^-1 B^T` has eigenvalues far below `M / eta`
+    /// there and `-(eta + gamma) M^-1` misses them: measured on the 3D Stokes cube (4^3 cells),
+    /// 15 Krylov iterations with these groups in the Schur block and 3 without. The LU of the
+    /// primal block takes them as it takes any zero-diagonal unknown (after their neighbours).
+    fn pinned_multipliers(&self, a: &CscMatrix<'_>) -> Vec<usize> {
+        let identity = identity_rows(a);
+        let p = a.pattern;
+        let mut multiplier = vec![false; p.n];
+        self.split.multipliers.iter().flat_map(|b| &b.dofs).filter(|&&q| q < p.n).for_each(|&q| multiplier[q] = true);
+        let mut pinned = Vec::new();
+        for b in &self.split.multipliers {
+            for g in 0..b.num_groups() {
+                let dofs: Vec<usize> = b.dofs[b.offsets[g]..b.offsets[g + 1]].iter().copied().filter(|&q| q < p.n).collect();
+                let near_dirichlet = dofs.iter().any(|&q| p.row_idx[p.col_ptr[q]..p.col_ptr[q + 1]].iter().any(|&i| identity[i] && !multiplier[i]));
+                pinned.extend(dofs.iter().copied().filter(|&q| near_dirichlet || identity[q]));
+            }
+        }
+        pinned.sort_unstable();
+        pinned.dedup();
+        pinned
+    }
+
+    /// Builds `A_gamma` from `a` and factorises it.
+    fn factorize_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Result<(), LinearSolveError> {
+        let t0 = std::time::Instant::now();
+        let s = self.structure.as_ref().expect("structure");
+        // Inverse mass matrices of the free dofs of each group.
+        num.minv.clear();
+        for g in &s.groups {
+            let block = &self.split.multipliers[g.block];
+            let m = g.local.len();
+            let full = &block.mass[g.mass_offset..g.mass_offset + g.size * g.size];
+            let sub: Vec<f64> = (0..m * m).map(|k| full[g.local[k / m] * g.size + g.local[k % m]]).collect();
+            let inv = invert_dense(&sub, m).ok_or_else(|| {
+                LinearSolveError::Numeric(format!("{}: singular mass matrix of the group of dof {}", block.name, s.q_dofs[g.start]))
+            })?;
+            num.minv.extend_from_slice(&inv);
+        }
+        // The grad-div term of each group: `G_g = B'_g M_g^-1 B_g` (rows and columns `coupled`).
+        let nb = self.split.multipliers.len();
+        let mut sums = vec![(0.0, 0.0, 0.0); nb]; // (sum of K_iq K_qi, sum diag A, sum diag G) per block
+        let mut counts = vec![0usize; nb];
+        let mut terms: Vec<Vec<f64>> = Vec::with_capacity(s.groups.len());
+        let mut offset = 0;
+        let mut seen = vec![false; s.f_dofs.len()];
+        for g in &s.groups {
+            let (m, c) = (g.local.len(), g.coupled.len());
+            let minv = &num.minv[offset..offset + m * m];
+            offset += m * m;
+            // bt[i][a] = K[coupled_i, q_a], b[a][i] = K[q_a, coupled_i].
+            let mut bt = vec![0.0; c * m];
+            let mut b = vec![0.0; m * c];
+            let value = |k: usize| if k == usize::MAX { 0.0 } else { a.values[k] };
+            for (t, &k) in bt.iter_mut().zip(&g.bt_pos) {
+                *t = value(k);
+            }
+            for (t, &k) in b.iter_mut().zip(&g.b_pos) {
+                *t = value(k);
+            }
+            for ai in 0..m {
+                for ii in 0..c {
+                    sums[g.block].0 += bt[ii * m + ai] * b[ai * c + ii];
+                }
+            }
+            // mb = M^-1 B (m x c); G = B' mb (c x c).
+            let mut mb = vec![0.0; m * c];
+            for ai in 0..m {
+                for bi in 0..m {
+                    let w = minv[ai * m + bi];
+                    for ii in 0..c {
+                        mb[ai * c + ii] += w * b[bi * c + ii];
+                    }
+                }
+            }
+            let mut gm = vec![0.0; c * c];
+            for ii in 0..c {
+                for ai in 0..m {
+                    let w = bt[ii * m + ai];
+                    if w != 0.0 {
+                        for jj in 0..c {
+                            gm[ii * c + jj] += w * mb[ai * c + jj];
+                        }
+                    }
+                }
+            }
+            for (ii, &fi) in g.coupled.iter().enumerate() {
+                let coupled = (0..m).any(|ai| bt[ii * m + ai] != 0.0);
+                if coupled && !seen[fi] {
+                    seen[fi] = true;
+                    let i = s.f_dofs[fi];
+                    sums[g.block].1 += a.get(i, i).abs();
+                    counts[g.block] += 1;
+                }
+                sums[g.block].2 += gm[ii * c + ii].abs();
+            }
+            terms.push(gm);
+        }
+        num.scales = (0..nb)
+            .map(|b| {
+                let sigma = if sums[b].0 >= 0.0 { 1.0 } else { -1.0 };
+                let eta = if sums[b].2 > 0.0 && counts[b] > 0 { sums[b].1 / sums[b].2 } else { 1.0 };
+                (sigma, self.options.gamma * eta, eta)
+            })
+            .collect();
+        tracing::debug!("grad-div terms in {:.3} s", t0.elapsed().as_secs_f64());
+        // A_gamma = K_FF + sigma gamma_b G.
+        let mut values = vec![0.0; s.pattern.nnz()];
+        for (k, &pos) in s.ff_pos.iter().enumerate() {
+            if pos != usize::MAX {
+                values[pos] += a.values[k];
+            }
+        }
+        for (g, gm) in s.groups.iter().zip(&terms) {
+            let (sigma, gamma_b, _) = num.scales[g.block];
+            let c = g.coupled.len();
+            for (jj, &j) in g.coupled.iter().enumerate() {
+                let rows = &s.pattern.row_idx[s.pattern.col_ptr[j]..s.pattern.col_ptr[j + 1]];
+                let base = s.pattern.col_ptr[j];
+                let mut k = 0;
+                for (ii, &i) in g.coupled.iter().enumerate() {
+                    while rows[k] < i {
+                        k += 1;
+                    }
+                    values[base + k] += sigma * gamma_b * gm[ii * c + jj];
+                }
+            }
+        }
+        let ag = CscMatrix { pattern: &s.pattern, values };
+        tracing::debug!("augmented block assembled in {:.3} s", t0.elapsed().as_secs_f64());
+        let t = std::time::Instant::now();
+        num.lu.factorize(&ag)?;
+        tracing::debug!("factorised the augmented block in {:.3} s: {}", t.elapsed().as_secs_f64(), num.lu.describe());
+        num.factorized = true;
+        num.fresh = true;
+        num.factorizations += 1;
+        Ok(())
+    }
+
+    /// `z = P^-1 r` (see the module documentation).
+    fn precondition(&self, a: &CscMatrix<'_>, num: &Numeric, r: &[f64], z: &mut [f64], v: &mut [f64], y: &mut [f64]) {
+        let s = self.structure.as_ref().expect("structure");
+        let p = a.pattern;
+        let apply_minv = |g: &Group, offset: usize, scale: f64, src: &[f64], dst: &mut [f64]| {
+            let m = g.end - g.start;
+            let qs = &s.q_dofs[g.start..g.end];
+            for (ai, &qa) in qs.iter().enumerate() {
+                dst[qa] = scale * (0..m).map(|bi| num.minv[offset + ai * m + bi] * src[qs[bi]]).sum::<f64>();
+            }
+        };
+        // z_Q = -sigma (eta + gamma) M^-1 r_Q.
+        let mut offset = 0;
+        for g in &s.groups {
+            let (sigma, gamma_b, eta) = num.scales[g.block];
+            apply_minv(g, offset, -sigma * (eta + gamma_b), r, z);
+            offset += (g.end - g.start).pow(2);
+        }
+        // v_Q = sigma gamma M^-1 (r_Q - C z_Q) - z_Q, with w = r_Q - C z_Q in y.
+        for &q in &s.q_dofs {
+            y[q] = r[q];
+        }
+        for &q in &s.q_dofs {
+            for k in p.col_ptr[q]..p.col_ptr[q + 1] {
+                let i = p.row_idx[k];
+                if s.f_local[i] == usize::MAX {
+                    y[i] -= a.values[k] * z[q];
+                }
+            }
+        }
+        let mut offset = 0;
+        for g in &s.groups {
+            let (sigma, gamma_b, _) = num.scales[g.block];
+            apply_minv(g, offset, sigma * gamma_b, y, v);
+            offset += (g.end - g.start).pow(2);
+        }
+        for &q in &s.q_dofs {
+            v[q] -= z[q];
+        }
+        // z_F = A_gamma^-1 (r_F + B' v).
+        let mut yf: Vec<f64> = s.f_dofs.iter().map(|&i| r[i]).collect();
+        for &q in &s.q_dofs {
+            for k in p.col_ptr[q]..p.col_ptr[q + 1] {
+                let il = s.f_local[p.row_idx[k]];
+                if il != usize::MAX {
+                    yf[il] += a.values[k] * v[q];
+                }
+            }
+        }
+        num.lu.solve_unrefined(&mut yf);
+        for (il, &i) in s.f_dofs.iter().enumerate() {
+            z[i] = yf[il];
+        }
+    }
+
+    /// FGMRES from the guess in `x`, with at most `max_iterations` iterations.
+    fn krylov_solve(&self, a: &CscMatrix<'_>, num: &Numeric, rhs: &[f64], x: &mut [f64], max_iterations: usize) -> KrylovReport {
+        let n = rhs.len();
+        let (mut v, mut y) = (vec![0.0; n], vec![0.0; n]);
+        let options = KrylovOptions { max_iterations, ..self.options.krylov };
+        fgmres(|u, out| a.mul_vec(u, out), |r, z| self.precondition(a, num, r, z, &mut v, &mut y), rhs, x, &options)
+    }
+}
+
+/// Rows of `a` whose only nonzero is on the diagonal (Dirichlet-constrained unknowns).
+fn identity_rows(a: &CscMatrix<'_>) -> Vec<bool> {
+    let p = a.pattern;
+    let mut off = vec![false; p.n];
+    for j in 0..p.n {
+        for k in p.col_ptr[j]..p.col_ptr[j + 1] {
+            if p.row_idx[k] != j && a.values[k] != 0.0 {
+                off[p.row_idx[k]] = true;
+            }
+        }
+    }
+    (0..p.n).map(|i| !off[i] && a.get(i, i) != 0.0).collect()
+}
+
+/// Inverse of a small dense row-major matrix by Gauss-Jordan elimination with partial pivoting.
+fn invert_dense(a: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut m = a.to_vec();
+    let mut inv: Vec<f64> = (0..n * n).map(|k| if k / n == k % n { 1.0 } else { 0.0 }).collect();
+    let scale = a.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    for c in 0..n {
+        let piv = (c..n).max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))?;
+        if m[piv * n + c].abs() <= 1e-14 * scale {
+            return None;
+        }
+        for k in 0..n {
+            m.swap(c * n + k, piv * n + k);
+            inv.swap(c * n + k, piv * n + k);
+        }
+        let d = 1.0 / m[c * n + c];
+        for k in 0..n {
+            m[c * n + k] *= d;
+            inv[c * n + k] *= d;
+        }
+        for i in (0..n).filter(|&i| i != c) {
+            let f = m[i * n + c];
+            if f != 0.0 {
+                for k in 0..n {
+                    m[i * n + k] -= f * m[c * n + k];
+                    inv[i * n + k] -= f * inv[c * n + k];
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+impl LinearSolver for AugmentedLagrangian {
+    fn factorize(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
+        self.use_direct = self.split.multipliers.iter().all(|b| b.dofs.is_empty());
+        if self.use_direct {
+            return self.direct.factorize(a);
+        }
+        let t0 = std::time::Instant::now();
+        let key = super::linear::pattern_key(a.pattern);
+        let pinned = self.pinned_multipliers(a);
+        tracing::debug!("pattern key and pinned multipliers in {:.3} s", t0.elapsed().as_secs_f64());
+        let same = self.structure.as_ref().is_some_and(|s| s.key == key && s.pinned == pinned);
+        let num = self.numeric.get_mut();
+        if !same {
+            num.factorized = false;
+            self.structure = None;
+            self.symbolic_count += 1;
+            let t = std::time::Instant::now();
+            let s = self.build_structure(a, key, pinned);
+            tracing::debug!("split of the saddle-point system in {:.3} s", t.elapsed().as_secs_f64());
+            self.structure = Some(s);
+        }
+        let num = self.numeric.get_mut();
+        let keep = num.factorized && self.options.refactor_iterations > 0 && !num.stale_failed;
+        if keep {
+            num.fresh = false;
+            return Ok(());
+        }
+        let mut num = self.numeric.borrow_mut();
+        num.stale_failed = false; // the next Newton iteration tries these factors again
+        self.factorize_augmented(a, &mut num)
+    }
+
+    fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+        if self.use_direct {
+            return self.direct.solve_in_place(a, rhs);
+        }
+        let mut num = self.numeric.borrow_mut();
+        if !num.factorized {
+            return Err(LinearSolveError::Numeric("solve before a successful factorisation".into()));
+        }
+        let b = rhs.to_vec();
+        rhs.iter_mut().for_each(|x| *x = 0.0);
+        let mut iterations = 0;
+        if !num.fresh {
+            // Held factors: at most `refactor_iterations` iterations, then factorise this matrix
+            // and go on from where they got.
+            let report = self.krylov_solve(a, &num, &b, rhs, self.options.refactor_iterations);
+            iterations += report.iterations;
+            num.stale_failed = !report.converged;
+            if report.converged {
+                return Ok(SolveStats { residual: report.residual, refinements: 0, krylov_iterations: iterations });
+            }
+            tracing::debug!(
+                "held factors of the augmented block: not converged in {} Krylov iterations (residual {:.1e}): factorising",
+                report.iterations,
+                report.residual
+            );
+            self.factorize_augmented(a, &mut num)?;
+        }
+        let report = self.krylov_solve(a, &num, &b, rhs, self.options.krylov.max_iterations);
+        iterations += report.iterations;
+        if rhs.iter().any(|x| !x.is_finite()) {
+            return Err(LinearSolveError::NonFinite);
+        }
+        if !report.converged {
+            return Err(LinearSolveError::Inaccurate { residual: report.residual, refinements: iterations, tolerance: self.options.krylov.rel_tol });
+        }
+        Ok(SolveStats { residual: report.residual, refinements: 0, krylov_iterations: iterations })
+    }
+
+    fn symbolic_factorizations(&self) -> usize {
+        self.symbolic_count + self.direct.symbolic_factorizations()
+    }
+
+    fn set_split(&mut self, split: SaddlePointSplit) {
+        if split != self.split {
+            self.split = split;
+            self.structure = None;
+            self.numeric.get_mut().factorized = false;
+        }
+    }
+}
