@@ -165,27 +165,37 @@ pub fn fluid_cell<const D: usize>(
         for k in 0..np {
             re[nu + k] -= w * psi[k] * div_u;
         }
-        // Jacobian.
+        // Jacobian, per block (i, j) of velocity rows and columns:
+        //   d_ij delta_ab + c_ij dU_a/dx_b + sym eta dphi_i/dx_b dphi_j/dx_a,
+        //   d_ij = eta grad phi_i . grad phi_j + phi_i (rho/dt phi_j + rho u . grad phi_j),
+        //   c_ij = rho phi_i phi_j (convection only),
+        // plus the hoop term on (r, r) when axisymmetric; loop-invariant choices are made outside
+        // the (i, j) loops (this is the hot loop of assembly).
         let mass = rho * params.inv_dt;
+        let rho_c = if params.convection { rho } else { 0.0 };
+        let mut conv = [0.0; 32];
+        debug_assert!(nv <= conv.len(), "velocity elements of at most 32 nodes");
+        for j in 0..nv {
+            conv[j] = rho_c * (0..D).map(|b| u[b] * dphi[j][b]).sum::<f64>();
+        }
         for i in 0..nv {
+            let (wpi, wdpi) = (w * phi[i], dphi[i].map(|g| w * g));
             for j in 0..nv {
-                let gij: f64 = (0..D).map(|b| dphi[i][b] * dphi[j][b]).sum();
-                let conv_j: f64 = if params.convection { (0..D).map(|b| u[b] * dphi[j][b]).sum() } else { 0.0 };
+                let dpj = &dphi[j];
+                let d = eta * (0..D).map(|b| wdpi[b] * dpj[b]).sum::<f64>() + wpi * (mass * phi[j] + conv[j]);
+                let c = rho_c * wpi * phi[j];
                 for a in 0..D {
-                    let row = (i * D + a) * n;
+                    let row = (i * D + a) * n + j * D;
                     for b in 0..D {
-                        let mut v = sym * eta * dphi[i][b] * dphi[j][a];
-                        if a == b {
-                            v += eta * gij + (mass * phi[j] + rho * conv_j) * phi[i];
-                            if axi && a == 1 {
-                                v += hoop_k * eta * phi[i] * phi[j] / (r * r);
-                            }
-                        }
-                        if params.convection {
-                            v += rho * phi[i] * phi[j] * gu[a][b];
-                        }
-                        ke[row + j * D + b] += w * v;
+                        ke[row + b] += c * gu[a][b] + sym * eta * wdpi[b] * dpj[a];
                     }
+                    ke[row + a] += d;
+                }
+            }
+            if axi {
+                let a = 1;
+                for j in 0..nv {
+                    ke[(i * D + a) * n + j * D + a] += hoop_k * eta * wpi * phi[j] / (r * r);
                 }
             }
             for a in 0..D {

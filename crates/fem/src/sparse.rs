@@ -225,28 +225,70 @@ where
     let pattern = matrix.pattern;
     let out = SharedOut { values: matrix.values.as_mut_ptr(), rhs: rhs.as_mut_ptr() };
     let out = &out;
+    if rayon::current_num_threads() == 1 {
+        // One thread: the cells in their own (mesh) order, so that neighbouring cells find their
+        // shared columns in cache; the colours scatter them over the mesh (Schaefer-Turek 2D-1,
+        // 16 000 P2+ triangles: assembly 0.14 s in colour order, 0.10 s in cell order). The sums
+        // then differ from the threaded ones by round-off (another order of the same terms).
+        let mut cells = colouring.colours.concat();
+        cells.sort_unstable();
+        let (mut scratch, mut local, mut order) = (make_scratch(), LocalSystem::default(), Vec::new());
+        for c in cells {
+            kernel(c, &mut scratch, &mut local)?;
+            // SAFETY: one thread writes.
+            unsafe { scatter(&local, &mut order, pattern, skip_row, out) };
+        }
+        return Ok(());
+    }
     for cells in &colouring.colours {
         cells.par_iter().with_min_len(64).try_for_each_init(
-            || (make_scratch(), LocalSystem::default()),
-            |(scratch, local), &c| -> Result<(), E> {
+            || (make_scratch(), LocalSystem::default(), Vec::new()),
+            |(scratch, local, order), &c| -> Result<(), E> {
                 kernel(c, scratch, local)?;
-                let n = local.dofs.len();
-                for (i, &row) in local.dofs.iter().enumerate() {
-                    if skip_row[row] {
-                        continue;
-                    }
-                    // SAFETY: see `SharedOut`.
-                    unsafe { *out.rhs.add(row) += local.fe[i] };
-                    for (j, &col) in local.dofs.iter().enumerate() {
-                        let k = pattern.find(row, col).expect("cell dofs are in the pattern");
-                        unsafe { *out.values.add(k) += local.ke[i * n + j] };
-                    }
-                }
+                // SAFETY: see `SharedOut`.
+                unsafe { scatter(local, order, pattern, skip_row, out) };
                 Ok(())
             },
         )?;
     }
     Ok(())
+}
+
+/// Adds one cell's `local` system into `out` (rows with `skip_row` left out).
+///
+/// Column by column, the cell's rows in ascending order (`order` is scratch): one forward walk
+/// through each column's sorted row indices and values, where a binary search per entry took
+/// most of the scatter's time.
+///
+/// # Safety
+/// No other thread may write the rows of `local.dofs` meanwhile (see `SharedOut`).
+unsafe fn scatter(local: &LocalSystem, order: &mut Vec<usize>, pattern: &Pattern, skip_row: &[bool], out: &SharedOut) {
+    let n = local.dofs.len();
+    for (i, &row) in local.dofs.iter().enumerate() {
+        if !skip_row[row] {
+            unsafe { *out.rhs.add(row) += local.fe[i] };
+        }
+    }
+    order.clear();
+    order.extend(0..n);
+    order.sort_unstable_by_key(|&i| local.dofs[i]);
+    for (j, &col) in local.dofs.iter().enumerate() {
+        let start = pattern.col_ptr[col];
+        let rows = &pattern.row_idx[start..pattern.col_ptr[col + 1]];
+        let mut k = 0;
+        for &i in order.iter() {
+            let row = local.dofs[i];
+            if skip_row[row] {
+                continue;
+            }
+            while rows[k] < row {
+                k += 1;
+            }
+            debug_assert_eq!(rows[k], row, "cell dofs are in the pattern");
+            // `rows[k] == row`: an entry of this column.
+            unsafe { *out.values.add(start + k) += local.ke[i * n + j] };
+        }
+    }
 }
 
 #[cfg(test)]
