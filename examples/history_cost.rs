@@ -35,7 +35,7 @@ fn main() {
     let values: Vec<f64> = (0..12).map(|k| 1.0 / (k as f64 + 3.0)).collect();
     // Appended rows.
     let mut history = History::new(&dir.path().join("history.csv"), &names).expect("history.csv");
-    let (a, b) = row_times(steps, |s| history.push(s, s as f64 * 1e-3, 3, 1e-10, &values).expect("a row"));
+    let (a, b) = row_times(steps, |s| history.push(s, s as f64 * 1e-3, (3, 0), 1e-10, &values).expect("a row"));
     println!("append  : step 100 {:8.3} ms, step {steps} {:8.3} ms", 1e3 * a, 1e3 * b);
     // The whole file rewritten each step.
     let path = dir.path().join("rewritten.csv");

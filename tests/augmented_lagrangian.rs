@@ -101,6 +101,18 @@ fn cavity_with_pinned_pressure_matches_the_direct_solve() {
     assert!(krylov.iter().all(|&k| (1..=6).contains(&k)), "Krylov iterations per Newton step: {krylov:?}");
 }
 
+/// The cavity at Re = 1000 from rest: plain Newton fails (no line search, no continuation); the
+/// default options (line search, continuation in the viscosity) converge, with either solver.
+#[test]
+fn steady_cavity_at_re_1000_needs_continuation() {
+    let (disc, problem) = cavity(1e-3, 0.0);
+    let plain = NewtonOptions { line_search: Some(false), continuation: false, ..Default::default() };
+    assert!(solve_steady(&disc, &problem, &mut FaerLu::default(), &plain).is_err(), "plain Newton converged from rest");
+    let (diff, report) = compare(&disc, &problem);
+    assert!(diff < 1e-8, "AL and direct differ by {diff:.2e}");
+    assert!(*report.residual_norms.last().unwrap() < 1e-10);
+}
+
 /// The 3D Stokes verification problem (unit cube, 4 cells per side).
 #[test]
 fn stokes_3d_matches_the_direct_solve() {

@@ -10,6 +10,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("quarter-pipe-3d-stokes", include_str!("../../cases/quarter-pipe-3d-stokes.toml")),
     ("cylinder-stokes-gmsh", include_str!("../../cases/cylinder-stokes-gmsh.toml")),
     ("schaefer-turek-2d1", include_str!("../../cases/schaefer-turek-2d1.toml")),
+    ("lid-driven-cavity-re1000", include_str!("../../cases/lid-driven-cavity-re1000.toml")),
     ("womersley-axisymmetric", include_str!("../../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../../cases/skewed-plate-dirichlet.toml")),
     ("model-problem-1", include_str!("../../cases/model-problem-1.toml")),

@@ -373,6 +373,13 @@ impl<'a, const D: usize> SteadySystem<'a, D> {
 
 /// Solves the steady problem (`params.inv_dt` must be 0) with Newton from the Dirichlet values
 /// (zero elsewhere).
+///
+/// With `options.continuation`, a Navier-Stokes problem on which Newton fails from rest (not
+/// converged, or not finite) is solved by continuation in the viscosity: first at
+/// `eta_0 = 4^k eta` for the smallest `k` at which Newton converges from rest, then at viscosities
+/// that approach `eta` geometrically, each from the solution before; a failed stage halves the
+/// logarithmic step (at most [`MAX_CONTINUATION_SOLVES`] solves in all). The report is the last
+/// solve's, with the iterations of all stages summed.
 pub fn solve_steady<const D: usize>(
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,
@@ -381,11 +388,77 @@ pub fn solve_steady<const D: usize>(
 ) -> Result<FlowSolution, FlowError> {
     let (system, mut x) = SteadySystem::new(disc, problem)?;
     solver.set_split(disc.saddle_point_split(problem.formulation)?);
-    let report = newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs))?;
+    let options = &NewtonOptions { line_search: Some(options.line_search.unwrap_or(true)), ..options.clone() };
+    let x0 = x.clone();
+    let report = match newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs)) {
+        Ok(report) => report,
+        Err(NewtonError::NotConverged { .. } | NewtonError::NonFinite { .. } | NewtonError::LineSearch { .. })
+            if options.continuation && problem.params.convection =>
+        {
+            x = x0;
+            continue_in_viscosity(disc, problem, solver, options, &mut x)?
+        }
+        Err(e) => return Err(e.into()),
+    };
     if problem.pin_pressure {
         shift_pressure_to_zero_mean(disc, problem.formulation, &mut x)?;
     }
     Ok(FlowSolution { x, newton: report })
+}
+
+/// Most Newton solves of a viscosity continuation ([`solve_steady`]).
+pub const MAX_CONTINUATION_SOLVES: usize = 24;
+/// Most Newton iterations of one continuation stage.
+const STAGE_MAX_ITERATIONS: usize = 10;
+
+/// The continuation of [`solve_steady`], from the rest state `x` (overwritten with the solution).
+fn continue_in_viscosity<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    problem: &FlowProblem<D>,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+    x: &mut Vec<f64>,
+) -> Result<NewtonReport, FlowError> {
+    let target = problem.params.viscosity;
+    let mut stage = problem.clone();
+    // A stage starts near its solution: one that needs many iterations is failing.
+    let options = &NewtonOptions { max_iterations: options.max_iterations.min(STAGE_MAX_ITERATIONS), ..options.clone() };
+    let (solves, iterations) = (std::cell::Cell::new(0), std::cell::Cell::new(0));
+    let mut solve_at = |eta: f64, x: &mut Vec<f64>| -> Result<NewtonReport, NewtonError<AssemblyError>> {
+        stage.params.viscosity = eta;
+        let (system, _) = SteadySystem::new(disc, &stage).map_err(|_| NewtonError::NonFinite { iteration: 0 })?;
+        solves.set(solves.get() + 1);
+        tracing::debug!("continuation: viscosity {eta:.4e} (target {target:.4e})");
+        let mut trial = x.clone();
+        let result = newton::solve(&mut trial, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs));
+        if let Ok(report) = &result {
+            iterations.set(iterations.get() + report.iterations);
+            *x = trial;
+        }
+        result
+    };
+    // A viscosity at which Newton converges from rest.
+    let mut eta = target;
+    let mut last = loop {
+        eta *= 4.0;
+        match solve_at(eta, x) {
+            Ok(report) => break report,
+            Err(e) if solves.get() >= MAX_CONTINUATION_SOLVES => return Err(e.into()),
+            Err(_) => {} // x is still the rest state
+        }
+    };
+    // Towards the target: ratio `eta / eta_next`, halved in the logarithm after a failure.
+    let mut ratio: f64 = 4.0;
+    while eta > target {
+        let next = (eta / ratio).max(target);
+        match solve_at(next, x) {
+            Ok(report) => (eta, last) = (next, report),
+            Err(e) if solves.get() >= MAX_CONTINUATION_SOLVES || ratio < 1.01 => return Err(e.into()),
+            Err(_) => ratio = ratio.sqrt(),
+        }
+    }
+    last.iterations = iterations.get();
+    Ok(last)
 }
 
 /// Adds a constant to the pressure so that its (weighted) mean over the domain is zero.

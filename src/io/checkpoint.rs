@@ -33,7 +33,7 @@ use thiserror::Error;
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 
 /// Format version; a checkpoint of another version is refused.
-pub const CHECKPOINT_VERSION: u32 = 1;
+pub const CHECKPOINT_VERSION: u32 = 2;
 
 /// A checkpoint failure.
 #[derive(Debug, Error)]
@@ -80,6 +80,7 @@ impl RestartState {
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Progress {
     pub newton_iterations: usize,
+    pub krylov_iterations: usize,
     pub residual_norms: Vec<f64>,
     /// Phase times summed over the steps so far; `total` is the run's wall time up to the
     /// checkpoint, over all its parts.
@@ -90,9 +91,10 @@ impl Progress {
     /// The totals after a step of a run part that began at `part_start`: `timings.total` holds the
     /// wall time of the earlier parts (carried over restarts, 0 in a fresh run) and becomes that
     /// plus this part's time so far.
-    pub fn after_step(newton_iterations: usize, residual_norms: &[f64], timings: &Timings, part_start: Instant) -> Progress {
+    pub fn after_step(iterations: (usize, usize), residual_norms: &[f64], timings: &Timings, part_start: Instant) -> Progress {
         let timings = Timings { total: timings.total + part_start.elapsed().as_secs_f64(), ..timings.clone() };
-        Progress { newton_iterations, residual_norms: residual_norms.to_vec(), timings }
+        let (newton_iterations, krylov_iterations) = iterations;
+        Progress { newton_iterations, krylov_iterations, residual_norms: residual_norms.to_vec(), timings }
     }
 }
 
@@ -225,7 +227,7 @@ mod tests {
                 x: awkward.to_vec(),
                 level: crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) },
             },
-            progress: Progress { newton_iterations: 7, residual_norms: vec![1e-11], timings: Timings::default() },
+            progress: Progress { newton_iterations: 7, krylov_iterations: 0, residual_norms: vec![1e-11], timings: Timings::default() },
             builds: vec![crate::io::provenance::Build::current()],
         };
         c.write(dir.path()).unwrap();

@@ -1,4 +1,5 @@
-//! `history.csv`: one row per step, `step,time,newton_iterations,residual,<quantities...>`.
+//! `history.csv`: one row per step,
+//! `step,time,newton_iterations,residual,krylov_iterations,<quantities...>`.
 
 use super::{write_atomic, OutputError};
 use std::io::Write;
@@ -8,6 +9,9 @@ use std::path::Path;
 /// step completes, so the cost of a step's output does not grow with the length of the run.
 ///
 /// A run killed while writing a row leaves a torn last line; [`History::resume`] cuts it away.
+/// The columns before the quantities.
+const HEADER: &str = "step,time,newton_iterations,residual,krylov_iterations";
+
 pub struct History {
     path: std::path::PathBuf,
     file: std::fs::File,
@@ -17,16 +21,16 @@ pub struct History {
 
 impl History {
     /// Starts a history (replacing any file at `path`) with the quantity names as columns after
-    /// `step,time,newton_iterations,residual`; the header is written at once.
+    /// `step,time,newton_iterations,residual,krylov_iterations`; the header is written at once.
     pub fn new(path: &Path, quantities: &[String]) -> Result<Self, OutputError> {
-        let mut header = String::from("step,time,newton_iterations,residual");
+        let mut header = String::from(HEADER);
         for q in quantities {
             header.push(',');
             header.push_str(q);
         }
         header.push('\n');
         write_atomic(path, header.as_bytes())?;
-        Self::append_to(path, 4 + quantities.len())
+        Self::append_to(path, HEADER.split(',').count() + quantities.len())
     }
 
     fn append_to(path: &Path, columns: usize) -> Result<Self, OutputError> {
@@ -42,7 +46,8 @@ impl History {
         let io = |source| OutputError::Io { path: path.display().to_string(), source };
         let old = std::fs::read_to_string(path).map_err(io)?;
         let mut lines = old.split_inclusive('\n').filter(|l| l.ends_with('\n'));
-        let header = lines.next().unwrap_or("step,time,newton_iterations,residual\n");
+        let default_header = format!("{HEADER}\n");
+        let header = lines.next().unwrap_or(&default_header);
         let columns = header.split(',').count();
         let mut text = header.to_string();
         for line in lines {
@@ -56,14 +61,16 @@ impl History {
         Self::append_to(path, columns)
     }
 
-    /// Appends the row of a completed step and flushes it to disk.
-    pub fn push(&mut self, step: usize, time: f64, iterations: usize, residual: f64, values: &[f64]) -> Result<(), OutputError> {
+    /// Appends the row of a completed step (its Newton and Krylov iterations, final residual and
+    /// quantities) and flushes it to disk.
+    pub fn push(&mut self, step: usize, time: f64, iterations: (usize, usize), residual: f64, values: &[f64]) -> Result<(), OutputError> {
         let io = |source| OutputError::Io { path: self.path.display().to_string(), source };
-        if 4 + values.len() != self.columns {
-            let message = format!("a row of {} values for {} columns", 4 + values.len(), self.columns);
+        if 5 + values.len() != self.columns {
+            let message = format!("a row of {} values for {} columns", 5 + values.len(), self.columns);
             return Err(io(std::io::Error::other(message)));
         }
-        let mut row = format!("{step},{time:.12e},{iterations},{residual:.6e}");
+        let (newton, krylov) = iterations;
+        let mut row = format!("{step},{time:.12e},{newton},{residual:.6e},{krylov}");
         for v in values {
             row.push_str(&format!(",{v:.15e}"));
         }
@@ -88,22 +95,24 @@ mod tests {
         let path = dir.path().join("history.csv");
         let mut h = History::new(&path, &names(&["a", "b"])).unwrap();
         for k in 1..=3 {
-            h.push(k, 0.1 * k as f64, 2, 1e-9, &[k as f64, -(k as f64)]).unwrap();
+            h.push(k, 0.1 * k as f64, (2, 5), 1e-9, &[k as f64, -(k as f64)]).unwrap();
         }
-        assert!(h.push(4, 0.4, 2, 1e-9, &[1.0]).is_err(), "a row with a missing value is refused");
+        assert!(h.push(4, 0.4, (2, 5), 1e-9, &[1.0]).is_err(), "a row with a missing value is refused");
         drop(h);
         let whole = std::fs::read_to_string(&path).unwrap();
         assert_eq!(whole.lines().count(), 4);
-        assert!(whole.starts_with("step,time,newton_iterations,residual,a,b\n1,") && whole.lines().nth(3).unwrap().starts_with("3,"));
+        assert!(
+            whole.starts_with("step,time,newton_iterations,residual,krylov_iterations,a,b\n1,") && whole.lines().nth(3).unwrap().starts_with("3,")
+        );
         // A kill in the middle of row 4: the last line has neither all its fields nor its end.
-        std::fs::write(&path, format!("{whole}4,4.000000000000e-1,2,1.0e-9,4.0")).unwrap();
+        std::fs::write(&path, format!("{whole}4,4.000000000000e-1,2,1.0e-9,5,4.0")).unwrap();
         // Cut for being torn, even where the checkpoint is at its step.
         let mut h = History::resume(&path, 4).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), whole, "the torn row is cut away");
-        h.push(4, 0.4, 2, 1e-9, &[4.0, -4.0]).unwrap();
+        h.push(4, 0.4, (2, 5), 1e-9, &[4.0, -4.0]).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.lines().count(), 5);
-        assert!(text.lines().all(|l| l.split(',').count() == 6));
+        assert!(text.lines().all(|l| l.split(',').count() == 7));
         // Resuming from an earlier checkpoint drops the later rows.
         History::resume(&path, 2).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap().lines().count(), 3);

@@ -254,7 +254,11 @@ pub fn plot_compared(dir: &Path, others: &[PathBuf]) -> Result<Vec<PathBuf>, Plo
         written.push(path);
         Ok(())
     };
-    for name in main.history_columns().iter().filter(|c| !matches!(c.as_str(), "step" | "time")) {
+    // Krylov iterations only where a Krylov solver ran (a direct solve writes zeros).
+    let all_zero = |name: &str| main.history.as_ref().and_then(|t| t.column(name)).is_some_and(|v| v.iter().all(|&x| x == 0.0));
+    let skipped = |c: &str| matches!(c, "step" | "time") || (c == "krylov_iterations" && all_zero(c));
+    let plotted = |c: &&String| !skipped(c);
+    for name in main.history_columns().iter().filter(plotted) {
         let series = all().filter_map(|r| r.history_series("time", name)).collect();
         draw(format!("{name}.png"), name, "time", name, series)?;
     }

@@ -108,7 +108,15 @@ fn steady<const D: usize>(
     let quantities = record_once(outputs.case, options, obs, &state, outputs, &done)?;
     timings.output = clock.elapsed().as_secs_f64();
     let residual_norms = done.newton[0].residual_norms.clone();
-    Ok(Recorded { steps: 1, newton_iterations: done.iterations(), residual_norms, quantities, timings, dofs: flow_dofs(state.disc) })
+    Ok(Recorded {
+        steps: 1,
+        newton_iterations: done.iterations(),
+        krylov_iterations: done.krylov_iterations(),
+        residual_norms,
+        quantities,
+        timings,
+        dofs: flow_dofs(state.disc),
+    })
 }
 
 /// The outputs of a flow run: the case's quantities, the fluid fields, profiles and `speed.png`.

@@ -178,6 +178,8 @@ pub struct RunSummary {
     pub dofs: BTreeMap<String, usize>,
     pub steps: usize,
     pub newton_iterations: usize,
+    /// Krylov iterations of all linear solves (0 with the direct solver).
+    pub krylov_iterations: usize,
     pub residual_norms: Vec<f64>,
     pub symbolic_factorizations: usize,
     pub quantities: BTreeMap<String, f64>,

@@ -46,6 +46,7 @@ pub(crate) struct Start {
     /// Phase times so far (of the earlier parts; `total` their wall time).
     pub timings: Timings,
     pub newton_iterations: usize,
+    pub krylov_iterations: usize,
     pub residual_norms: Vec<f64>,
 }
 
@@ -55,12 +56,21 @@ impl Start {
     /// `part_start`.
     pub fn of(options: &RunOptions, obs: &mut dyn RunObserver, part_start: Instant) -> Self {
         match &options.resume {
-            None => Start { part_start, first: 1, timings: Timings::default(), newton_iterations: 0, residual_norms: Vec::new() },
+            None => {
+                Start { part_start, first: 1, timings: Timings::default(), newton_iterations: 0, krylov_iterations: 0, residual_norms: Vec::new() }
+            }
             Some(c) => {
                 obs.log(&format!("resuming after step {} (t = {:.6e}) from {}", c.step, c.time, Checkpoint::path(&options.out_dir).display()));
                 let p = &c.progress;
-                let (timings, newton_iterations, residual_norms) = (p.timings.clone(), p.newton_iterations, p.residual_norms.clone());
-                Start { part_start, first: c.step + 1, timings, newton_iterations, residual_norms }
+                let (timings, residual_norms) = (p.timings.clone(), p.residual_norms.clone());
+                Start {
+                    part_start,
+                    first: c.step + 1,
+                    timings,
+                    newton_iterations: p.newton_iterations,
+                    krylov_iterations: p.krylov_iterations,
+                    residual_norms,
+                }
             }
         }
     }
@@ -77,6 +87,7 @@ struct Recorder<'a, O> {
     output_every: usize,
     last: Vec<(String, f64)>,
     newton_iterations: usize,
+    krylov_iterations: usize,
     residual_norms: Vec<f64>,
     part_start: Instant,
 }
@@ -100,7 +111,13 @@ impl<O> Recorder<'_, O> {
             self.history = Some(History::new(&self.options.out_dir.join("history.csv"), &names)?);
         }
         let row: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
-        self.history.as_mut().expect("created above").push(done.step, done.time, done.iterations(), done.residual(), &row)?;
+        self.history.as_mut().expect("created above").push(
+            done.step,
+            done.time,
+            (done.iterations(), done.krylov_iterations()),
+            done.residual(),
+            &row,
+        )?;
         if fields {
             self.outputs.write_fields(stepper, done, &mut self.series)?;
         }
@@ -118,12 +135,17 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
         }
         let tail = self.outputs.describe_step(stepper, done, self.obs);
         self.newton_iterations += done.iterations();
+        self.krylov_iterations += done.krylov_iterations();
         self.residual_norms.push(done.residual());
         let due = done.step.is_multiple_of(self.output_every) || done.step == done.total;
         self.record(stepper, done, due)?;
         let cut = if done.cuts > 0 { format!(" ({} cuts, dt = {:.3e})", done.cuts, done.dt) } else { String::new() };
+        let krylov = match done.krylov_iterations() {
+            0 => String::new(),
+            k => format!(" (krylov {k})"),
+        };
         self.obs.log(&format!(
-            "step {}/{} t = {:.6e}: newton {} |R| = {:.2e}{cut}{tail}; {:.2} s elapsed",
+            "step {}/{} t = {:.6e}: newton {}{krylov} |R| = {:.2e}{cut}{tail}; {:.2} s elapsed",
             done.step,
             done.total,
             done.time,
@@ -149,7 +171,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
         let options = self.options;
         let case_dir = std::path::absolute(&options.case_dir).unwrap_or_else(|_| options.case_dir.clone());
         let builds = crate::io::provenance::builds_so_far(options.resume.as_ref().map_or(&[], |c| &c.builds));
-        let progress = Progress::after_step(self.newton_iterations, &self.residual_norms, timings, self.part_start);
+        let progress = Progress::after_step((self.newton_iterations, self.krylov_iterations), &self.residual_norms, timings, self.part_start);
         let state = self.outputs.restart(stepper, done);
         let c = Checkpoint {
             version: CHECKPOINT_VERSION,
@@ -169,6 +191,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
 pub(crate) struct Recorded {
     pub steps: usize,
     pub newton_iterations: usize,
+    pub krylov_iterations: usize,
     pub residual_norms: Vec<f64>,
     pub quantities: Vec<(String, f64)>,
     pub timings: Timings,
@@ -209,6 +232,7 @@ where
         output_every: output_every.max(1),
         last: Vec::new(),
         newton_iterations: start.newton_iterations,
+        krylov_iterations: start.krylov_iterations,
         residual_norms: start.residual_norms,
         part_start,
     };
@@ -225,6 +249,7 @@ where
     Ok(Recorded {
         steps: schedule.num_steps(),
         newton_iterations: recorder.newton_iterations,
+        krylov_iterations: recorder.krylov_iterations,
         residual_norms: recorder.residual_norms,
         quantities: recorder.last,
         timings,
@@ -253,6 +278,7 @@ pub(crate) fn record_once<S, O: RunOutputs<S>>(
         output_every: 1,
         last: Vec::new(),
         newton_iterations: 0,
+        krylov_iterations: 0,
         residual_norms: Vec::new(),
         part_start: Instant::now(),
     };
@@ -277,6 +303,7 @@ impl Recorded {
             dofs,
             steps: self.steps,
             newton_iterations: self.newton_iterations,
+            krylov_iterations: self.krylov_iterations,
             residual_norms: self.residual_norms,
             symbolic_factorizations,
             quantities: self.quantities.into_iter().collect(),

@@ -126,6 +126,37 @@ struct Group {
     b_pos: Vec<usize>,
 }
 
+/// One group's blocks of the Jacobian: `B'_g` (`coupled x m`, row-major), `B_g` and
+/// `M_g^-1 B_g` (`m x coupled`); buffers reused from group to group.
+#[derive(Default)]
+struct GroupOperators {
+    bt: Vec<f64>,
+    b: Vec<f64>,
+    mb: Vec<f64>,
+}
+
+impl GroupOperators {
+    /// Loads the blocks of group `g` of `a`, with `minv` starting at its inverse mass matrix.
+    fn load(&mut self, a: &CscMatrix<'_>, g: &Group, minv: &[f64]) {
+        let (m, c) = (g.local.len(), g.coupled.len());
+        let value = |k: &usize| if *k == usize::MAX { 0.0 } else { a.values[*k] };
+        self.bt.clear();
+        self.bt.extend(g.bt_pos.iter().map(value));
+        self.b.clear();
+        self.b.extend(g.b_pos.iter().map(value));
+        self.mb.clear();
+        self.mb.resize(m * c, 0.0);
+        for ai in 0..m {
+            for bi in 0..m {
+                let w = minv[ai * m + bi];
+                for ii in 0..c {
+                    self.mb[ai * c + ii] += w * self.b[bi * c + ii];
+                }
+            }
+        }
+    }
+}
+
 /// Everything derived from the pattern and the split: index maps and the pattern of `A_gamma`.
 struct Structure {
     key: u64,
@@ -139,15 +170,19 @@ struct Structure {
     pattern: Pattern,
     /// Position in `A_gamma` of each entry of `K` in `F x F` (`usize::MAX` elsewhere).
     ff_pos: Vec<usize>,
+    /// Inverse mass matrices of the groups (free dofs), concatenated, and where each starts.
+    minv: Vec<f64>,
+    minv_offsets: Vec<usize>,
 }
 
 /// The numeric state: the factorised augmented block and the per-group operators.
 struct Numeric {
     lu: FaerLu,
-    /// Per block: `sigma`, `gamma_b`, `eta_b` used by the held factors.
+    /// Per block: `sigma`, `gamma_b`, `eta_b` ([`AugmentedLagrangian::block_scales`], from the
+    /// first matrix of the structure).
     scales: Vec<(f64, f64, f64)>,
-    /// Inverse mass matrices of the groups (free dofs), concatenated.
-    minv: Vec<f64>,
+    /// The values of `A_gamma` (kept for their allocation).
+    values: Vec<f64>,
     factorized: bool,
     /// Whether the held factors are those of the matrix being solved (not reused).
     fresh: bool,
@@ -175,7 +210,7 @@ impl AugmentedLagrangian {
         let numeric = Numeric {
             lu: FaerLu::new(inner),
             scales: Vec::new(),
-            minv: Vec::new(),
+            values: Vec::new(),
             factorized: false,
             fresh: false,
             stale_failed: false,
@@ -206,7 +241,7 @@ impl AugmentedLagrangian {
         }
     }
 
-    fn build_structure(&self, a: &CscMatrix<'_>, key: u64, pinned: Vec<usize>) -> Structure {
+    fn build_structure(&self, a: &CscMatrix<'_>, key: u64, pinned: Vec<usize>) -> Result<Structure, LinearSolveError> {
         let p = a.pattern;
         let n = p.n;
         let mut is_q = vec![false; n];
@@ -300,7 +335,9 @@ impl AugmentedLagrangian {
                 }
             }
         }
-        Structure { key, pinned, f_dofs, f_local, q_dofs, groups, pattern, ff_pos }
+        let minv = self.inverse_masses(&groups, &q_dofs)?;
+        let minv_offsets = groups.iter().scan(0, |o, g| Some(std::mem::replace(o, *o + g.local.len().pow(2)))).collect();
+        Ok(Structure { key, pinned, f_dofs, f_local, q_dofs, groups, pattern, ff_pos, minv, minv_offsets })
     }
 
     /// Multiplier dofs that stay primal: those with identity rows (a pinned pressure), and all
@@ -328,108 +365,86 @@ impl AugmentedLagrangian {
         pinned
     }
 
-    /// Builds `A_gamma` from `a` and factorises it.
-    fn factorize_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Result<(), LinearSolveError> {
-        let t0 = std::time::Instant::now();
-        let s = self.structure.as_ref().expect("structure");
-        // Inverse mass matrices of the free dofs of each group.
-        num.minv.clear();
-        for g in &s.groups {
+    /// The inverse mass matrices of the groups' free dofs, concatenated (once per structure: the
+    /// masses do not change with the Newton iterate).
+    fn inverse_masses(&self, groups: &[Group], q_dofs: &[usize]) -> Result<Vec<f64>, LinearSolveError> {
+        let mut minv = Vec::new();
+        for g in groups {
             let block = &self.split.multipliers[g.block];
             let m = g.local.len();
             let full = &block.mass[g.mass_offset..g.mass_offset + g.size * g.size];
             let sub: Vec<f64> = (0..m * m).map(|k| full[g.local[k / m] * g.size + g.local[k % m]]).collect();
-            let inv = invert_dense(&sub, m).ok_or_else(|| {
-                LinearSolveError::Numeric(format!("{}: singular mass matrix of the group of dof {}", block.name, s.q_dofs[g.start]))
-            })?;
-            num.minv.extend_from_slice(&inv);
+            let inv = invert_dense(&sub, m)
+                .ok_or_else(|| LinearSolveError::Numeric(format!("{}: singular mass matrix of the group of dof {}", block.name, q_dofs[g.start])))?;
+            minv.extend_from_slice(&inv);
         }
-        // The grad-div term of each group: `G_g = B'_g M_g^-1 B_g` (rows and columns `coupled`).
+        Ok(minv)
+    }
+
+    /// Per block: `sigma` (the sign that makes `sigma B' M^-1 B` positive semi-definite), and
+    /// `eta_b = mean diag(A) / mean diag(B' M^-1 B)` over the primal unknowns the block couples
+    /// to; returns `(sigma, gamma eta_b, eta_b)`.
+    fn block_scales(&self, a: &CscMatrix<'_>, s: &Structure, ops: &mut GroupOperators) -> Vec<(f64, f64, f64)> {
         let nb = self.split.multipliers.len();
-        let mut sums = vec![(0.0, 0.0, 0.0); nb]; // (sum of K_iq K_qi, sum diag A, sum diag G) per block
-        let mut counts = vec![0usize; nb];
-        let mut terms: Vec<Vec<f64>> = Vec::with_capacity(s.groups.len());
-        let mut offset = 0;
+        // (sum of K_iq K_qi, sum of diag A, sum of diag G, count) per block.
+        let mut sums = vec![(0.0, 0.0, 0.0, 0usize); nb];
         let mut seen = vec![false; s.f_dofs.len()];
-        for g in &s.groups {
+        for (g, offset) in s.groups.iter().zip(&s.minv_offsets) {
+            ops.load(a, g, &s.minv[*offset..]);
             let (m, c) = (g.local.len(), g.coupled.len());
-            let minv = &num.minv[offset..offset + m * m];
-            offset += m * m;
-            // bt[i][a] = K[coupled_i, q_a], b[a][i] = K[q_a, coupled_i].
-            let mut bt = vec![0.0; c * m];
-            let mut b = vec![0.0; m * c];
-            let value = |k: usize| if k == usize::MAX { 0.0 } else { a.values[k] };
-            for (t, &k) in bt.iter_mut().zip(&g.bt_pos) {
-                *t = value(k);
-            }
-            for (t, &k) in b.iter_mut().zip(&g.b_pos) {
-                *t = value(k);
-            }
-            for ai in 0..m {
-                for ii in 0..c {
-                    sums[g.block].0 += bt[ii * m + ai] * b[ai * c + ii];
-                }
-            }
-            // mb = M^-1 B (m x c); G = B' mb (c x c).
-            let mut mb = vec![0.0; m * c];
-            for ai in 0..m {
-                for bi in 0..m {
-                    let w = minv[ai * m + bi];
-                    for ii in 0..c {
-                        mb[ai * c + ii] += w * b[bi * c + ii];
-                    }
-                }
-            }
-            let mut gm = vec![0.0; c * c];
-            for ii in 0..c {
-                for ai in 0..m {
-                    let w = bt[ii * m + ai];
-                    if w != 0.0 {
-                        for jj in 0..c {
-                            gm[ii * c + jj] += w * mb[ai * c + jj];
-                        }
-                    }
-                }
-            }
+            let sum = &mut sums[g.block];
             for (ii, &fi) in g.coupled.iter().enumerate() {
-                let coupled = (0..m).any(|ai| bt[ii * m + ai] != 0.0);
-                if coupled && !seen[fi] {
+                let row = &ops.bt[ii * m..(ii + 1) * m];
+                sum.0 += (0..m).map(|ai| row[ai] * ops.b[ai * c + ii]).sum::<f64>();
+                sum.2 += (0..m).map(|ai| row[ai] * ops.mb[ai * c + ii]).sum::<f64>().abs();
+                if row.iter().any(|&v| v != 0.0) && !seen[fi] {
                     seen[fi] = true;
-                    let i = s.f_dofs[fi];
-                    sums[g.block].1 += a.get(i, i).abs();
-                    counts[g.block] += 1;
+                    sum.1 += a.get(s.f_dofs[fi], s.f_dofs[fi]).abs();
+                    sum.3 += 1;
                 }
-                sums[g.block].2 += gm[ii * c + ii].abs();
             }
-            terms.push(gm);
         }
-        num.scales = (0..nb)
-            .map(|b| {
-                let sigma = if sums[b].0 >= 0.0 { 1.0 } else { -1.0 };
-                let eta = if sums[b].2 > 0.0 && counts[b] > 0 { sums[b].1 / sums[b].2 } else { 1.0 };
+        sums.iter()
+            .map(|&(kk, diag_a, diag_g, count)| {
+                let sigma = if kk >= 0.0 { 1.0 } else { -1.0 };
+                let eta = if diag_g > 0.0 && count > 0 { diag_a / diag_g } else { 1.0 };
                 (sigma, self.options.gamma * eta, eta)
             })
-            .collect();
-        tracing::debug!("grad-div terms in {:.3} s", t0.elapsed().as_secs_f64());
-        // A_gamma = K_FF + sigma gamma_b G.
-        let mut values = vec![0.0; s.pattern.nnz()];
+            .collect()
+    }
+
+    /// Builds `A_gamma = K_FF + sigma gamma_b B' M^-1 B` from `a` and factorises it.
+    fn factorize_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Result<(), LinearSolveError> {
+        let t0 = std::time::Instant::now();
+        let s = self.structure.as_ref().expect("structure");
+        let mut ops = GroupOperators::default();
+        if num.scales.is_empty() {
+            // Once per structure: gamma_b stays the same for all Newton iterations and steps.
+            num.scales = self.block_scales(a, s, &mut ops);
+        }
+        let mut values = std::mem::take(&mut num.values);
+        values.clear();
+        values.resize(s.pattern.nnz(), 0.0);
         for (k, &pos) in s.ff_pos.iter().enumerate() {
             if pos != usize::MAX {
                 values[pos] += a.values[k];
             }
         }
-        for (g, gm) in s.groups.iter().zip(&terms) {
+        for (g, offset) in s.groups.iter().zip(&s.minv_offsets) {
+            ops.load(a, g, &s.minv[*offset..]);
             let (sigma, gamma_b, _) = num.scales[g.block];
-            let c = g.coupled.len();
+            let (m, c) = (g.local.len(), g.coupled.len());
+            // Column jj of sigma gamma_b B'_g (M^-1 B_g), added along column `j` of A_gamma.
             for (jj, &j) in g.coupled.iter().enumerate() {
-                let rows = &s.pattern.row_idx[s.pattern.col_ptr[j]..s.pattern.col_ptr[j + 1]];
                 let base = s.pattern.col_ptr[j];
+                let rows = &s.pattern.row_idx[base..s.pattern.col_ptr[j + 1]];
                 let mut k = 0;
                 for (ii, &i) in g.coupled.iter().enumerate() {
                     while rows[k] < i {
                         k += 1;
                     }
-                    values[base + k] += sigma * gamma_b * gm[ii * c + jj];
+                    let bt = &ops.bt[ii * m..(ii + 1) * m];
+                    values[base + k] += sigma * gamma_b * (0..m).map(|ai| bt[ai] * ops.mb[ai * c + jj]).sum::<f64>();
                 }
             }
         }
@@ -437,6 +452,7 @@ impl AugmentedLagrangian {
         tracing::debug!("augmented block assembled in {:.3} s", t0.elapsed().as_secs_f64());
         let t = std::time::Instant::now();
         num.lu.factorize(&ag)?;
+        num.values = ag.values;
         tracing::debug!("factorised the augmented block in {:.3} s: {}", t.elapsed().as_secs_f64(), num.lu.describe());
         num.factorized = true;
         num.fresh = true;
@@ -452,7 +468,7 @@ impl AugmentedLagrangian {
             let m = g.end - g.start;
             let qs = &s.q_dofs[g.start..g.end];
             for (ai, &qa) in qs.iter().enumerate() {
-                dst[qa] = scale * (0..m).map(|bi| num.minv[offset + ai * m + bi] * src[qs[bi]]).sum::<f64>();
+                dst[qa] = scale * (0..m).map(|bi| s.minv[offset + ai * m + bi] * src[qs[bi]]).sum::<f64>();
             }
         };
         // z_Q = -sigma (eta + gamma) M^-1 r_Q.
@@ -568,10 +584,11 @@ impl LinearSolver for AugmentedLagrangian {
         let num = self.numeric.get_mut();
         if !same {
             num.factorized = false;
+            num.scales.clear();
             self.structure = None;
             self.symbolic_count += 1;
             let t = std::time::Instant::now();
-            let s = self.build_structure(a, key, pinned);
+            let s = self.build_structure(a, key, pinned)?;
             tracing::debug!("split of the saddle-point system in {:.3} s", t.elapsed().as_secs_f64());
             self.structure = Some(s);
         }

@@ -101,6 +101,11 @@ impl StepDone {
         self.newton.iter().map(|r| r.iterations).sum()
     }
 
+    /// Krylov iterations of the step's linear solves (0 with a direct solver).
+    pub fn krylov_iterations(&self) -> usize {
+        self.newton.iter().flat_map(|r| &r.krylov_iterations).sum()
+    }
+
     /// The final residual norm of the step.
     pub fn residual(&self) -> f64 {
         self.newton.last().and_then(|r| r.residual_norms.last().copied()).unwrap_or(0.0)
