@@ -440,8 +440,9 @@ pub enum LinearMethod {
     #[default]
     Direct,
     /// FGMRES with the augmented-Lagrangian block preconditioner ([`crate::solve::augmented`]):
-    /// an LU of the augmented primal block only. Systems without a split (solid runs, FSI for
-    /// now) use the direct solver.
+    /// an LU of the augmented primal block only. Flow runs: the pressure is the multiplier
+    /// block; FSI runs: the fluid pressure (the solid pressure and the coupling multipliers stay
+    /// in the LU block for now); solid runs use the direct solver.
     AugmentedLagrangian,
 }
 

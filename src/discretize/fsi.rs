@@ -1124,6 +1124,10 @@ pub fn step<const D: usize>(
         solid_target: target.as_deref(),
     };
     let clock = Instant::now();
+    // The fluid block leads the system with the numbering of `disc.flow`, so the fluid pressure
+    // is the block preconditioners' multiplier block; the solid pressure and the coupling
+    // multipliers stay with the primal unknowns for now.
+    solver.set_split(disc.flow.saddle_point_split(fluid.formulation)?);
     let report =
         newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs)).map_err(|e| {
             match e {
