@@ -42,6 +42,10 @@ enum Command {
         /// Continue the run whose output and checkpoint are in DIR (with the case stored there).
         #[arg(long, value_name = "DIR")]
         resume: Option<PathBuf>,
+        /// Write the first Newton system (DIR/jacobian.mtx, rhs.mtx, blocks.json; augmented.mtx
+        /// with the augmented-Lagrangian solver) instead of running (flow cases).
+        #[arg(long, value_name = "DIR", conflicts_with = "resume")]
+        export_system: Option<PathBuf>,
     },
     /// Parse and validate a case without running it; print a summary of the problem.
     Check { case: String },
@@ -163,7 +167,11 @@ fn main() -> Result<()> {
         }
     };
     match cli.command {
-        Command::Run { case, out, checkpoint_every, resume } => {
+        Command::Run { case, export_system: Some(dir), .. } => {
+            let (case, case_dir, _) = load_case(case.as_deref())?;
+            fdfsi::run::export::export_system(&case, &case_dir, &dir, &mut |line: &str| log(line))?;
+        }
+        Command::Run { case, out, checkpoint_every, resume, export_system: None } => {
             let (case, mut options, label) = match resume {
                 Some(dir) => {
                     let (case, options) = RunOptions::resume(&dir)?;

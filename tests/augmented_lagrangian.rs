@@ -147,3 +147,31 @@ fn fsi_model_problem_2_matches_the_direct_solve() {
         assert!((w - v).abs() <= 1e-9 * v.abs().max(1e-12), "{name}: direct {v}, AL {w}");
     }
 }
+
+/// `fdfsi run --export-system`: the first Newton system of a flow case as MatrixMarket files
+/// with its blocks (and the augmented block with the AL solver); FSI cases are refused by name.
+#[test]
+fn the_first_newton_system_is_exported() {
+    use fdfsi::case::{Case, LinearMethod};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mut case = Case::read(&dir.join("channel-stokes.toml")).unwrap();
+    case.solver.linear.method = LinearMethod::AugmentedLagrangian;
+    let out = tempfile::tempdir().unwrap();
+    fdfsi::run::export::export_system(&case, &dir, out.path(), &mut |_: &str| {}).unwrap();
+    let header = |name: &str| -> Vec<usize> {
+        let text = std::fs::read_to_string(out.path().join(name)).unwrap();
+        text.lines().find(|l| !l.starts_with('%')).unwrap().split_whitespace().map(|v| v.parse().unwrap()).collect()
+    };
+    let blocks: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.path().join("blocks.json")).unwrap()).unwrap();
+    let n = blocks["dofs"].as_u64().unwrap() as usize;
+    assert_eq!(blocks["blocks"][0]["name"], "velocity");
+    assert_eq!(blocks["blocks"][1]["end"].as_u64().unwrap() as usize, n);
+    let (jacobian, rhs, augmented) = (header("jacobian.mtx"), header("rhs.mtx"), header("augmented.mtx"));
+    assert!(jacobian[0] == n && jacobian[1] == n && jacobian[2] > n, "{jacobian:?}");
+    assert_eq!(rhs, vec![n, 1]);
+    let velocity = blocks["blocks"][0]["end"].as_u64().unwrap() as usize;
+    assert!(augmented[0] >= velocity && augmented[0] < n, "augmented block of {} unknowns", augmented[0]);
+    let fsi = Case::read(&dir.join("model-problem-2.toml")).unwrap();
+    let e = fdfsi::run::export::export_system(&fsi, &dir, out.path(), &mut |_: &str| {}).unwrap_err();
+    assert!(e.to_string().contains("flow systems"), "{e}");
+}

@@ -384,13 +384,23 @@ fn time(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `[solver]`: Newton iterations and tolerances, linear-solver threads.
+/// `[solver]`: Newton iterations and tolerances, the linear solver's options.
 fn solver(c: &Case, p: &mut Problems) {
     let n = &c.solver.newton;
     if n.max_iterations == 0 || !(n.abs_tol > 0.0) || !(n.rel_tol > 0.0) {
         p.push("solver.newton: max_iterations >= 1 and positive tolerances required");
     }
-    if c.solver.linear.threads > 1024 {
-        p.push(format!("solver.linear: threads = {} (1 = sequential, 0 = all cores, at most 1024)", c.solver.linear.threads));
+    let l = &c.solver.linear;
+    if l.threads > 1024 {
+        p.push(format!("solver.linear: threads = {} (1 = sequential, 0 = all cores, at most 1024)", l.threads));
+    }
+    if !(l.gamma > 0.0 && l.gamma.is_finite()) {
+        p.push(format!("solver.linear: gamma = {} must be positive and finite (default 1e5)", l.gamma));
+    }
+    if !(l.krylov_tolerance > 0.0 && l.krylov_tolerance < 1.0) {
+        p.push(format!("solver.linear: krylov_tolerance = {} must lie in (0, 1) (default 1e-8)", l.krylov_tolerance));
+    }
+    if l.krylov_max_iterations == 0 {
+        p.push("solver.linear: krylov_max_iterations must be at least 1 (default 60)");
     }
 }

@@ -66,6 +66,9 @@ pub enum FlowError {
     CellType(ReferenceCell),
     #[error(transparent)]
     Newton(#[from] NewtonError<AssemblyError>),
+    /// `reached` is the smallest viscosity solved (infinite when none converged from rest).
+    #[error("Newton fails from rest, and the continuation in the viscosity stopped at {reached:.4e} (target {target:.4e}) after {solves} solves: {source}; refine the mesh, or raise solver.newton.max_iterations")]
+    Continuation { reached: f64, target: f64, solves: usize, source: Box<FlowError> },
 }
 
 /// An error inside assembly (reported through Newton).
@@ -423,27 +426,28 @@ fn continue_in_viscosity<const D: usize>(
     let mut stage = problem.clone();
     // A stage starts near its solution: one that needs many iterations is failing.
     let options = &NewtonOptions { max_iterations: options.max_iterations.min(STAGE_MAX_ITERATIONS), ..options.clone() };
-    let (solves, iterations) = (std::cell::Cell::new(0), std::cell::Cell::new(0));
-    let mut solve_at = |eta: f64, x: &mut Vec<f64>| -> Result<NewtonReport, NewtonError<AssemblyError>> {
+    let mut total = NewtonReport::default();
+    let mut solves = 0;
+    // One stage at viscosity `eta` from `x`; `x` takes its solution when it converges.
+    let mut solve_at = |eta: f64, x: &mut Vec<f64>, total: &mut NewtonReport| -> Result<NewtonReport, FlowError> {
         stage.params.viscosity = eta;
-        let (system, _) = SteadySystem::new(disc, &stage).map_err(|_| NewtonError::NonFinite { iteration: 0 })?;
-        solves.set(solves.get() + 1);
+        let (system, _) = SteadySystem::new(disc, &stage)?;
         tracing::debug!("continuation: viscosity {eta:.4e} (target {target:.4e})");
         let mut trial = x.clone();
-        let result = newton::solve(&mut trial, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs));
-        if let Ok(report) = &result {
-            iterations.set(iterations.get() + report.iterations);
-            *x = trial;
-        }
-        result
+        let report = newton::solve(&mut trial, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs))?;
+        total.add(&report);
+        *x = trial;
+        Ok(report)
     };
+    let failed = |reached: f64, solves: usize, e: FlowError| FlowError::Continuation { reached, target, solves, source: Box::new(e) };
     // A viscosity at which Newton converges from rest.
     let mut eta = target;
     let mut last = loop {
         eta *= 4.0;
-        match solve_at(eta, x) {
+        solves += 1;
+        match solve_at(eta, x, &mut total) {
             Ok(report) => break report,
-            Err(e) if solves.get() >= MAX_CONTINUATION_SOLVES => return Err(e.into()),
+            Err(e) if solves >= MAX_CONTINUATION_SOLVES => return Err(failed(f64::INFINITY, solves, e)),
             Err(_) => {} // x is still the rest state
         }
     };
@@ -451,14 +455,15 @@ fn continue_in_viscosity<const D: usize>(
     let mut ratio: f64 = 4.0;
     while eta > target {
         let next = (eta / ratio).max(target);
-        match solve_at(next, x) {
+        solves += 1;
+        match solve_at(next, x, &mut total) {
             Ok(report) => (eta, last) = (next, report),
-            Err(e) if solves.get() >= MAX_CONTINUATION_SOLVES || ratio < 1.01 => return Err(e.into()),
+            Err(e) if solves >= MAX_CONTINUATION_SOLVES || ratio < 1.01 => return Err(failed(eta, solves, e)),
             Err(_) => ratio = ratio.sqrt(),
         }
     }
-    last.iterations = iterations.get();
-    Ok(last)
+    // The last stage's residuals, the work of all converged stages.
+    Ok(NewtonReport { residual_norms: last.residual_norms, update_norms: last.update_norms, ..total })
 }
 
 /// Adds a constant to the pressure so that its (weighted) mean over the domain is zero.

@@ -19,6 +19,7 @@ use thiserror::Error;
 pub mod checkpoint;
 pub mod fields;
 pub mod history;
+pub mod matrix_market;
 pub mod picture;
 pub mod plot;
 pub mod provenance;

@@ -29,6 +29,7 @@ use thiserror::Error;
 
 pub mod adapt;
 pub mod check;
+pub mod export;
 pub mod flow;
 pub mod fsi;
 mod record;
@@ -61,6 +62,8 @@ pub enum RunError {
     Checkpoint(#[from] CheckpointError),
     #[error("{out_dir}: the run will write about {needed} but only {available} are free; free some space, choose another --out or write the fields less often (time.output_every)")]
     DiskFull { out_dir: String, needed: String, available: String },
+    #[error("{0}")]
+    Unsupported(String),
     #[error("interrupted after step {step} (t = {time:.6e}); a checkpoint is in {out_dir}: continue with `fdfsi run --resume {out_dir}`")]
     Interrupted { step: usize, time: f64, out_dir: String },
 }

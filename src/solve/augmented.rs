@@ -180,8 +180,8 @@ struct Structure {
 /// The numeric state: the factorised augmented block and the per-group operators.
 struct Numeric {
     lu: FaerLu,
-    /// Per block: `sigma`, `gamma_b`, `eta_b` ([`AugmentedLagrangian::block_scales`], from the
-    /// first matrix of the structure).
+    /// Per block: `sigma`, `gamma_b`, `eta_b` of the held factors
+    /// ([`AugmentedLagrangian::block_scales`]).
     scales: Vec<(f64, f64, f64)>,
     /// The values of `A_gamma` (kept for their allocation).
     values: Vec<f64>,
@@ -391,7 +391,7 @@ impl AugmentedLagrangian {
         let nb = self.split.multipliers.len();
         // (sum of K_iq K_qi, sum of diag A, sum of diag G, count) per block.
         let mut sums = vec![(0.0, 0.0, 0.0, 0usize); nb];
-        let mut seen = vec![false; s.f_dofs.len()];
+        let mut seen = vec![vec![false; s.f_dofs.len()]; nb];
         for (g, offset) in s.groups.iter().zip(&s.minv_offsets) {
             ops.load(a, g, &s.minv[*offset..]);
             let (m, c) = (g.local.len(), g.coupled.len());
@@ -400,8 +400,8 @@ impl AugmentedLagrangian {
                 let row = &ops.bt[ii * m..(ii + 1) * m];
                 sum.0 += (0..m).map(|ai| row[ai] * ops.b[ai * c + ii]).sum::<f64>();
                 sum.2 += (0..m).map(|ai| row[ai] * ops.mb[ai * c + ii]).sum::<f64>().abs();
-                if row.iter().any(|&v| v != 0.0) && !seen[fi] {
-                    seen[fi] = true;
+                if row.iter().any(|&v| v != 0.0) && !seen[g.block][fi] {
+                    seen[g.block][fi] = true;
                     sum.1 += a.get(s.f_dofs[fi], s.f_dofs[fi]).abs();
                     sum.3 += 1;
                 }
@@ -416,15 +416,62 @@ impl AugmentedLagrangian {
             .collect()
     }
 
+    /// Rebuilds the structure when the pattern of `a` or its pinned multipliers changed.
+    fn update_structure(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
+        let t0 = std::time::Instant::now();
+        let key = super::linear::pattern_key(a.pattern);
+        let pinned = self.pinned_multipliers(a);
+        tracing::debug!("pattern key and pinned multipliers in {:.3} s", t0.elapsed().as_secs_f64());
+        if self.structure.as_ref().is_some_and(|s| s.key == key && s.pinned == pinned) {
+            return Ok(());
+        }
+        let num = self.numeric.get_mut();
+        num.factorized = false;
+        num.scales.clear();
+        self.structure = None;
+        self.symbolic_count += 1;
+        let t = std::time::Instant::now();
+        self.structure = Some(self.build_structure(a, key, pinned)?);
+        tracing::debug!("split of the saddle-point system in {:.3} s", t.elapsed().as_secs_f64());
+        Ok(())
+    }
+
+    /// The augmented primal block `A_gamma` of `a` (with the split given), unfactorised: what
+    /// the preconditioner factorises, e.g. to try another solver on it. `None` without a split.
+    pub fn augmented_block(&mut self, a: &CscMatrix<'_>) -> Result<Option<(Pattern, Vec<f64>)>, LinearSolveError> {
+        if self.split.multipliers.iter().all(|b| b.dofs.is_empty()) {
+            return Ok(None);
+        }
+        self.update_structure(a)?;
+        let values = self.assemble_augmented(a, &mut self.numeric.borrow_mut());
+        Ok(self.structure.as_ref().map(|s| (s.pattern.clone(), values)))
+    }
+
     /// Builds `A_gamma = K_FF + sigma gamma_b B' M^-1 B` from `a` and factorises it.
     fn factorize_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Result<(), LinearSolveError> {
         let t0 = std::time::Instant::now();
+        let values = self.assemble_augmented(a, num);
+        let s = self.structure.as_ref().expect("structure");
+        let ag = CscMatrix { pattern: &s.pattern, values };
+        tracing::debug!("augmented block assembled in {:.3} s", t0.elapsed().as_secs_f64());
+        let t = std::time::Instant::now();
+        num.factorized = false; // until the LU succeeds: failed factors are never held
+        num.lu.factorize(&ag)?;
+        num.values = ag.values;
+        tracing::debug!("factorised the augmented block in {:.3} s: {}", t.elapsed().as_secs_f64(), num.lu.describe());
+        num.factorized = true;
+        num.factored = values_key(a);
+        num.factorizations += 1;
+        Ok(())
+    }
+
+    /// The values of `A_gamma` on the structure's pattern (the block scales set if unset).
+    fn assemble_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Vec<f64> {
         let s = self.structure.as_ref().expect("structure");
         let mut ops = GroupOperators::default();
-        if num.scales.is_empty() {
-            // Once per structure: gamma_b stays the same for all Newton iterations and steps.
-            num.scales = self.block_scales(a, s, &mut ops);
-        }
+        // With each factorisation (kept with it): the matrix may have changed its scale (a
+        // continuation in the viscosity, another time step).
+        num.scales = self.block_scales(a, s, &mut ops);
         let mut values = std::mem::take(&mut num.values);
         values.clear();
         values.resize(s.pattern.nnz(), 0.0);
@@ -451,16 +498,7 @@ impl AugmentedLagrangian {
                 }
             }
         }
-        let ag = CscMatrix { pattern: &s.pattern, values };
-        tracing::debug!("augmented block assembled in {:.3} s", t0.elapsed().as_secs_f64());
-        let t = std::time::Instant::now();
-        num.lu.factorize(&ag)?;
-        num.values = ag.values;
-        tracing::debug!("factorised the augmented block in {:.3} s: {}", t.elapsed().as_secs_f64(), num.lu.describe());
-        num.factorized = true;
-        num.factored = values_key(a);
-        num.factorizations += 1;
-        Ok(())
+        values
     }
 
     /// `z = P^-1 r` (see the module documentation).
@@ -584,22 +622,7 @@ impl LinearSolver for AugmentedLagrangian {
         if self.use_direct {
             return self.direct.factorize(a);
         }
-        let t0 = std::time::Instant::now();
-        let key = super::linear::pattern_key(a.pattern);
-        let pinned = self.pinned_multipliers(a);
-        tracing::debug!("pattern key and pinned multipliers in {:.3} s", t0.elapsed().as_secs_f64());
-        let same = self.structure.as_ref().is_some_and(|s| s.key == key && s.pinned == pinned);
-        let num = self.numeric.get_mut();
-        if !same {
-            num.factorized = false;
-            num.scales.clear();
-            self.structure = None;
-            self.symbolic_count += 1;
-            let t = std::time::Instant::now();
-            let s = self.build_structure(a, key, pinned)?;
-            tracing::debug!("split of the saddle-point system in {:.3} s", t.elapsed().as_secs_f64());
-            self.structure = Some(s);
-        }
+        self.update_structure(a)?;
         let num = self.numeric.get_mut();
         let keep = num.factorized && self.options.refactor_iterations > 0 && !num.stale_failed;
         if keep {
@@ -643,13 +666,23 @@ impl LinearSolver for AugmentedLagrangian {
             return Err(LinearSolveError::NonFinite);
         }
         if !report.converged {
-            return Err(LinearSolveError::Inaccurate { residual: report.residual, refinements: iterations, tolerance: self.options.krylov.rel_tol });
+            return Err(LinearSolveError::KrylovNotConverged { iterations, residual: report.residual, tolerance: self.options.krylov.rel_tol });
         }
         Ok(SolveStats { residual: report.residual, refinements: 0, krylov_iterations: iterations })
     }
 
     fn symbolic_factorizations(&self) -> usize {
         self.symbolic_count + self.direct.symbolic_factorizations()
+    }
+
+    fn offer_held_factorization(&mut self, a: &CscMatrix<'_>) -> bool {
+        self.use_direct && self.direct.offer_held_factorization(a)
+    }
+
+    fn held_factorization_served(&mut self, served: bool) {
+        if self.use_direct {
+            self.direct.held_factorization_served(served);
+        }
     }
 
     fn set_split(&mut self, split: SaddlePointSplit) {

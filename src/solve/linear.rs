@@ -38,6 +38,8 @@ pub enum LinearSolveError {
     ZeroPivot { pivot: f64, largest: f64, unknown: usize, step: usize },
     #[error("linear solve is inaccurate: relative residual {residual:.3e} after {refinements} refinement steps (tolerance {tolerance:.1e})")]
     Inaccurate { residual: f64, refinements: usize, tolerance: f64 },
+    #[error("FGMRES did not converge in {iterations} iterations: relative residual {residual:.3e} (tolerance {tolerance:.1e}); raise solver.linear.krylov_max_iterations or gamma, or use method = \"direct\"")]
+    KrylovNotConverged { iterations: usize, residual: f64, tolerance: f64 },
     #[error("the linear solve produced a non-finite value (NaN or infinity)")]
     NonFinite,
 }

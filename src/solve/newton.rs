@@ -52,6 +52,9 @@ pub struct NewtonOptions {
 
 /// Most halvings of one Newton step by the line search.
 pub const MAX_HALVINGS: usize = 10;
+/// The line search leaves steps from residuals below this many times the tolerance alone: there
+/// the residual is round-off, and need not decrease.
+const LINE_SEARCH_FLOOR: f64 = 100.0;
 
 impl Default for NewtonOptions {
     fn default() -> Self {
@@ -80,6 +83,20 @@ pub struct NewtonReport {
     pub assemble_seconds: f64,
     pub factorize_seconds: f64,
     pub solve_seconds: f64,
+}
+
+impl NewtonReport {
+    /// Adds the work of `other` (iterations, Krylov iterations, halvings, factorisations,
+    /// seconds) to this report; residual histories are left alone.
+    pub fn add(&mut self, other: &NewtonReport) {
+        self.iterations += other.iterations;
+        self.krylov_iterations.extend_from_slice(&other.krylov_iterations);
+        self.halvings += other.halvings;
+        self.factorizations += other.factorizations;
+        self.assemble_seconds += other.assemble_seconds;
+        self.factorize_seconds += other.factorize_seconds;
+        self.solve_seconds += other.solve_seconds;
+    }
 }
 
 /// A Newton failure.
@@ -132,11 +149,15 @@ where
         assemble(x, &mut k, &mut rhs).map_err(NewtonError::Assembly)?;
         report.assemble_seconds += t.elapsed().as_secs_f64();
         let r = norm(&rhs);
-        if let (Some((dx, l)), Some(&previous)) = (last_step.as_mut(), report.residual_norms.last()) {
+        if let (Some((dx, l)), Some(&previous), Some(&first)) = (last_step.as_mut(), report.residual_norms.last(), report.residual_norms.first()) {
             let decreased = r <= (1.0 - 1e-4 * *l) * previous; // false for NaN
-            if options.line_search == Some(true) && !decreased {
+                                                               // Near the tolerance the residual is round-off: no search there.
+            let near_tolerance = previous <= LINE_SEARCH_FLOOR * options.abs_tol.max(options.rel_tol * first);
+            if options.line_search == Some(true) && !decreased && !near_tolerance {
                 if *l <= 0.5f64.powi(MAX_HALVINGS as i32) {
                     // No decrease along the Newton direction: more iterations will not help.
+                    let back = *l;
+                    x.iter_mut().zip(dx.iter()).for_each(|(xi, d)| *xi -= back * d); // x_k again
                     return Err(NewtonError::LineSearch { iteration: report.iterations, residual: previous });
                 }
                 // Back from x_k + l dx to x_k + l/2 dx, and assemble there.

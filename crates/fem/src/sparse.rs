@@ -284,7 +284,7 @@ unsafe fn scatter(local: &LocalSystem, order: &mut Vec<usize>, pattern: &Pattern
             while rows[k] < row {
                 k += 1;
             }
-            debug_assert_eq!(rows[k], row, "cell dofs are in the pattern");
+            assert_eq!(rows[k], row, "cell dofs are in the pattern");
             // `rows[k] == row`: an entry of this column.
             unsafe { *out.values.add(start + k) += local.ke[i * n + j] };
         }

@@ -1,0 +1,64 @@
+//! `fdfsi run CASE --export-system DIR`: the first Newton system of a flow case, for trying other
+//! solvers on it (e.g. `../shared/peers/lu_mumps.py`):
+//! - `jacobian.mtx`, `rhs.mtx`: `K(x_0)` and `-R(x_0)` (MatrixMarket), `x_0` the Dirichlet values
+//!   (zero elsewhere); for a time-dependent case, the system of the first (implicit Euler) step
+//!   from rest; Dirichlet rows are identity rows with zero right-hand side;
+//! - `blocks.json`: the name and index range `[start, end)` of every block of the layout;
+//! - with `[solver.linear] method = "augmented-lagrangian"`, `augmented.mtx`: the augmented
+//!   velocity block the preconditioner factorises (`solve::augmented`).
+
+use super::{RunError, RunObserver};
+use crate::case::{Case, LinearMethod, RunKind};
+use crate::discretize::flow::FlowDiscretization;
+use crate::io::matrix_market::{write_matrix, write_vector};
+use crate::io::{write_atomic, OutputError};
+use crate::setup::{flow_problem, fluid_mesh};
+use crate::solve::augmented::{AlOptions, AugmentedLagrangian};
+use fdfsi_fem::gmsh::AnyMesh;
+use fdfsi_fem::mesh::Mesh;
+use fdfsi_fem::sparse::CscMatrix;
+use std::path::Path;
+
+/// Writes the first Newton system of `case` into `dir` (see the module documentation).
+pub fn export_system(case: &Case, case_dir: &Path, dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
+    if case.kind() != RunKind::Flow {
+        return Err(RunError::Unsupported(format!("--export-system writes flow systems; this is a {:?} case", case.kind())));
+    }
+    std::fs::create_dir_all(dir).map_err(|source| OutputError::Io { path: dir.display().to_string(), source })?;
+    match fluid_mesh(case, case_dir)?.0 {
+        AnyMesh::D2(m) => export_dim::<2>(case, m, case_dir, dir, obs),
+        AnyMesh::D3(m) => export_dim::<3>(case, m, case_dir, dir, obs),
+    }
+}
+
+fn export_dim<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
+    let mut problem = flow_problem(case, &mesh, case_dir)?;
+    let disc = FlowDiscretization::build(mesh, case.physics.formulation)?;
+    // The first step's system: at t = dt from rest with 1/dt, or the steady one at t = 0.
+    let t = case.time.as_ref().map_or(0.0, |ts| ts.dt);
+    problem.params.inv_dt = if t > 0.0 { 1.0 / t } else { 0.0 };
+    let n = disc.num_dofs();
+    let mut x = vec![0.0; n];
+    let constrained = disc.impose_dirichlet(&problem, t, &mut x)?;
+    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut rhs = vec![0.0; n];
+    disc.assemble_system(&problem, &x, &vec![0.0; n], t, &constrained, &mut k, &mut rhs)
+        .map_err(|e| crate::discretize::flow::FlowError::Map { cell: e.cell, source: e.source })?;
+    write_matrix(&dir.join("jacobian.mtx"), &k)?;
+    write_vector(&dir.join("rhs.mtx"), &rhs)?;
+    let blocks: Vec<serde_json::Value> =
+        disc.layout.fields.iter().map(|f| serde_json::json!({ "name": f.name, "start": f.range().start, "end": f.range().end })).collect();
+    let json = serde_json::to_string_pretty(&serde_json::json!({ "dofs": n, "blocks": blocks })).expect("JSON of numbers and names");
+    write_atomic(&dir.join("blocks.json"), json.as_bytes())?;
+    obs.log(&format!("exported the first Newton system ({n} unknowns, {} entries) to {}", disc.pattern.nnz(), dir.display()));
+    if case.solver.linear.method == LinearMethod::AugmentedLagrangian {
+        let l = &case.solver.linear;
+        let mut al = AugmentedLagrangian::new(AlOptions { gamma: l.gamma, ..Default::default() });
+        crate::solve::linear::LinearSolver::set_split(&mut al, disc.saddle_point_split(problem.formulation)?);
+        if let Some((pattern, values)) = al.augmented_block(&k).map_err(|e| RunError::Unsupported(e.to_string()))? {
+            write_matrix(&dir.join("augmented.mtx"), &CscMatrix { pattern: &pattern, values })?;
+            obs.log(&format!("and its augmented block ({} unknowns, {} entries)", pattern.n, pattern.nnz()));
+        }
+    }
+    Ok(())
+}
