@@ -381,8 +381,8 @@ impl<'a, const D: usize> SteadySystem<'a, D> {
 /// converged, or not finite) is solved by continuation in the viscosity: first at
 /// `eta_0 = 4^k eta` for the smallest `k` at which Newton converges from rest, then at viscosities
 /// that approach `eta` geometrically, each from the solution before; a failed stage halves the
-/// logarithmic step (at most [`MAX_CONTINUATION_SOLVES`] solves in all). The report is the last
-/// solve's, with the iterations of all stages summed.
+/// logarithmic step (at most [`MAX_CONTINUATION_SOLVES`] solves in all). The report has the last
+/// solve's residuals and the work of all converged stages summed.
 pub fn solve_steady<const D: usize>(
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,

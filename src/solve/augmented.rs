@@ -201,7 +201,6 @@ pub struct AugmentedLagrangian {
     structure: Option<Structure>,
     numeric: RefCell<Numeric>,
     direct: FaerLu,
-    use_direct: bool,
     symbolic_count: usize,
 }
 
@@ -225,7 +224,6 @@ impl AugmentedLagrangian {
             split: SaddlePointSplit::default(),
             structure: None,
             numeric: RefCell::new(numeric),
-            use_direct: true,
             symbolic_count: 0,
         }
     }
@@ -235,13 +233,9 @@ impl AugmentedLagrangian {
         self.numeric.borrow().factorizations
     }
 
-    /// A one-line description of the factorisation of the augmented block.
-    pub fn describe(&self) -> String {
-        let n = self.numeric.borrow();
-        match &self.structure {
-            Some(s) => format!("augmented block: {} of {} unknowns; {}", s.f_dofs.len(), s.f_local.len(), n.lu.describe()),
-            None => self.direct.describe(),
-        }
+    /// Whether the split has no multipliers: then the solver is the direct LU.
+    fn without_split(&self) -> bool {
+        self.split.multipliers.iter().all(|b| b.dofs.is_empty())
     }
 
     fn build_structure(&self, a: &CscMatrix<'_>, key: u64, pinned: Vec<usize>) -> Result<Structure, LinearSolveError> {
@@ -439,7 +433,7 @@ impl AugmentedLagrangian {
     /// The augmented primal block `A_gamma` of `a` (with the split given), unfactorised: what
     /// the preconditioner factorises, e.g. to try another solver on it. `None` without a split.
     pub fn augmented_block(&mut self, a: &CscMatrix<'_>) -> Result<Option<(Pattern, Vec<f64>)>, LinearSolveError> {
-        if self.split.multipliers.iter().all(|b| b.dofs.is_empty()) {
+        if self.without_split() {
             return Ok(None);
         }
         self.update_structure(a)?;
@@ -567,7 +561,7 @@ impl AugmentedLagrangian {
 
 /// A fingerprint of the values of `a` (FNV-1a over their bits).
 fn values_key(a: &CscMatrix<'_>) -> u64 {
-    a.values.iter().fold(0xcbf2_9ce4_8422_2325, |h, v| (h ^ v.to_bits()).wrapping_mul(0x0100_0000_01b3))
+    super::linear::fnv1a(a.values.iter().map(|v| v.to_bits()))
 }
 
 /// Rows of `a` whose only nonzero is on the diagonal (Dirichlet-constrained unknowns).
@@ -618,8 +612,7 @@ fn invert_dense(a: &[f64], n: usize) -> Option<Vec<f64>> {
 
 impl LinearSolver for AugmentedLagrangian {
     fn factorize(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
-        self.use_direct = self.split.multipliers.iter().all(|b| b.dofs.is_empty());
-        if self.use_direct {
+        if self.without_split() {
             return self.direct.factorize(a);
         }
         self.update_structure(a)?;
@@ -634,7 +627,7 @@ impl LinearSolver for AugmentedLagrangian {
     }
 
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
-        if self.use_direct {
+        if self.without_split() {
             return self.direct.solve_in_place(a, rhs);
         }
         let mut num = self.numeric.borrow_mut();
@@ -676,11 +669,11 @@ impl LinearSolver for AugmentedLagrangian {
     }
 
     fn offer_held_factorization(&mut self, a: &CscMatrix<'_>) -> bool {
-        self.use_direct && self.direct.offer_held_factorization(a)
+        self.without_split() && self.direct.offer_held_factorization(a)
     }
 
     fn held_factorization_served(&mut self, served: bool) {
-        if self.use_direct {
+        if self.without_split() {
             self.direct.held_factorization_served(served);
         }
     }

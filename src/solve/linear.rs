@@ -879,13 +879,13 @@ impl Default for FaerLu {
 /// Identity of a pattern by content: a hash of its index arrays (O(nnz), negligible next to a
 /// factorisation), so a symbolic factorisation is reused exactly when the structure is the same.
 pub(super) fn pattern_key(p: &Pattern) -> u64 {
-    // FNV-1a over whole words: a few milliseconds for millions of entries, where the default
-    // SipHash took 1.7 % of a Schaefer-Turek 2D-1 solve; no adversary chooses patterns.
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &w in std::iter::once(&p.n).chain(&p.col_ptr).chain(&p.row_idx) {
-        h = (h ^ w as u64).wrapping_mul(0x0100_0000_01b3);
-    }
-    h
+    fnv1a(std::iter::once(&p.n).chain(&p.col_ptr).chain(&p.row_idx).map(|&w| w as u64))
+}
+
+/// FNV-1a over whole words: a few milliseconds for millions of entries, where the default
+/// SipHash took 1.7 % of a Schaefer-Turek 2D-1 solve; no adversary chooses the inputs.
+pub(super) fn fnv1a(words: impl IntoIterator<Item = u64>) -> u64 {
+    words.into_iter().fold(0xcbf2_9ce4_8422_2325, |h, w| (h ^ w).wrapping_mul(0x0100_0000_01b3))
 }
 
 fn faer_view<'a>(a: &'a CscMatrix<'_>) -> SparseColMatRef<'a, usize, f64> {
