@@ -126,6 +126,11 @@ struct Group {
     /// `usize::MAX` where the pattern has no entry.
     bt_pos: Vec<usize>,
     b_pos: Vec<usize>,
+    /// Positions in `K` of the diagonal entries of the coupled unknowns (`usize::MAX`: none).
+    diag_pos: Vec<usize>,
+    /// Where the positions in `A_gamma` of its grad-div block (`coupled x coupled`,
+    /// column-major) start in [`Structure::aug_pos`].
+    aug_start: usize,
 }
 
 /// One group's blocks of the Jacobian: `B'_g` (`coupled x m`, row-major), `B_g` and
@@ -172,6 +177,8 @@ struct Structure {
     pattern: Pattern,
     /// Position in `A_gamma` of each entry of `K` in `F x F` (`usize::MAX` elsewhere).
     ff_pos: Vec<usize>,
+    /// Positions in `A_gamma` of the groups' grad-div blocks ([`Group::aug_start`]).
+    aug_pos: Vec<usize>,
     /// Inverse mass matrices of the groups (free dofs), concatenated, and where each starts.
     minv: Vec<f64>,
     minv_offsets: Vec<usize>,
@@ -202,6 +209,8 @@ pub struct AugmentedLagrangian {
     numeric: RefCell<Numeric>,
     direct: FaerLu,
     symbolic_count: usize,
+    /// The forcing term of the next solve ([`LinearSolver::set_forcing`]).
+    forcing: f64,
 }
 
 impl AugmentedLagrangian {
@@ -225,12 +234,23 @@ impl AugmentedLagrangian {
             structure: None,
             numeric: RefCell::new(numeric),
             symbolic_count: 0,
+            forcing: 0.0,
         }
     }
 
     /// Numeric factorisations of the augmented block so far.
     pub fn factorizations(&self) -> usize {
         self.numeric.borrow().factorizations
+    }
+
+    /// Size and cost of the LU in use: that of the augmented block, or of the whole system
+    /// without a split.
+    pub fn factor_stats(&self) -> Option<super::linear::FactorStats> {
+        if self.without_split() {
+            self.direct.factor_stats()
+        } else {
+            self.numeric.borrow().lu.factor_stats()
+        }
     }
 
     /// Whether the split has no multipliers: then the solver is the direct LU.
@@ -268,6 +288,8 @@ impl AugmentedLagrangian {
                         coupled: Vec::new(),
                         bt_pos: Vec::new(),
                         b_pos: Vec::new(),
+                        diag_pos: Vec::new(),
+                        aug_start: 0,
                     });
                 }
                 mass_offset += dofs.len() * dofs.len();
@@ -291,6 +313,7 @@ impl AugmentedLagrangian {
             let f_dofs = &f_dofs;
             g.bt_pos = c.iter().flat_map(|&fi| qs.iter().map(move |&q| (f_dofs[fi], q))).map(|(i, q)| at(i, q)).collect();
             g.b_pos = qs.iter().flat_map(|&q| c.iter().map(move |&fi| (q, f_dofs[fi]))).map(|(q, i)| at(q, i)).collect();
+            g.diag_pos = c.iter().map(|&fi| at(f_dofs[fi], f_dofs[fi])).collect();
             g.coupled = c;
         }
         // Columns of `A_gamma`: those of `K_FF`, plus the couplings of each group's grad-div
@@ -299,21 +322,28 @@ impl AugmentedLagrangian {
             .iter()
             .map(|&j| p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().map(|&i| f_local[i]).filter(|&i| i != usize::MAX).collect())
             .collect();
-        let mut extra = Vec::new();
-        for g in &groups {
-            for &j in &g.coupled {
-                for &i in &g.coupled {
-                    if cols[j].binary_search(&i).is_err() {
-                        extra.push((j, i));
+        // The groups that couple to each primal column; a column's rows marked by its index.
+        let mut groups_of: Vec<Vec<usize>> = vec![Vec::new(); f_dofs.len()];
+        for (gi, g) in groups.iter().enumerate() {
+            g.coupled.iter().for_each(|&j| groups_of[j].push(gi));
+        }
+        let mut mark = vec![usize::MAX; f_dofs.len()];
+        for (j, col) in cols.iter_mut().enumerate() {
+            col.iter().for_each(|&i| mark[i] = j);
+            let before = col.len();
+            for &gi in &groups_of[j] {
+                for &i in &groups[gi].coupled {
+                    if mark[i] != j {
+                        mark[i] = j;
+                        col.push(i);
                     }
                 }
             }
-        }
-        for (j, i) in extra {
-            if let Err(pos) = cols[j].binary_search(&i) {
-                cols[j].insert(pos, i);
+            if col.len() > before {
+                col.sort_unstable();
             }
         }
+        drop(groups_of);
         let mut col_ptr = Vec::with_capacity(f_dofs.len() + 1);
         col_ptr.push(0);
         let mut row_idx = Vec::with_capacity(cols.iter().map(Vec::len).sum());
@@ -323,18 +353,39 @@ impl AugmentedLagrangian {
         }
         drop(cols);
         let pattern = Pattern { n: f_dofs.len(), col_ptr, row_idx };
+        // Both columns are sorted (`f_local` is increasing), so one merge finds the positions.
         let mut ff_pos = vec![usize::MAX; p.nnz()];
         for (jl, &j) in f_dofs.iter().enumerate() {
+            let mut pos = pattern.col_ptr[jl];
             for k in p.col_ptr[j]..p.col_ptr[j + 1] {
                 let il = f_local[p.row_idx[k]];
                 if il != usize::MAX {
-                    ff_pos[k] = pattern.find(il, jl).expect("K_FF entry in the augmented pattern");
+                    while pattern.row_idx[pos] < il {
+                        pos += 1;
+                    }
+                    debug_assert_eq!(pattern.row_idx[pos], il);
+                    ff_pos[k] = pos;
+                }
+            }
+        }
+        let mut aug_pos = Vec::with_capacity(groups.iter().map(|g| g.coupled.len().pow(2)).sum());
+        for g in &mut groups {
+            g.aug_start = aug_pos.len();
+            for &j in &g.coupled {
+                let (base, end) = (pattern.col_ptr[j], pattern.col_ptr[j + 1]);
+                let rows = &pattern.row_idx[base..end];
+                let mut k = 0;
+                for &i in &g.coupled {
+                    while rows[k] < i {
+                        k += 1;
+                    }
+                    aug_pos.push(base + k);
                 }
             }
         }
         let minv = self.inverse_masses(&groups, &q_dofs)?;
         let minv_offsets = groups.iter().scan(0, |o, g| Some(std::mem::replace(o, *o + g.local.len().pow(2)))).collect();
-        Ok(Structure { key, pinned, f_dofs, f_local, q_dofs, groups, pattern, ff_pos, minv, minv_offsets })
+        Ok(Structure { key, pinned, f_dofs, f_local, q_dofs, groups, pattern, ff_pos, aug_pos, minv, minv_offsets })
     }
 
     /// Multiplier dofs that stay primal: those with identity rows (a pinned pressure), and all
@@ -396,7 +447,7 @@ impl AugmentedLagrangian {
                 sum.2 += (0..m).map(|ai| row[ai] * ops.mb[ai * c + ii]).sum::<f64>().abs();
                 if row.iter().any(|&v| v != 0.0) && !seen[g.block][fi] {
                     seen[g.block][fi] = true;
-                    sum.1 += a.get(s.f_dofs[fi], s.f_dofs[fi]).abs();
+                    sum.1 += a.values.get(g.diag_pos[ii]).map_or(0.0, |v| v.abs());
                     sum.3 += 1;
                 }
             }
@@ -478,17 +529,12 @@ impl AugmentedLagrangian {
             ops.load(a, g, &s.minv[*offset..]);
             let (sigma, gamma_b, _) = num.scales[g.block];
             let (m, c) = (g.local.len(), g.coupled.len());
-            // Column jj of sigma gamma_b B'_g (M^-1 B_g), added along column `j` of A_gamma.
-            for (jj, &j) in g.coupled.iter().enumerate() {
-                let base = s.pattern.col_ptr[j];
-                let rows = &s.pattern.row_idx[base..s.pattern.col_ptr[j + 1]];
-                let mut k = 0;
-                for (ii, &i) in g.coupled.iter().enumerate() {
-                    while rows[k] < i {
-                        k += 1;
-                    }
+            // Column jj of sigma gamma_b B'_g (M^-1 B_g).
+            let pos = &s.aug_pos[g.aug_start..g.aug_start + c * c];
+            for jj in 0..c {
+                for ii in 0..c {
                     let bt = &ops.bt[ii * m..(ii + 1) * m];
-                    values[base + k] += sigma * gamma_b * (0..m).map(|ai| bt[ai] * ops.mb[ai * c + jj]).sum::<f64>();
+                    values[pos[jj * c + ii]] += sigma * gamma_b * (0..m).map(|ai| bt[ai] * ops.mb[ai * c + jj]).sum::<f64>();
                 }
             }
         }
@@ -554,7 +600,7 @@ impl AugmentedLagrangian {
     fn krylov_solve(&self, a: &CscMatrix<'_>, num: &Numeric, rhs: &[f64], x: &mut [f64], max_iterations: usize) -> KrylovReport {
         let n = rhs.len();
         let (mut v, mut y) = (vec![0.0; n], vec![0.0; n]);
-        let options = KrylovOptions { max_iterations, ..self.options.krylov };
+        let options = KrylovOptions { max_iterations, rel_tol: self.options.krylov.rel_tol.max(self.forcing), ..self.options.krylov };
         fgmres(|u, out| a.mul_vec(u, out), |r, z| self.precondition(a, num, r, z, &mut v, &mut y), rhs, x, &options)
     }
 }
@@ -659,7 +705,11 @@ impl LinearSolver for AugmentedLagrangian {
             return Err(LinearSolveError::NonFinite);
         }
         if !report.converged {
-            return Err(LinearSolveError::KrylovNotConverged { iterations, residual: report.residual, tolerance: self.options.krylov.rel_tol });
+            return Err(LinearSolveError::KrylovNotConverged {
+                iterations,
+                residual: report.residual,
+                tolerance: self.options.krylov.rel_tol.max(self.forcing),
+            });
         }
         Ok(SolveStats { residual: report.residual, refinements: 0, krylov_iterations: iterations })
     }
@@ -676,6 +726,10 @@ impl LinearSolver for AugmentedLagrangian {
         if self.without_split() {
             self.direct.held_factorization_served(served);
         }
+    }
+
+    fn set_forcing(&mut self, relative_residual: f64) {
+        self.forcing = relative_residual;
     }
 
     fn set_split(&mut self, split: SaddlePointSplit) {

@@ -156,6 +156,10 @@ pub trait LinearSolver {
     /// The saddle-point structure of the systems to come (block preconditioners use it; direct
     /// solvers ignore it). Called whenever the discretisation changes.
     fn set_split(&mut self, _split: super::augmented::SaddlePointSplit) {}
+    /// The relative residual the next `solve_in_place` needs to reach (an inexact Newton
+    /// method's forcing term); iterative solvers stop there or at their own tolerance, whichever
+    /// is larger; direct solvers ignore it. `0` restores the solver's own tolerance.
+    fn set_forcing(&mut self, _relative_residual: f64) {}
 }
 
 /// Which factorisation [`FaerLu`] uses.
@@ -638,7 +642,11 @@ impl StaticLu {
         Ok(())
     }
 
-    /// Solves `A x = b` in place.
+    /// Solves `A x = b` in place. Per supernode, the off-diagonal rows are gathered once into a
+    /// dense work vector and updated by dense column operations (`w -= L_21 y_b` forward,
+    /// `y_b -= U_12 w` backward), so the indirect row accesses happen once per supernode rather
+    /// than once per column (Schaefer-Turek 2D-1 medium, the AL solver's augmented block: 19.3 ms
+    /// per solve against 22.0 ms column by column; the solve streams the factors from memory).
     fn solve(&self, x: &mut [f64], y: &mut Vec<f64>) {
         let sym = &self.sym;
         let n = sym.n;
@@ -647,6 +655,7 @@ impl StaticLu {
         let val = &self.val;
         let nsup = sym.sn_begin.len() - 1;
         let mut t = vec![0.0; sym.max_k];
+        let mut w = vec![0.0; sym.max_r];
         for s in 0..nsup {
             let (b, e) = (sym.sn_begin[s], sym.sn_begin[s + 1]);
             let k = e - b;
@@ -657,17 +666,27 @@ impl StaticLu {
             for c in 0..k {
                 t[c] = y[b + self.piv[b + c]];
             }
-            y[b..e].copy_from_slice(&t[..k]);
+            // Unit lower triangular diagonal block.
             for c in 0..k {
-                let yc = y[b + c];
-                if yc != 0.0 {
-                    let col = &l[c * ld..(c + 1) * ld];
-                    for i in c + 1..k {
-                        y[b + i] -= col[i] * yc;
+                let tc = t[c];
+                if tc != 0.0 {
+                    let col = &l[c * ld + c + 1..c * ld + k];
+                    t[c + 1..k].iter_mut().zip(col).for_each(|(ti, li)| *ti -= li * tc);
+                }
+            }
+            y[b..e].copy_from_slice(&t[..k]);
+            if r > 0 {
+                let w = &mut w[..r];
+                w.iter_mut().for_each(|wi| *wi = 0.0);
+                for c in 0..k {
+                    let tc = t[c];
+                    if tc != 0.0 {
+                        let col = &l[c * ld + k..(c + 1) * ld];
+                        w.iter_mut().zip(col).for_each(|(wi, li)| *wi += li * tc);
                     }
-                    for (a_, &row) in rows.iter().enumerate() {
-                        y[row] -= col[k + a_] * yc;
-                    }
+                }
+                for (&row, wi) in rows.iter().zip(w.iter()) {
+                    y[row] -= wi;
                 }
             }
         }
@@ -679,22 +698,19 @@ impl StaticLu {
             let ld = k + r;
             let l = &val[sym.l_ptr[s]..sym.l_ptr[s] + ld * k];
             let u = &val[sym.u_ptr[s]..sym.u_ptr[s] + r * k];
-            for c in 0..k {
-                let ucol = &u[c * r..(c + 1) * r];
-                let mut acc = 0.0;
-                for (a_, &row) in rows.iter().enumerate() {
-                    acc += ucol[a_] * y[row];
+            if r > 0 {
+                let w = &mut w[..r];
+                w.iter_mut().zip(rows).for_each(|(wi, &row)| *wi = y[row]);
+                for c in 0..k {
+                    y[b + c] -= dot4(&u[c * r..(c + 1) * r], w);
                 }
-                y[b + c] -= acc;
             }
             for c in (0..k).rev() {
                 let yc = y[b + c] / l[c * ld + c];
                 y[b + c] = yc;
                 if yc != 0.0 {
                     let col = &l[c * ld..c * ld + c];
-                    for i in 0..c {
-                        y[b + i] -= col[i] * yc;
-                    }
+                    y[b..b + c].iter_mut().zip(col).for_each(|(yi, li)| *yi -= li * yc);
                 }
             }
         }
@@ -703,6 +719,19 @@ impl StaticLu {
         }
         debug_assert_eq!(n, x.len());
     }
+}
+
+/// `a . b` with four partial sums (so that the loop vectorises).
+fn dot4(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (ac, bc) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ac.remainder().iter().zip(bc.remainder()).map(|(x, y)| x * y).sum();
+    for (x, y) in ac.zip(bc) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 enum Active {
