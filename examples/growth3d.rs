@@ -3,7 +3,9 @@
 //! the pressure pinned in cell 0), P2+/P1disc on `box_tetrahedra` with `n` cells per side, from
 //! rest to `|R| <= 1e-10`.
 //!
-//! `cargo run --release --example growth3d -- N [al|direct]`
+//! `cargo run --release --example growth3d -- N [al|direct] [stokes|navier-stokes] [REFACTOR]`
+//! (`stokes`: without convection, the linear Stokes problem; `REFACTOR`: the AL solver's
+//! `refactor_iterations`, default 0)
 //!
 //! One size per process, so that the peak resident memory (`VmHWM`) is that size's alone; prints
 //! one JSON line: unknowns, Newton and Krylov iterations, the phase times of the Newton solve,
@@ -22,19 +24,21 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).map(|v| v.parse().expect("N: cells per side")).unwrap_or(4);
     let method = args.get(2).map(String::as_str).unwrap_or("al");
+    let convection = args.get(3).map(String::as_str) != Some("stokes");
+    let refactor_iterations: usize = args.get(4).map(|v| v.parse().expect("REFACTOR: Krylov iterations")).unwrap_or(0);
     let t = Instant::now();
     let disc = FlowDiscretization::build(box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n), Formulation::ThreeD).expect("discretisation");
     let setup = t.elapsed().as_secs_f64();
     let wall = |name: &str, u: f64| DirichletBc::<3> { boundary: name.into(), components: vec![0, 1, 2], value: Arc::new(move |_, _| [u, 0.0, 0.0]) };
     let problem = FlowProblem {
         formulation: Formulation::ThreeD,
-        params: FluidParams { viscosity: 0.01, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+        params: FluidParams { viscosity: 0.01, density: 1.0, inv_dt: 0.0, convection, viscous_form: Default::default() },
         body_force: None,
         dirichlet: ["xmin", "xmax", "ymin", "ymax", "zmin"].iter().map(|b| wall(b, 0.0)).chain([wall("zmax", 1.0)]).collect(),
         traction: vec![],
         pin_pressure: true,
     };
-    let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions::default()), FaerLu::default());
+    let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions { refactor_iterations, ..Default::default() }), FaerLu::default());
     let solver: &mut dyn LinearSolver = if method == "direct" { &mut lu } else { &mut al };
     let t = Instant::now();
     let sol = solve_steady(&disc, &problem, solver, &NewtonOptions::default()).expect("Newton solve");

@@ -391,7 +391,9 @@ pub fn solve_steady<const D: usize>(
 ) -> Result<FlowSolution, FlowError> {
     let (system, mut x) = SteadySystem::new(disc, problem)?;
     solver.set_split(disc.saddle_point_split(problem.formulation)?);
-    let options = &NewtonOptions { line_search: Some(options.line_search.unwrap_or(true)), ..options.clone() };
+    // A Stokes problem is linear: an inexact first solve would only cost a second one.
+    let inexact = options.inexact && problem.params.convection;
+    let options = &NewtonOptions { line_search: Some(options.line_search.unwrap_or(true)), inexact, ..options.clone() };
     let x0 = x.clone();
     let report = match newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs)) {
         Ok(report) => report,

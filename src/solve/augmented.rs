@@ -477,7 +477,15 @@ impl AugmentedLagrangian {
         self.symbolic_count += 1;
         let t = std::time::Instant::now();
         self.structure = Some(self.build_structure(a, key, pinned)?);
-        tracing::debug!("split of the saddle-point system in {:.3} s", t.elapsed().as_secs_f64());
+        let s = self.structure.as_ref().expect("structure");
+        tracing::debug!(
+            "split of the saddle-point system in {:.3} s: {} primal unknowns (of which {} multipliers kept primal), {} multipliers in {} groups",
+            t.elapsed().as_secs_f64(),
+            s.f_dofs.len(),
+            s.pinned.len(),
+            s.q_dofs.len(),
+            s.groups.len()
+        );
         Ok(())
     }
 
