@@ -18,6 +18,7 @@ fn best_of_3(mut f: impl FnMut()) -> f64 {
 }
 
 fn main() {
+    faer::set_global_parallelism(Par::Seq); // the LU too: one thread
     let sizes: Vec<usize> = std::env::args().skip(1).map(|v| v.parse().expect("N")).collect();
     let sizes = if sizes.is_empty() { vec![256, 512, 1024, 2048] } else { sizes };
     for n in sizes {

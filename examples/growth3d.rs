@@ -23,7 +23,7 @@ use std::time::Instant;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).map(|v| v.parse().expect("N: cells per side")).unwrap_or(4);
-    let method = args.get(2).map(String::as_str).unwrap_or("al");
+    let method = if args.get(2).map(String::as_str) == Some("direct") { "direct" } else { "al" };
     let convection = args.get(3).map(String::as_str) != Some("stokes");
     let refactor_iterations: usize = args.get(4).map(|v| v.parse().expect("REFACTOR: Krylov iterations")).unwrap_or(0);
     let t = Instant::now();
@@ -46,8 +46,8 @@ fn main() {
     let stats = if method == "direct" { lu.factor_stats() } else { al.factor_stats() };
     let r = &sol.newton;
     println!(
-        "{{\"n\": {n}, \"method\": \"{method}\", \"unknowns\": {}, \"newton\": {}, \"krylov\": {:?}, \"setup_s\": {setup:.3}, \
-         \"solve_s\": {total:.3}, \"assemble_s\": {:.3}, \"factorize_s\": {:.3}, \"krylov_s\": {:.3}, \"lu_entries\": {}, \"lu_flops\": {:.4e}, \
+        "{{\"n\": {n}, \"method\": \"{method}\", \"unknowns\": {}, \"convection\": {convection}, \"refactor\": {refactor_iterations}, \"newton\": {}, \"krylov\": {:?}, \"setup_s\": {setup:.3}, \
+         \"solve_s\": {total:.3}, \"assemble_s\": {:.3}, \"factorize_s\": {:.3}, \"solve_phase_s\": {:.3}, \"lu_entries\": {}, \"lu_flops\": {:.4e}, \
          \"symbolic_s\": {:.3}, \"peak_mib\": {:.0}}}",
         disc.num_dofs(),
         r.iterations,

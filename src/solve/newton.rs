@@ -50,7 +50,8 @@ pub struct NewtonOptions {
     pub continuation: bool,
     /// Inexact Newton: with a Krylov linear solver, each iteration's linear solve stops at the
     /// forcing term of [`forcing_term`] (at most [`MAX_FORCING`]) rather than at the solver's
-    /// own tolerance; default true. Direct solvers are unaffected.
+    /// own tolerance; default true. Direct solvers are unaffected; the flow solves turn it off
+    /// for linear (Stokes) problems, where a loose first solve would only cost a second one.
     pub inexact: bool,
 }
 
@@ -130,31 +131,23 @@ pub enum NewtonError<E: std::error::Error + 'static> {
 pub const MAX_FORCING: f64 = 1e-2;
 
 /// The relative linear residual `eta_k` that the solve of Newton iteration `k` needs, from the
-/// residual norms `|R_0|, ..., |R_k|` so far, the previous forcing term and the Newton tolerance
-/// (Eisenstat & Walker, SISC 17, 1996, choice 2 with `gamma = 0.9`, `alpha = 2`):
+/// residual norms `|R_0|, ..., |R_k|` so far and the Newton tolerance (Eisenstat & Walker, SISC
+/// 17, 1996, choice 2 with `gamma = 0.9`, `alpha = 2`; their safeguard `0.9 eta_k-1^2`, which
+/// acts only above 0.1, never does under `eta_max` = [`MAX_FORCING`]):
 ///
 /// ```text
-/// eta_0 = eta_max,   eta_k = min(eta_max, max(0.9 (|R_k| / |R_k-1|)^2, 0.9 eta_k-1^2 [if > 0.1], 0.5 tol / |R_k|))
+/// eta_0 = eta_max,   eta_k = min(eta_max, max(0.9 (|R_k| / |R_k-1|)^2, 0.5 tol / |R_k|))
 /// ```
 ///
 /// Far from the solution a loose solve serves as well as an exact one; as Newton converges
 /// quadratically, `eta_k` shrinks like the residual, so the quadratic convergence is kept. The
-/// last term stops the final iteration from solving more accurately than the tolerance needs.
-/// `eta_max` = [`MAX_FORCING`] is small, because here a Newton iteration (assembly and
-/// factorisation) costs several Krylov iterations.
-pub fn forcing_term(norms: &[f64], previous: Option<f64>, tol: f64) -> f64 {
+/// last term (Kelley) stops the final iteration from solving more accurately than the tolerance
+/// needs. `eta_max` is small because here a Newton iteration (assembly and factorisation) costs
+/// several Krylov iterations. Non-finite values give `eta_max`.
+pub fn forcing_term(norms: &[f64], tol: f64) -> f64 {
     let r = norms.last().copied().unwrap_or(0.0);
-    let eta = match (previous, norms.len()) {
-        (Some(prev), n) if n >= 2 => {
-            let ratio = r / norms[n - 2];
-            let safeguard = 0.9 * prev * prev;
-            let eta = 0.9 * ratio * ratio;
-            if safeguard > 0.1 {
-                eta.max(safeguard)
-            } else {
-                eta
-            }
-        }
+    let eta = match norms.len() {
+        n if n >= 2 => 0.9 * (r / norms[n - 2]).powi(2),
         _ => MAX_FORCING,
     };
     let eta = if r > 0.0 { eta.max(0.5 * tol / r) } else { eta };
@@ -170,8 +163,25 @@ fn norm(v: &[f64]) -> f64 {
 }
 
 /// Solves `R(x) = 0` from the initial iterate `x`. `assemble(x, K, rhs)` must zero and fill the
-/// Jacobian `K` and `rhs = -R(x)`.
+/// Jacobian `K` and `rhs = -R(x)`. The solver's forcing term ([`LinearSolver::set_forcing`]) is
+/// reset when it returns, so later solves outside Newton use the solver's own tolerance.
 pub fn solve<E, F>(
+    x: &mut [f64],
+    pattern: &Pattern,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+    assemble: F,
+) -> Result<NewtonReport, NewtonError<E>>
+where
+    E: std::error::Error + 'static,
+    F: FnMut(&[f64], &mut CscMatrix<'_>, &mut [f64]) -> Result<(), E>,
+{
+    let result = iterate(x, pattern, solver, options, assemble);
+    solver.set_forcing(0.0);
+    result
+}
+
+fn iterate<E, F>(
     x: &mut [f64],
     pattern: &Pattern,
     solver: &mut dyn LinearSolver,
@@ -193,7 +203,6 @@ where
     let mut rhs_copy = Vec::new();
     // The last update and the fraction `l` of it taken, for the line search.
     let mut last_step: Option<(Vec<f64>, f64)> = None;
-    let mut forcing: Option<f64> = None;
     loop {
         let t = std::time::Instant::now();
         k.values.iter_mut().for_each(|v| *v = 0.0);
@@ -233,9 +242,7 @@ where
             return Err(NewtonError::NotConverged { iterations: report.iterations, residual: r, tolerance: tol });
         }
         if options.inexact {
-            let eta = forcing_term(&report.residual_norms, forcing, tol);
-            forcing = Some(eta);
-            solver.set_forcing(eta);
+            solver.set_forcing(forcing_term(&report.residual_norms, tol));
         } else {
             solver.set_forcing(0.0);
         }
@@ -290,15 +297,15 @@ mod tests {
     #[test]
     fn forcing_terms_follow_the_residual_and_stay_bounded() {
         // The first solve, and any step from a vanishing or non-finite residual: the largest term.
-        assert_eq!(forcing_term(&[1.0], None, 1e-10), MAX_FORCING);
-        assert_eq!(forcing_term(&[1.0, f64::NAN], Some(1e-2), 1e-10), MAX_FORCING);
+        assert_eq!(forcing_term(&[1.0], 1e-10), MAX_FORCING);
+        assert_eq!(forcing_term(&[1.0, f64::NAN], 1e-10), MAX_FORCING);
         // Quadratic convergence: 0.9 (|R_k| / |R_k-1|)^2.
-        assert!((forcing_term(&[1.0, 1e-2], Some(1e-2), 1e-12) - 0.9e-4).abs() < 1e-16);
+        assert!((forcing_term(&[1.0, 1e-2], 1e-12) - 0.9e-4).abs() < 1e-16);
         // A slow contraction is capped.
-        assert_eq!(forcing_term(&[1.0, 0.5], Some(1e-2), 1e-12), MAX_FORCING);
+        assert_eq!(forcing_term(&[1.0, 0.5], 1e-12), MAX_FORCING);
         // Near the tolerance: no more accuracy than it needs (0.5 tol / |R_k|).
-        assert!((forcing_term(&[1.0, 1e-6, 1e-9], Some(1e-3), 1e-10) - 0.05f64.min(MAX_FORCING)).abs() < 1e-16);
-        assert!((forcing_term(&[1.0, 1e-4, 1e-8], Some(1e-3), 1e-12) - 5e-5).abs() < 1e-16);
+        assert!((forcing_term(&[1.0, 1e-6, 1e-9], 1e-10) - 0.05f64.min(MAX_FORCING)).abs() < 1e-16);
+        assert!((forcing_term(&[1.0, 1e-4, 1e-8], 1e-12) - 5e-5).abs() < 1e-16);
     }
     use crate::solve::linear::FaerLu;
     use std::convert::Infallible;
