@@ -53,6 +53,15 @@ pub struct FlowProblem<const D: usize> {
     pub pin_pressure: bool,
 }
 
+impl<const D: usize> FlowProblem<D> {
+    /// `options` for a Newton solve of this problem: without the inexact Newton method when the
+    /// problem is linear (Stokes: no convection), where a loose first solve would only cost a
+    /// second one.
+    pub fn newton_options(&self, options: &NewtonOptions) -> NewtonOptions {
+        NewtonOptions { inexact: options.inexact && self.params.convection, ..options.clone() }
+    }
+}
+
 /// Errors of a flow solve.
 #[derive(Debug, Error)]
 pub enum FlowError {
@@ -391,9 +400,7 @@ pub fn solve_steady<const D: usize>(
 ) -> Result<FlowSolution, FlowError> {
     let (system, mut x) = SteadySystem::new(disc, problem)?;
     solver.set_split(disc.saddle_point_split(problem.formulation)?);
-    // A Stokes problem is linear: an inexact first solve would only cost a second one.
-    let inexact = options.inexact && problem.params.convection;
-    let options = &NewtonOptions { line_search: Some(options.line_search.unwrap_or(true)), inexact, ..options.clone() };
+    let options = &NewtonOptions { line_search: Some(options.line_search.unwrap_or(true)), ..problem.newton_options(options) };
     let x0 = x.clone();
     let report = match newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs)) {
         Ok(report) => report,

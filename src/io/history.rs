@@ -5,13 +5,18 @@ use super::{write_atomic, OutputError};
 use std::io::Write;
 use std::path::Path;
 
+/// The columns before the quantities.
+const HEADER: &str = "step,time,newton_iterations,residual,krylov_iterations";
+
+/// The number of columns of [`HEADER`].
+fn fixed_columns() -> usize {
+    HEADER.split(',').count()
+}
+
 /// A `history.csv` being written row by row: each row is appended and flushed to disk when its
 /// step completes, so the cost of a step's output does not grow with the length of the run.
 ///
 /// A run killed while writing a row leaves a torn last line; [`History::resume`] cuts it away.
-/// The columns before the quantities.
-const HEADER: &str = "step,time,newton_iterations,residual,krylov_iterations";
-
 pub struct History {
     path: std::path::PathBuf,
     file: std::fs::File,
@@ -30,7 +35,7 @@ impl History {
         }
         header.push('\n');
         write_atomic(path, header.as_bytes())?;
-        Self::append_to(path, HEADER.split(',').count() + quantities.len())
+        Self::append_to(path, fixed_columns() + quantities.len())
     }
 
     fn append_to(path: &Path, columns: usize) -> Result<Self, OutputError> {
@@ -65,8 +70,8 @@ impl History {
     /// quantities) and flushes it to disk.
     pub fn push(&mut self, step: usize, time: f64, iterations: (usize, usize), residual: f64, values: &[f64]) -> Result<(), OutputError> {
         let io = |source| OutputError::Io { path: self.path.display().to_string(), source };
-        if 5 + values.len() != self.columns {
-            let message = format!("a row of {} values for {} columns", 5 + values.len(), self.columns);
+        if fixed_columns() + values.len() != self.columns {
+            let message = format!("a row of {} values for {} columns", fixed_columns() + values.len(), self.columns);
             return Err(io(std::io::Error::other(message)));
         }
         let (newton, krylov) = iterations;

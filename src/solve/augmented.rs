@@ -154,7 +154,7 @@ impl GroupOperators {
     /// Loads the blocks of group `g` of `a`, with `minv` starting at its inverse mass matrix.
     fn load(&mut self, a: &CscMatrix<'_>, g: &Group, minv: &[f64]) {
         let (m, c) = (g.local.len(), g.coupled.len());
-        let value = |k: &usize| if *k == usize::MAX { 0.0 } else { a.values[*k] };
+        let value = |&k: &usize| value_at(a, k);
         self.bt.clear();
         self.bt.extend(g.bt_pos.iter().map(value));
         self.b.clear();
@@ -455,7 +455,7 @@ impl AugmentedLagrangian {
                 sum.2 += (0..m).map(|ai| row[ai] * ops.mb[ai * c + ii]).sum::<f64>().abs();
                 if row.iter().any(|&v| v != 0.0) && !seen[g.block][fi] {
                     seen[g.block][fi] = true;
-                    sum.1 += a.values.get(g.diag_pos[ii]).map_or(0.0, |v| v.abs());
+                    sum.1 += value_at(a, g.diag_pos[ii]).abs();
                     sum.3 += 1;
                 }
             }
@@ -526,7 +526,7 @@ impl AugmentedLagrangian {
         Ok(())
     }
 
-    /// The values of `A_gamma` on the structure's pattern (the block scales set if unset).
+    /// The values of `A_gamma` on the structure's pattern, with the block scales set from `a`.
     fn assemble_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Vec<f64> {
         let s = self.structure.as_ref().expect("structure");
         let mut ops = GroupOperators::default();
@@ -569,11 +569,9 @@ impl AugmentedLagrangian {
             }
         };
         // z_Q = -sigma (eta + gamma) M^-1 r_Q.
-        let mut offset = 0;
-        for g in &s.groups {
+        for (g, &offset) in s.groups.iter().zip(&s.minv_offsets) {
             let (sigma, gamma_b, eta) = num.scales[g.block];
             apply_minv(g, offset, -sigma * (eta + gamma_b), r, z);
-            offset += (g.end - g.start).pow(2);
         }
         // v_Q = sigma gamma M^-1 (r_Q - C z_Q) - z_Q, with w = r_Q - C z_Q in y.
         for &q in &s.q_dofs {
@@ -587,11 +585,9 @@ impl AugmentedLagrangian {
                 }
             }
         }
-        let mut offset = 0;
-        for g in &s.groups {
+        for (g, &offset) in s.groups.iter().zip(&s.minv_offsets) {
             let (sigma, gamma_b, _) = num.scales[g.block];
             apply_minv(g, offset, sigma * gamma_b, y, v);
-            offset += (g.end - g.start).pow(2);
         }
         for &q in &s.q_dofs {
             v[q] -= z[q];
@@ -619,6 +615,11 @@ impl AugmentedLagrangian {
         let options = KrylovOptions { max_iterations, rel_tol: self.options.krylov.rel_tol.max(self.forcing), ..self.options.krylov };
         fgmres(|u, out| a.mul_vec(u, out), |r, z| self.precondition(a, num, r, z, &mut v, &mut y), rhs, x, &options)
     }
+}
+
+/// The value at position `k` of `a`, 0 for `usize::MAX` (an entry the pattern lacks).
+fn value_at(a: &CscMatrix<'_>, k: usize) -> f64 {
+    a.values.get(k).copied().unwrap_or(0.0)
 }
 
 /// A fingerprint of the values of `a` (FNV-1a over their bits).

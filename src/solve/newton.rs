@@ -293,6 +293,8 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solve::linear::FaerLu;
+    use std::convert::Infallible;
 
     #[test]
     fn forcing_terms_follow_the_residual_and_stay_bounded() {
@@ -307,8 +309,6 @@ mod tests {
         assert!((forcing_term(&[1.0, 1e-6, 1e-9], 1e-10) - 0.05f64.min(MAX_FORCING)).abs() < 1e-16);
         assert!((forcing_term(&[1.0, 1e-4, 1e-8], 1e-12) - 5e-5).abs() < 1e-16);
     }
-    use crate::solve::linear::FaerLu;
-    use std::convert::Infallible;
 
     /// `R(x)_i = 2 x_i - x_{i-1} - x_{i+1} + 0.5 x_i^3 - b_i` on a chain: nonlinear, with a
     /// Jacobian that changes from iteration to iteration.

@@ -110,8 +110,7 @@ fn solve_step<const D: usize>(
     let mut step_problem = problem.clone();
     step_problem.params.inv_dt = inv_dt;
     let constrained = disc.impose_dirichlet(&step_problem, t, x)?;
-    // A Stokes step is linear: an inexact first solve would only cost a second one.
-    let options = &NewtonOptions { inexact: options.inexact && problem.params.convection, ..options.clone() };
+    let options = &step_problem.newton_options(options);
     let report =
         newton::solve(x, &disc.pattern, solver, options, |x, k, rhs| disc.assemble_system(&step_problem, x, u_star, t, &constrained, k, rhs))?;
     Ok(report)
