@@ -3,9 +3,10 @@
 //! the pressure pinned in cell 0), P2+/P1disc on `box_tetrahedra` with `n` cells per side, from
 //! rest to `|R| <= 1e-10`.
 //!
-//! `cargo run --release --example growth3d -- N [al|direct] [stokes|navier-stokes] [REFACTOR]`
+//! `cargo run --release --example growth3d -- N [al|direct] [stokes|navier-stokes] [REFACTOR] [schur|primal]`
 //! (`stokes`: without convection, the linear Stokes problem; `REFACTOR`: the AL solver's
-//! `refactor_iterations`, default 0)
+//! `refactor_iterations`, default 0; `schur|primal`: its `boundary` groups, default `schur`, the
+//! 3D default of the case files)
 //!
 //! One size per process, so that the peak resident memory (`VmHWM`) is that size's alone; prints
 //! one JSON line: unknowns, Newton and Krylov iterations, the phase times of the Newton solve,
@@ -13,7 +14,7 @@
 //! a series of sizes.
 use fdfsi::discretize::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
 use fdfsi::physics::fluid::{FluidParams, Formulation};
-use fdfsi::solve::augmented::{AlOptions, AugmentedLagrangian};
+use fdfsi::solve::augmented::{AlOptions, AugmentedLagrangian, BoundaryMultipliers};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
 use fdfsi_fem::generate::box_tetrahedra;
@@ -26,6 +27,7 @@ fn main() {
     let method = if args.get(2).map(String::as_str) == Some("direct") { "direct" } else { "al" };
     let convection = args.get(3).map(String::as_str) != Some("stokes");
     let refactor_iterations: usize = args.get(4).map(|v| v.parse().expect("REFACTOR: Krylov iterations")).unwrap_or(0);
+    let boundary = if args.get(5).map(String::as_str) == Some("primal") { BoundaryMultipliers::Primal } else { BoundaryMultipliers::Schur };
     let t = Instant::now();
     let disc = FlowDiscretization::build(box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n), Formulation::ThreeD).expect("discretisation");
     let setup = t.elapsed().as_secs_f64();
@@ -38,7 +40,7 @@ fn main() {
         traction: vec![],
         pin_pressure: true,
     };
-    let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions { refactor_iterations, ..Default::default() }), FaerLu::default());
+    let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions { refactor_iterations, boundary, ..Default::default() }), FaerLu::default());
     let solver: &mut dyn LinearSolver = if method == "direct" { &mut lu } else { &mut al };
     let t = Instant::now();
     let sol = solve_steady(&disc, &problem, solver, &NewtonOptions::default()).expect("Newton solve");
@@ -46,7 +48,7 @@ fn main() {
     let stats = if method == "direct" { lu.factor_stats() } else { al.factor_stats() };
     let r = &sol.newton;
     println!(
-        "{{\"n\": {n}, \"method\": \"{method}\", \"unknowns\": {}, \"convection\": {convection}, \"refactor\": {refactor_iterations}, \"newton\": {}, \"krylov\": {:?}, \"setup_s\": {setup:.3}, \
+        "{{\"n\": {n}, \"method\": \"{method}\", \"unknowns\": {}, \"convection\": {convection}, \"refactor\": {refactor_iterations}, \"boundary\": \"{boundary:?}\", \"newton\": {}, \"krylov\": {:?}, \"setup_s\": {setup:.3}, \
          \"solve_s\": {total:.3}, \"assemble_s\": {:.3}, \"factorize_s\": {:.3}, \"solve_phase_s\": {:.3}, \"lu_entries\": {}, \"lu_flops\": {:.4e}, \
          \"symbolic_s\": {:.3}, \"peak_mib\": {:.0}}}",
         disc.num_dofs(),

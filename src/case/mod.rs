@@ -35,7 +35,7 @@
 //! ```
 
 use crate::physics::fluid::Formulation;
-use crate::solve::augmented::{AlOptions, AugmentedLagrangian};
+use crate::solve::augmented::{AlOptions, AugmentedLagrangian, BoundaryMultipliers};
 use crate::solve::krylov::KrylovOptions;
 use crate::solve::linear::{FaerLu, LinearSolver, LinearSolverOptions};
 use crate::solve::newton::NewtonOptions;
@@ -466,6 +466,12 @@ pub struct LinearSpec {
     /// [`TIME_DEPENDENT_REFACTOR_ITERATIONS`] for time-dependent runs, 0 for steady ones.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub refactor_iterations: Option<usize>,
+    /// Augmented Lagrangian: where the multiplier groups (cells, facets) coupled to a
+    /// Dirichlet-constrained unknown go: `"primal"` (the LU block) or `"schur"` (the Schur
+    /// block with a reduced grad-div weight). Unset: `"schur"` in 3D, `"primal"` otherwise
+    /// ([`crate::solve::augmented`], "Groups at Dirichlet boundaries").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub boundary_multipliers: Option<BoundaryMultipliers>,
 }
 
 /// The default `refactor_iterations` of time-dependent runs: the Jacobian changes little from
@@ -483,23 +489,39 @@ impl Default for LinearSpec {
             krylov_tolerance: al.krylov.rel_tol,
             krylov_max_iterations: al.krylov.max_iterations,
             refactor_iterations: None,
+            boundary_multipliers: None,
         }
     }
 }
 
+impl LinearSpec {
+    /// The augmented-Lagrangian options of these settings, with the defaults of a
+    /// time-dependent or steady run in `formulation` filled in.
+    pub fn al_options(&self, time_dependent: bool, formulation: Formulation) -> AlOptions {
+        let krylov = KrylovOptions { rel_tol: self.krylov_tolerance, max_iterations: self.krylov_max_iterations, ..Default::default() };
+        let default_refactor = if time_dependent { TIME_DEPENDENT_REFACTOR_ITERATIONS } else { 0 };
+        let default_boundary = if formulation == Formulation::ThreeD { BoundaryMultipliers::Schur } else { BoundaryMultipliers::Primal };
+        AlOptions {
+            gamma: self.gamma,
+            krylov,
+            refactor_iterations: self.refactor_iterations.unwrap_or(default_refactor),
+            lu: self.lu_options(),
+            boundary: self.boundary_multipliers.unwrap_or(default_boundary),
+        }
+    }
+
+    fn lu_options(&self) -> LinearSolverOptions {
+        LinearSolverOptions { threads: self.threads, ..Default::default() }
+    }
+}
+
 impl SolverSpec {
-    /// The linear solver of these options, for a time-dependent run or a steady one.
-    pub fn linear_solver(&self, time_dependent: bool) -> Box<dyn LinearSolver> {
-        let l = &self.linear;
-        let lu = LinearSolverOptions { threads: l.threads, ..Default::default() };
-        match l.method {
-            LinearMethod::Direct => Box::new(FaerLu::new(lu)),
-            LinearMethod::AugmentedLagrangian => {
-                let krylov = KrylovOptions { rel_tol: l.krylov_tolerance, max_iterations: l.krylov_max_iterations, ..Default::default() };
-                let default = if time_dependent { TIME_DEPENDENT_REFACTOR_ITERATIONS } else { 0 };
-                let refactor_iterations = l.refactor_iterations.unwrap_or(default);
-                Box::new(AugmentedLagrangian::new(AlOptions { gamma: l.gamma, krylov, refactor_iterations, lu }))
-            }
+    /// The linear solver of these options, for a time-dependent run or a steady one in
+    /// `formulation`.
+    pub fn linear_solver(&self, time_dependent: bool, formulation: Formulation) -> Box<dyn LinearSolver> {
+        match self.linear.method {
+            LinearMethod::Direct => Box::new(FaerLu::new(self.linear.lu_options())),
+            LinearMethod::AugmentedLagrangian => Box::new(AugmentedLagrangian::new(self.linear.al_options(time_dependent, formulation))),
         }
     }
 }

@@ -13,7 +13,7 @@ use crate::discretize::flow::FlowDiscretization;
 use crate::io::matrix_market::{write_matrix, write_vector};
 use crate::io::{write_atomic, OutputError};
 use crate::setup::{flow_problem, fluid_mesh};
-use crate::solve::augmented::{AlOptions, AugmentedLagrangian};
+use crate::solve::augmented::AugmentedLagrangian;
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
 use fdfsi_fem::sparse::CscMatrix;
@@ -52,8 +52,7 @@ fn export_dim<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir: 
     write_atomic(&dir.join("blocks.json"), json.as_bytes())?;
     obs.log(&format!("exported the first Newton system ({n} unknowns, {} entries) to {}", disc.pattern.nnz(), dir.display()));
     if case.solver.linear.method == LinearMethod::AugmentedLagrangian {
-        let l = &case.solver.linear;
-        let mut al = AugmentedLagrangian::new(AlOptions { gamma: l.gamma, ..Default::default() });
+        let mut al = AugmentedLagrangian::new(case.solver.linear.al_options(case.time.is_some(), case.physics.formulation));
         crate::solve::linear::LinearSolver::set_split(&mut al, disc.saddle_point_split(problem.formulation)?);
         if let Some((pattern, values)) = al.augmented_block(&k).map_err(|e| RunError::Unsupported(e.to_string()))? {
             write_matrix(&dir.join("augmented.mtx"), &CscMatrix { pattern: &pattern, values })?;

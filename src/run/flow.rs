@@ -59,7 +59,7 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
         disc.num_dofs(),
         disc.pattern.nnz()
     ));
-    let mut lu = case.solver.linear_solver(case.time.is_some());
+    let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let outputs = FlowOutputs { case, problem: &problem };
     let mut recorded = match &case.time {
         None => {

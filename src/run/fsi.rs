@@ -51,7 +51,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let model = fsi_model(case, &fluid_mesh, &options.case_dir)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
     let outputs = FsiOutputs { case, out_dir: &options.out_dir, model: &model, solid_probes: displacement_probes(case, &model.solid)? };
-    let mut lu = case.solver.linear_solver(case.time.is_some());
+    let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let mut start = Start::of(options, obs, t);
     start.timings.mesh = mesh_seconds;
     let state = match &options.resume {

@@ -61,7 +61,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
         None => at_rest,
         Some(c) => c.solid_state(&options.out_dir, &at_rest)?,
     };
-    let mut lu = case.solver.linear_solver(case.time.is_some());
+    let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let mut stepper = QuasiStaticStepper::new(&disc, &problem, lu.as_mut(), case.solver.newton.clone(), state);
     let steps = spec.loading.steps;
     let schedule = Schedule { dt: 1.0 / steps as f64, end: 1.0, max_cuts: LOAD_STEP_CUTS };

@@ -4,9 +4,9 @@
 //! **The split.** The unknowns fall into the *multipliers* `Q` (fluid pressure, solid pressure,
 //! coupling multiplier: all discontinuous, so each block's mass matrix `M` is block diagonal, one
 //! small dense block per cell or facet, [`MultiplierBlock`]) and the *primal* rest `F` (velocities,
-//! displacements, and the few unknowns of no block: kernel and trace modes; and the multipliers
-//! of groups next to Dirichlet-constrained unknowns, which the Schur approximation below misses,
-//! see `pinned_multipliers`). With `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
+//! displacements, and the few unknowns of no block: kernel and trace modes; and, by default, the
+//! multipliers of groups next to Dirichlet-constrained unknowns, see "Groups at Dirichlet
+//! boundaries" below). With `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
 //!
 //! ```text
 //! K = [ A   B' ]      T = [ I   sigma gamma B' M^-1 ]      T K = [ A_gamma   B' + sigma gamma B' M^-1 C ]
@@ -35,6 +35,29 @@
 //! **Scaling.** `gamma` is dimensionless: per block, `gamma_b = gamma eta_b` with
 //! `eta_b = mean diag(A) / mean diag(B' M^-1 B)` over the primal unknowns the block couples to
 //! (for Stokes, the viscosity up to a constant; with inertia, `rho / dt` and convection enter it).
+//!
+//! **Groups at Dirichlet boundaries.** In a group coupled to a Dirichlet-constrained unknown the
+//! free primal unknowns may control a multiplier mode only weakly (a corner cell: only the bubble
+//! is free, and `int_K div(bubble) = 0`), so `B A^-1 B'` has eigenvalues far below `M / eta`
+//! there, which `-(eta + gamma) M^-1` misses. Two treatments ([`BoundaryMultipliers`]):
+//! - `Primal` (the default in 2D): the group stays in the LU block, which takes it as any
+//!   zero-diagonal unknown (after its neighbours). Exact; 3D Stokes cube (4^3 cells): 3 Krylov
+//!   iterations, against 15 with these groups in the Schur block at the full `gamma`. In 3D most
+//!   cells touch the boundary (7 104 of 12 288 pressure unknowns of the cavity at 8^3 cells), and
+//!   these zero diagonals make the LU of the augmented block 4x costlier (1.27e11 flops against
+//!   3.14e10 at 8^3).
+//! - `Schur` (the default in 3D): the group joins the Schur block with its grad-div weight scaled
+//!   by [`BOUNDARY_GAMMA_SCALE`], `gamma_g = 3e-3 gamma_b`, in the augmentation, in `T` and in
+//!   `S^-1` alike (the identities above hold for any positive block-diagonal weight). With the
+//!   full weight the preconditioned spectrum is still clustered at 1 (dense eigenvalues on the
+//!   3^3 Stokes cavity: all within 1e-3) but FGMRES stagnates near 1e-6 even with a pivoted dense inverse
+//!   of `A_gamma`: the large `gamma` on weakly controlled modes makes the operator far from
+//!   normal and the solve lose digits to cancellation. Measured Krylov iterations of the 3D Stokes
+//!   cavity (3^3 cells, to 1e-8) against the factor: 15 (1), 11 (1e-1), 5 (1e-2), 7 (1e-3); at
+//!   3e-3, 5-6 on 4^3 to 8^3 cells, 2-4 per Newton step for the Navier-Stokes cavity at 8^3
+//!   (11.4 s against 25.5 s with `Primal`, peak memory 650 against 972 MiB; `examples/growth3d`).
+//!   A local Schur complement `-B_g A_gg^-1 B'_g` of these groups in `S^-1` was tried: no fewer
+//!   iterations than `-(eta + gamma_g) M^-1`.
 //!
 //! **Reuse.** With [`AlOptions::refactor_iterations`] `> 0`, the factorisation of `A_gamma` is
 //! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
@@ -108,11 +131,38 @@ pub struct AlOptions {
     /// Options of the LU of the augmented block (and of the direct solve of systems without a
     /// split).
     pub lu: LinearSolverOptions,
+    /// Where the groups coupled to a Dirichlet-constrained unknown go.
+    pub boundary: BoundaryMultipliers,
 }
+
+/// Where the multiplier groups coupled to a Dirichlet-constrained unknown go (see the module
+/// documentation, "Groups at Dirichlet boundaries").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BoundaryMultipliers {
+    /// Kept primal: in the LU block, ordered after their neighbours. Exact, and cheap where such
+    /// groups are few (2D).
+    #[default]
+    Primal,
+    /// In the Schur block with the grad-div weight scaled by [`BOUNDARY_GAMMA_SCALE`]: in 3D, where
+    /// most cells touch the boundary, the LU of the augmented block is about 4x cheaper.
+    Schur,
+}
+
+/// The factor on `gamma` of the groups at Dirichlet boundaries with
+/// [`BoundaryMultipliers::Schur`]: FGMRES stagnates with the full weight there (see the module
+/// documentation).
+pub const BOUNDARY_GAMMA_SCALE: f64 = 3e-3;
 
 impl Default for AlOptions {
     fn default() -> Self {
-        AlOptions { gamma: 1e5, krylov: KrylovOptions::default(), refactor_iterations: 0, lu: LinearSolverOptions::default() }
+        AlOptions {
+            gamma: 1e5,
+            krylov: KrylovOptions::default(),
+            refactor_iterations: 0,
+            lu: LinearSolverOptions::default(),
+            boundary: BoundaryMultipliers::default(),
+        }
     }
 }
 
@@ -139,6 +189,9 @@ struct Group {
     /// Where the positions in `A_gamma` of its grad-div block (`coupled x coupled`,
     /// column-major) start in [`Structure::aug_pos`].
     aug_start: usize,
+    /// The factor on its block's `gamma_b`: [`BOUNDARY_GAMMA_SCALE`] for a group at a Dirichlet
+    /// boundary in the Schur block, 1 otherwise.
+    gamma_scale: f64,
 }
 
 /// One group's blocks of the Jacobian: `B'_g` (`coupled x m`, row-major), `B_g` and
@@ -175,7 +228,7 @@ impl GroupOperators {
 /// Everything derived from the pattern and the split: index maps and the pattern of `A_gamma`.
 struct Structure {
     key: u64,
-    pinned: Vec<usize>,
+    groups_at: GroupsAtDirichlet,
     /// `F` numbering: `f_dofs[i]` global, `f_local[global]` or `usize::MAX` for multipliers.
     f_dofs: Vec<usize>,
     f_local: Vec<usize>,
@@ -190,6 +243,14 @@ struct Structure {
     /// Inverse mass matrices of the groups (free dofs), concatenated, and where each starts.
     minv: Vec<f64>,
     minv_offsets: Vec<usize>,
+}
+
+/// The multipliers kept primal and the groups at Dirichlet boundaries in the Schur block (their
+/// first dofs), both sorted.
+#[derive(Clone, Debug, PartialEq)]
+struct GroupsAtDirichlet {
+    pinned: Vec<usize>,
+    boundary: Vec<usize>,
 }
 
 /// The numeric state: the factorised augmented block and the per-group operators.
@@ -266,7 +327,8 @@ impl AugmentedLagrangian {
         self.split.multipliers.iter().all(|b| b.dofs.is_empty())
     }
 
-    fn build_structure(&self, a: &CscMatrix<'_>, key: u64, pinned: Vec<usize>) -> Result<Structure, LinearSolveError> {
+    fn build_structure(&self, a: &CscMatrix<'_>, key: u64, groups_at: GroupsAtDirichlet) -> Result<Structure, LinearSolveError> {
+        let GroupsAtDirichlet { pinned, boundary } = groups_at;
         let p = a.pattern;
         let n = p.n;
         let mut is_q = vec![false; n];
@@ -298,6 +360,7 @@ impl AugmentedLagrangian {
                         b_pos: Vec::new(),
                         diag_pos: Vec::new(),
                         aug_start: 0,
+                        gamma_scale: if boundary.binary_search(&dofs[0]).is_ok() { BOUNDARY_GAMMA_SCALE } else { 1.0 },
                     });
                 }
                 mass_offset += dofs.len() * dofs.len();
@@ -393,32 +456,47 @@ impl AugmentedLagrangian {
         }
         let minv = self.inverse_masses(&groups, &q_dofs)?;
         let minv_offsets = groups.iter().scan(0, |o, g| Some(std::mem::replace(o, *o + g.local.len().pow(2)))).collect();
-        Ok(Structure { key, pinned, f_dofs, f_local, q_dofs, groups, pattern, ff_pos, aug_pos, minv, minv_offsets })
+        Ok(Structure {
+            key,
+            groups_at: GroupsAtDirichlet { pinned, boundary },
+            f_dofs,
+            f_local,
+            q_dofs,
+            groups,
+            pattern,
+            ff_pos,
+            aug_pos,
+            minv,
+            minv_offsets,
+        })
     }
 
-    /// Multiplier dofs that stay primal: those with identity rows (a pinned pressure), and all
-    /// dofs of the groups coupled to a Dirichlet-constrained unknown. In such a group the free
-    /// primal unknowns may not control every multiplier mode (a corner cell: only the bubble is
-    /// free, and `int_K div(bubble) = 0`), so `B A^-1 B^T` has eigenvalues far below `M / eta`
-    /// there and `-(eta + gamma) M^-1` misses them: measured on the 3D Stokes cube (4^3 cells),
-    /// 15 Krylov iterations with these groups in the Schur block and 3 without. The LU of the
-    /// primal block takes them as it takes any zero-diagonal unknown (after their neighbours).
-    fn pinned_multipliers(&self, a: &CscMatrix<'_>) -> Vec<usize> {
+    /// Multiplier dofs that stay primal, and the groups at Dirichlet boundaries in the Schur
+    /// block (see the module documentation): multipliers with identity rows (a pinned pressure)
+    /// stay primal; the groups coupled to a Dirichlet-constrained unknown stay primal with
+    /// [`BoundaryMultipliers::Primal`] and are listed in `boundary` with
+    /// [`BoundaryMultipliers::Schur`].
+    fn groups_at_dirichlet(&self, a: &CscMatrix<'_>) -> GroupsAtDirichlet {
         let identity = identity_rows(a);
         let p = a.pattern;
         let mut multiplier = vec![false; p.n];
         self.split.multipliers.iter().flat_map(|b| &b.dofs).filter(|&&q| q < p.n).for_each(|&q| multiplier[q] = true);
-        let mut pinned = Vec::new();
+        let (mut pinned, mut boundary) = (Vec::new(), Vec::new());
+        let primal = self.options.boundary == BoundaryMultipliers::Primal;
         for b in &self.split.multipliers {
             for g in 0..b.num_groups() {
                 let dofs: Vec<usize> = b.dofs[b.offsets[g]..b.offsets[g + 1]].iter().copied().filter(|&q| q < p.n).collect();
-                let near_dirichlet = dofs.iter().any(|&q| p.row_idx[p.col_ptr[q]..p.col_ptr[q + 1]].iter().any(|&i| identity[i] && !multiplier[i]));
-                pinned.extend(dofs.iter().copied().filter(|&q| near_dirichlet || identity[q]));
+                let at_dirichlet = dofs.iter().any(|&q| p.row_idx[p.col_ptr[q]..p.col_ptr[q + 1]].iter().any(|&i| identity[i] && !multiplier[i]));
+                pinned.extend(dofs.iter().copied().filter(|&q| (at_dirichlet && primal) || identity[q]));
+                if at_dirichlet && !primal {
+                    boundary.push(b.dofs[b.offsets[g]]);
+                }
             }
         }
         pinned.sort_unstable();
         pinned.dedup();
-        pinned
+        boundary.sort_unstable();
+        GroupsAtDirichlet { pinned, boundary }
     }
 
     /// The inverse mass matrices of the groups' free dofs, concatenated (once per structure: the
@@ -473,9 +551,9 @@ impl AugmentedLagrangian {
     fn update_structure(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
         let t0 = std::time::Instant::now();
         let key = super::linear::pattern_key(a.pattern);
-        let pinned = self.pinned_multipliers(a);
-        tracing::debug!("pattern key and pinned multipliers in {:.3} s", t0.elapsed().as_secs_f64());
-        if self.structure.as_ref().is_some_and(|s| s.key == key && s.pinned == pinned) {
+        let groups_at = self.groups_at_dirichlet(a);
+        tracing::debug!("pattern key and groups at Dirichlet boundaries in {:.3} s", t0.elapsed().as_secs_f64());
+        if self.structure.as_ref().is_some_and(|s| s.key == key && s.groups_at == groups_at) {
             return Ok(());
         }
         let num = self.numeric.get_mut();
@@ -484,15 +562,16 @@ impl AugmentedLagrangian {
         self.structure = None;
         self.symbolic_count += 1;
         let t = std::time::Instant::now();
-        self.structure = Some(self.build_structure(a, key, pinned)?);
+        self.structure = Some(self.build_structure(a, key, groups_at)?);
         let s = self.structure.as_ref().expect("structure");
         tracing::debug!(
-            "split of the saddle-point system in {:.3} s: {} primal unknowns (of which {} multipliers kept primal), {} multipliers in {} groups",
+            "split of the saddle-point system in {:.3} s: {} primal unknowns (of which {} multipliers kept primal), {} multipliers in {} groups ({} at Dirichlet boundaries)",
             t.elapsed().as_secs_f64(),
             s.f_dofs.len(),
-            s.pinned.len(),
+            s.groups_at.pinned.len(),
             s.q_dofs.len(),
-            s.groups.len()
+            s.groups.len(),
+            s.groups_at.boundary.len()
         );
         Ok(())
     }
@@ -544,13 +623,14 @@ impl AugmentedLagrangian {
         for (g, offset) in s.groups.iter().zip(&s.minv_offsets) {
             ops.load(a, g, &s.minv[*offset..]);
             let (sigma, gamma_b, _) = num.scales[g.block];
+            let gamma_g = gamma_b * g.gamma_scale;
             let (m, c) = (g.local.len(), g.coupled.len());
-            // Column jj of sigma gamma_b B'_g (M^-1 B_g).
+            // Column jj of sigma gamma_g B'_g (M^-1 B_g).
             let pos = &s.aug_pos[g.aug_start..g.aug_start + c * c];
             for jj in 0..c {
                 for ii in 0..c {
                     let bt = &ops.bt[ii * m..(ii + 1) * m];
-                    values[pos[jj * c + ii]] += sigma * gamma_b * (0..m).map(|ai| bt[ai] * ops.mb[ai * c + jj]).sum::<f64>();
+                    values[pos[jj * c + ii]] += sigma * gamma_g * (0..m).map(|ai| bt[ai] * ops.mb[ai * c + jj]).sum::<f64>();
                 }
             }
         }
@@ -568,10 +648,10 @@ impl AugmentedLagrangian {
                 dst[qa] = scale * (0..m).map(|bi| s.minv[offset + ai * m + bi] * src[qs[bi]]).sum::<f64>();
             }
         };
-        // z_Q = -sigma (eta + gamma) M^-1 r_Q.
+        // z_Q = -sigma (eta + gamma_g) M^-1 r_Q.
         for (g, &offset) in s.groups.iter().zip(&s.minv_offsets) {
             let (sigma, gamma_b, eta) = num.scales[g.block];
-            apply_minv(g, offset, -sigma * (eta + gamma_b), r, z);
+            apply_minv(g, offset, -sigma * (eta + gamma_b * g.gamma_scale), r, z);
         }
         // v_Q = sigma gamma M^-1 (r_Q - C z_Q) - z_Q, with w = r_Q - C z_Q in y.
         for &q in &s.q_dofs {
@@ -587,7 +667,7 @@ impl AugmentedLagrangian {
         }
         for (g, &offset) in s.groups.iter().zip(&s.minv_offsets) {
             let (sigma, gamma_b, _) = num.scales[g.block];
-            apply_minv(g, offset, sigma * gamma_b, y, v);
+            apply_minv(g, offset, sigma * gamma_b * g.gamma_scale, y, v);
         }
         for &q in &s.q_dofs {
             v[q] -= z[q];
