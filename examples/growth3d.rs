@@ -14,7 +14,7 @@
 //! a series of sizes.
 use fdfsi::discretize::flow::{solve_steady, DirichletBc, FlowDiscretization, FlowProblem};
 use fdfsi::physics::fluid::{FluidParams, Formulation};
-use fdfsi::solve::augmented::{AlOptions, AugmentedLagrangian, BoundaryMultipliers};
+use fdfsi::solve::augmented::{AlOptions, AugmentedLagrangian, Placement};
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
 use fdfsi_fem::generate::box_tetrahedra;
@@ -27,7 +27,7 @@ fn main() {
     let method = if args.get(2).map(String::as_str) == Some("direct") { "direct" } else { "al" };
     let convection = args.get(3).map(String::as_str) != Some("stokes");
     let refactor_iterations: usize = args.get(4).map(|v| v.parse().expect("REFACTOR: Krylov iterations")).unwrap_or(0);
-    let boundary = if args.get(5).map(String::as_str) == Some("primal") { BoundaryMultipliers::Primal } else { BoundaryMultipliers::Schur };
+    let boundary = if args.get(5).map(String::as_str) == Some("primal") { Placement::Primal } else { Placement::Schur };
     let t = Instant::now();
     let disc = FlowDiscretization::build(box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n), Formulation::ThreeD).expect("discretisation");
     let setup = t.elapsed().as_secs_f64();

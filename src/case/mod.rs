@@ -35,7 +35,7 @@
 //! ```
 
 use crate::physics::fluid::Formulation;
-use crate::solve::augmented::{AlOptions, AugmentedLagrangian, BoundaryMultipliers};
+use crate::solve::augmented::{AlOptions, AugmentedLagrangian, Placement};
 use crate::solve::krylov::KrylovOptions;
 use crate::solve::linear::{FaerLu, LinearSolver, LinearSolverOptions};
 use crate::solve::newton::NewtonOptions;
@@ -441,8 +441,8 @@ pub enum LinearMethod {
     Direct,
     /// FGMRES with the augmented-Lagrangian block preconditioner ([`crate::solve::augmented`]):
     /// an LU of the augmented primal block only. Flow runs: the pressure is the multiplier
-    /// block; FSI runs: the fluid pressure (the solid pressure and the coupling multipliers stay
-    /// in the LU block for now); solid runs use the direct solver.
+    /// block; FSI runs: the fluid pressure, and in 3D also the solid pressure and the coupling
+    /// multiplier (`solid_multipliers`); solid runs use the direct solver.
     AugmentedLagrangian,
 }
 
@@ -471,7 +471,13 @@ pub struct LinearSpec {
     /// block with a reduced grad-div weight). Unset: `"schur"` in 3D, `"primal"` otherwise
     /// ([`crate::solve::augmented`], "Groups at Dirichlet boundaries").
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub boundary_multipliers: Option<BoundaryMultipliers>,
+    pub boundary_multipliers: Option<Placement>,
+    /// Augmented Lagrangian, FSI runs: where the solid pressure and the coupling multiplier go:
+    /// `"primal"` (the LU block) or `"schur"` (the Schur block with a reduced grad-div weight).
+    /// Unset: `"schur"` in 3D, `"primal"` otherwise ([`crate::solve::augmented`], "The solid's
+    /// blocks").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solid_multipliers: Option<Placement>,
 }
 
 /// The default `refactor_iterations` of time-dependent runs: the Jacobian changes little from
@@ -490,6 +496,7 @@ impl Default for LinearSpec {
             krylov_max_iterations: al.krylov.max_iterations,
             refactor_iterations: None,
             boundary_multipliers: None,
+            solid_multipliers: None,
         }
     }
 }
@@ -500,13 +507,15 @@ impl LinearSpec {
     pub fn al_options(&self, time_dependent: bool, formulation: Formulation) -> AlOptions {
         let krylov = KrylovOptions { rel_tol: self.krylov_tolerance, max_iterations: self.krylov_max_iterations, ..Default::default() };
         let default_refactor = if time_dependent { TIME_DEPENDENT_REFACTOR_ITERATIONS } else { 0 };
-        let default_boundary = if formulation == Formulation::ThreeD { BoundaryMultipliers::Schur } else { BoundaryMultipliers::Primal };
+        // The Schur block pays in 3D, where the LU of the augmented block dominates.
+        let default_placement = if formulation == Formulation::ThreeD { Placement::Schur } else { Placement::Primal };
         AlOptions {
             gamma: self.gamma,
             krylov,
             refactor_iterations: self.refactor_iterations.unwrap_or(default_refactor),
             lu: self.lu_options(),
-            boundary: self.boundary_multipliers.unwrap_or(default_boundary),
+            boundary: self.boundary_multipliers.unwrap_or(default_placement),
+            solid: self.solid_multipliers.unwrap_or(default_placement),
         }
     }
 

@@ -35,6 +35,7 @@ use crate::discretize::flow::{AssemblyError, FlowDiscretization, FlowError, Flow
 use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
+use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::adapt::{
@@ -656,6 +657,37 @@ impl<const D: usize> FsiDiscretization<D> {
         self.multiplier_offset() + (e * D + k) * D + a
     }
 
+    /// The multiplier blocks of the coupled system for the block preconditioners
+    /// ([`crate::solve::augmented`]): the fluid pressure, and the solid's blocks
+    /// ([`MultiplierBlock::solid`]) the solid pressure (mixed laws) and the coupling multiplier,
+    /// one group per coupling element and component (its `D` nodal values, mass matrix
+    /// `int_e mu_k mu_l (r) ds`). The trace modes and the kernel unknowns have no block: they
+    /// stay primal.
+    pub fn saddle_point_split(&self, model: &FsiModel<D>) -> Result<SaddlePointSplit, FsiError> {
+        let mut split = self.flow.saddle_point_split(model.problem.fluid.formulation)?;
+        split.multipliers.extend(model.solid.pressure_block(self.solid_offset())?);
+        let c = &self.coupling;
+        let mut block = MultiplierBlock { solid: true, ..MultiplierBlock::new("coupling multiplier") };
+        let mut mass = vec![0.0; D * D];
+        for e in 0..c.num_elements() {
+            mass.iter_mut().for_each(|m| *m = 0.0);
+            for q in c.point_start[e]..c.point_start[e + 1] {
+                let mu = &c.mu[q * D..(q + 1) * D];
+                for k in 0..D {
+                    for l in 0..D {
+                        mass[k * D + l] += c.weight[q] * mu[k] * mu[l];
+                    }
+                }
+            }
+            for a in 0..D {
+                let dofs: Vec<usize> = (0..D).map(|k| self.multiplier_dof(e, k, a)).collect();
+                block.push_group(&dofs, &mass);
+            }
+        }
+        split.multipliers.push(block);
+        Ok(split)
+    }
+
     /// Global dof of component `a` of the trace-mode multiplier of chain `ch`
     /// ([`MultiplierSpace::P1DiscontinuousTraceMode`]).
     pub fn mode_multiplier_dof(&self, ch: usize, a: usize) -> usize {
@@ -1124,10 +1156,7 @@ pub fn step<const D: usize>(
         solid_target: target.as_deref(),
     };
     let clock = Instant::now();
-    // The fluid block leads the system with the numbering of `disc.flow`, so the fluid pressure
-    // is the block preconditioners' multiplier block; the solid pressure and the coupling
-    // multipliers stay with the primal unknowns for now.
-    solver.set_split(disc.flow.saddle_point_split(fluid.formulation)?);
+    solver.set_split(disc.saddle_point_split(model)?);
     let report =
         newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs)).map_err(|e| {
             match e {

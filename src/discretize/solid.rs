@@ -35,6 +35,7 @@ use crate::physics::solid::{
     area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState, Mat3, SolidCellState,
     SolidMaterial, IDENTITY,
 };
+use crate::solve::augmented::MultiplierBlock;
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::dofs::{BlockLayout, NodeMap};
@@ -265,6 +266,41 @@ impl<const D: usize> SolidDiscretization<D> {
     /// The pressure field (P1 discontinuous; mixed laws only).
     pub fn pressure_field(&self) -> &fdfsi_fem::dofs::Field {
         &self.layout.fields[1]
+    }
+
+    /// The pressure as a multiplier block of the block preconditioners
+    /// ([`crate::solve::augmented`]): one group per cell, its dofs shifted by `offset` (the
+    /// solid's first unknown in a coupled system) and its mass matrix `int_K psi_k psi_l (r) dX`
+    /// on the reference cell, `psi = (1, X - X_c)` the kernel's P1disc basis. `None` without a
+    /// pressure field.
+    pub fn pressure_block(&self, offset: usize) -> Result<Option<MultiplierBlock>, SolidError> {
+        if !self.mixed {
+            return Ok(None);
+        }
+        let mut block = MultiplierBlock { solid: true, ..MultiplierBlock::new("solid pressure") };
+        let (mut cv, mut coords, mut mass) = (self.cell_values(), Vec::new(), vec![0.0; (D + 1) * (D + 1)]);
+        let pf = self.pressure_field();
+        for c in 0..self.mesh.num_cells() {
+            self.cell_positions(c, None, &mut coords);
+            cv.reinit(&coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
+            mass.iter_mut().for_each(|m| *m = 0.0);
+            for q in 0..cv.num_points() {
+                let w = cv.jxw[q] * self.formulation.weight(&cv.x[q]);
+                let psi: [f64; 4] = std::array::from_fn(|k| match k {
+                    0 => 1.0,
+                    k if k <= D => cv.x[q][k - 1] - cv.centroid[k - 1],
+                    _ => 0.0,
+                });
+                for k in 0..=D {
+                    for l in 0..=D {
+                        mass[k * (D + 1) + l] += w * psi[k] * psi[l];
+                    }
+                }
+            }
+            let dofs: Vec<usize> = (0..=D).map(|k| offset + pf.dof(c * (D + 1) + k, 0)).collect();
+            block.push_group(&dofs, &mass);
+        }
+        Ok(Some(block))
     }
 
     /// Nodal positions of cell `c` in the configuration `X + base` (`base` a global vector whose

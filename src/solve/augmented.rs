@@ -4,9 +4,9 @@
 //! **The split.** The unknowns fall into the *multipliers* `Q` (fluid pressure, solid pressure,
 //! coupling multiplier: all discontinuous, so each block's mass matrix `M` is block diagonal, one
 //! small dense block per cell or facet, [`MultiplierBlock`]) and the *primal* rest `F` (velocities,
-//! displacements, and the few unknowns of no block: kernel and trace modes; and, by default, the
-//! multipliers of groups next to Dirichlet-constrained unknowns, see "Groups at Dirichlet
-//! boundaries" below). With `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
+//! displacements, and the few unknowns of no block: kernel and trace modes; and in 2D, by default,
+//! the multipliers of groups next to Dirichlet-constrained unknowns and the solid's blocks, see
+//! "Groups at Dirichlet boundaries" and "The solid's blocks" below). With `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
 //!
 //! ```text
 //! K = [ A   B' ]      T = [ I   sigma gamma B' M^-1 ]      T K = [ A_gamma   B' + sigma gamma B' M^-1 C ]
@@ -39,7 +39,7 @@
 //! **Groups at Dirichlet boundaries.** In a group coupled to a Dirichlet-constrained unknown the
 //! free primal unknowns may control a multiplier mode only weakly (a corner cell: only the bubble
 //! is free, and `int_K div(bubble) = 0`), so `B A^-1 B'` has eigenvalues far below `M / eta`
-//! there, which `-(eta + gamma) M^-1` misses. Two treatments ([`BoundaryMultipliers`]):
+//! there, which `-(eta + gamma) M^-1` misses. Two treatments ([`Placement`]):
 //! - `Primal` (the default in 2D): the group stays in the LU block, which takes it as any
 //!   zero-diagonal unknown (after its neighbours). Exact; 3D Stokes cube (4^3 cells): 3 Krylov
 //!   iterations, against 15 with these groups in the Schur block at the full `gamma`. In 3D most
@@ -50,14 +50,28 @@
 //!   by [`BOUNDARY_GAMMA_SCALE`], `gamma_g = 3e-3 gamma_b`, in the augmentation, in `T` and in
 //!   `S^-1` alike (the identities above hold for any positive block-diagonal weight). With the
 //!   full weight the preconditioned spectrum is still clustered at 1 (dense eigenvalues on the
-//!   3^3 Stokes cavity: all within 1e-3) but FGMRES stagnates near 1e-6 even with a pivoted dense inverse
-//!   of `A_gamma`: the large `gamma` on weakly controlled modes makes the operator far from
-//!   normal and the solve lose digits to cancellation. Measured Krylov iterations of the 3D Stokes
-//!   cavity (3^3 cells, to 1e-8) against the factor: 15 (1), 11 (1e-1), 5 (1e-2), 7 (1e-3); at
+//!   3^3 Stokes cavity: all within 1e-3) but FGMRES stagnates near 1e-6 even with a pivoted
+//!   dense inverse of `A_gamma`: the large `gamma` on weakly controlled modes makes the operator
+//!   far from normal and the solve lose digits to cancellation. Measured Krylov iterations of the
+//!   3D Stokes cavity (3^3 cells, to 1e-8) against the factor: 15 (1), 11 (1e-1), 5 (1e-2), 7 (1e-3); at
 //!   3e-3, 5-6 on 4^3 to 8^3 cells, 2-4 per Newton step for the Navier-Stokes cavity at 8^3
 //!   (11.4 s against 25.5 s with `Primal`, peak memory 650 against 972 MiB; `examples/growth3d`).
 //!   A local Schur complement `-B_g A_gg^-1 B'_g` of these groups in `S^-1` was tried: no fewer
 //!   iterations than `-(eta + gamma_g) M^-1`.
+//!
+//! **The solid's blocks.** An FSI system has two more multiplier blocks
+//! ([`MultiplierBlock::solid`]): the solid pressure (P1disc per solid cell) and the coupling
+//! multiplier (P1disc per coupling facet and component). [`AlOptions::solid`] places them:
+//! - `Primal` (the default in 2D): in the LU block with the solid displacement; the fluid
+//!   pressure alone is the Schur block. Model problem 3: 317 Krylov iterations in its 60 steps
+//!   (4.1 s), against 791-861 (5.9-6.6 s) with them in the Schur block.
+//! - `Schur` (the default in 3D): in the Schur block with their grad-div weight scaled by
+//!   [`SOLID_GAMMA_SCALE`]. The coupling multiplier lives on a surface, where `B A^-1 B'` is not
+//!   spectrally a mass matrix, and the full weight again makes FGMRES stall: model problem 4,
+//!   its first 2 steps with fresh factors, Krylov iterations per Newton step 2-21 at the factor
+//!   1, 3-5 at 0.1, 3-6 at 1e-2, 6-12 at 1e-3. The LU block loses the solid pressure and the
+//!   coupling multipliers, zero diagonals that the ordering must place after their neighbours:
+//!   on the fine mesh of model problem 4 its factorisation falls from 1.36e12 to 4.9e11 flops.
 //!
 //! **Reuse.** With [`AlOptions::refactor_iterations`] `> 0`, the factorisation of `A_gamma` is
 //! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
@@ -91,12 +105,15 @@ pub struct MultiplierBlock {
     pub offsets: Vec<usize>,
     /// The mass matrices of the groups, row-major, one after the other.
     pub mass: Vec<f64>,
+    /// A block of the solid (the solid pressure, the coupling multiplier): placed by
+    /// [`AlOptions::solid`], with its weight scaled by [`SOLID_GAMMA_SCALE`].
+    pub solid: bool,
 }
 
 impl MultiplierBlock {
     /// An empty block.
     pub fn new(name: &str) -> Self {
-        MultiplierBlock { name: name.into(), dofs: Vec::new(), offsets: vec![0], mass: Vec::new() }
+        MultiplierBlock { name: name.into(), dofs: Vec::new(), offsets: vec![0], mass: Vec::new(), solid: false }
     }
 
     /// Appends a group: its dofs and its (row-major, `n x n`) mass matrix.
@@ -132,27 +149,35 @@ pub struct AlOptions {
     /// split).
     pub lu: LinearSolverOptions,
     /// Where the groups coupled to a Dirichlet-constrained unknown go.
-    pub boundary: BoundaryMultipliers,
+    pub boundary: Placement,
+    /// Where the blocks of the solid go ([`MultiplierBlock::solid`]: the solid pressure and the
+    /// coupling multiplier of an FSI system).
+    pub solid: Placement,
 }
 
-/// Where the multiplier groups coupled to a Dirichlet-constrained unknown go (see the module
-/// documentation, "Groups at Dirichlet boundaries").
+/// Where multipliers go: the groups coupled to a Dirichlet-constrained unknown
+/// ([`AlOptions::boundary`]) or the solid's blocks ([`AlOptions::solid`]); see the module
+/// documentation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum BoundaryMultipliers {
+pub enum Placement {
     /// Kept primal: in the LU block, ordered after their neighbours. Exact, and cheap where such
-    /// groups are few (2D).
+    /// multipliers are few (2D).
     #[default]
     Primal,
-    /// In the Schur block with the grad-div weight scaled by [`BOUNDARY_GAMMA_SCALE`]: in 3D, where
-    /// most cells touch the boundary, the LU of the augmented block is about 4x cheaper.
+    /// In the Schur block, with a reduced grad-div weight ([`BOUNDARY_GAMMA_SCALE`],
+    /// [`SOLID_GAMMA_SCALE`]): in 3D, a several times cheaper LU of the augmented block.
     Schur,
 }
 
 /// The factor on `gamma` of the groups at Dirichlet boundaries with
-/// [`BoundaryMultipliers::Schur`]: FGMRES stagnates with the full weight there (see the module
+/// [`Placement::Schur`]: FGMRES stagnates with the full weight there (see the module
 /// documentation).
 pub const BOUNDARY_GAMMA_SCALE: f64 = 3e-3;
+
+/// The factor on `gamma` of the solid's blocks ([`MultiplierBlock::solid`]) in the Schur block
+/// (see the module documentation, "The solid's blocks").
+pub const SOLID_GAMMA_SCALE: f64 = 0.1;
 
 impl Default for AlOptions {
     fn default() -> Self {
@@ -161,7 +186,8 @@ impl Default for AlOptions {
             krylov: KrylovOptions::default(),
             refactor_iterations: 0,
             lu: LinearSolverOptions::default(),
-            boundary: BoundaryMultipliers::default(),
+            boundary: Placement::default(),
+            solid: Placement::default(),
         }
     }
 }
@@ -474,15 +500,15 @@ impl AugmentedLagrangian {
     /// Multiplier dofs that stay primal, and the groups at Dirichlet boundaries in the Schur
     /// block (see the module documentation): multipliers with identity rows (a pinned pressure)
     /// stay primal; the groups coupled to a Dirichlet-constrained unknown stay primal with
-    /// [`BoundaryMultipliers::Primal`] and are listed in `boundary` with
-    /// [`BoundaryMultipliers::Schur`].
+    /// [`Placement::Primal`] and are listed in `boundary` with
+    /// [`Placement::Schur`].
     fn groups_at_dirichlet(&self, a: &CscMatrix<'_>) -> GroupsAtDirichlet {
         let identity = identity_rows(a);
         let p = a.pattern;
         let mut multiplier = vec![false; p.n];
         self.split.multipliers.iter().flat_map(|b| &b.dofs).filter(|&&q| q < p.n).for_each(|&q| multiplier[q] = true);
         let (mut pinned, mut boundary) = (Vec::new(), Vec::new());
-        let primal = self.options.boundary == BoundaryMultipliers::Primal;
+        let primal = self.options.boundary == Placement::Primal;
         for b in &self.split.multipliers {
             for g in 0..b.num_groups() {
                 let dofs: Vec<usize> = b.dofs[b.offsets[g]..b.offsets[g + 1]].iter().copied().filter(|&q| q < p.n).collect();
@@ -539,10 +565,12 @@ impl AugmentedLagrangian {
             }
         }
         sums.iter()
-            .map(|&(kk, diag_a, diag_g, count)| {
+            .enumerate()
+            .map(|(bi, &(kk, diag_a, diag_g, count))| {
                 let sigma = if kk >= 0.0 { 1.0 } else { -1.0 };
                 let eta = if diag_g > 0.0 && count > 0 { diag_a / diag_g } else { 1.0 };
-                (sigma, self.options.gamma * eta, eta)
+                let scale = if self.split.multipliers[bi].solid { SOLID_GAMMA_SCALE } else { 1.0 };
+                (sigma, self.options.gamma * scale * eta, eta)
             })
             .collect()
     }
@@ -829,7 +857,10 @@ impl LinearSolver for AugmentedLagrangian {
         self.forcing = relative_residual;
     }
 
-    fn set_split(&mut self, split: SaddlePointSplit) {
+    fn set_split(&mut self, mut split: SaddlePointSplit) {
+        if self.options.solid == Placement::Primal {
+            split.multipliers.retain(|b| !b.solid);
+        }
         if split != self.split {
             self.split = split;
             self.structure = None;
