@@ -3,8 +3,8 @@
 //! the pressure pinned in cell 0), P2+/P1disc on `box_tetrahedra` with `n` cells per side, from
 //! rest to `|R| <= 1e-10`.
 //!
-//! `cargo run --release --example growth3d -- N [al|direct] [stokes|navier-stokes] [REFACTOR] [schur|primal]`
-//! (`stokes`: without convection, the linear Stokes problem; `REFACTOR`: the AL solver's
+//! `cargo run --release --example growth3d -- N [al|direct] [stokes|navier-stokes] [REFACTOR]
+//! [schur|primal]` (`stokes`: without convection, the linear Stokes problem; `REFACTOR`: the AL solver's
 //! `refactor_iterations`, default 0; `schur|primal`: its `boundary` groups, default `schur`, the
 //! 3D default of the case files)
 //!

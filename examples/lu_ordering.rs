@@ -4,7 +4,9 @@
 //!
 //! * `SYSTEM`: `coarse` / `medium` (Schaefer-Turek 2D-1 Jacobian after one Newton step on
 //!   `meshes/dfg2d-*.msh`, as `benches/linear2d.rs`) or `boxN` (the 3D Stokes verification problem
-//!   on the unit cube with N cells per side, as `benches/stokes3d.rs`);
+//!   on the unit cube with N cells per side, as `benches/stokes3d.rs`), or `mtx:PATH` (a
+//!   MatrixMarket `coordinate real general` file, e.g. `augmented.mtx` of
+//!   `fdfsi run --export-system`, to set beside another solver's factorisation of the same file);
 //! * `ORDERING`: `nd` (nested dissection) or `amd`;
 //! * `REPS`: numeric factorisations timed after the first (default 3; min and median printed).
 //!
@@ -15,7 +17,7 @@ use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, FillOrdering, LinearSolver, LinearSolverOptions, LuMethod};
 use fdfsi_fem::generate::box_tetrahedra;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh};
-use fdfsi_fem::sparse::CscMatrix;
+use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use std::path::Path;
 use std::time::Instant;
 
@@ -94,6 +96,78 @@ fn run<const D: usize>(name: &str, disc: FlowDiscretization<D>, problem: FlowPro
     );
 }
 
+/// A MatrixMarket `coordinate real general` square matrix, its pattern made structurally
+/// symmetric (explicit zeros where only the transposed entry is stored), as the static LU needs.
+fn read_matrix_market(path: &str) -> (Pattern, Vec<f64>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let banner = text.lines().next().unwrap_or("").to_lowercase();
+    assert!(banner.starts_with("%%matrixmarket matrix coordinate real general"), "{path}: not a coordinate real general matrix: {banner}");
+    let mut lines = text.lines().filter(|l| !l.starts_with('%'));
+    let size: Vec<usize> = lines.next().expect("size line").split_whitespace().map(|v| v.parse().expect("size")).collect();
+    let n = size[0];
+    assert_eq!(size[0], size[1], "{path}: a square matrix");
+    let mut entries: Vec<(usize, usize, f64)> = Vec::with_capacity(2 * size[2]);
+    for l in lines {
+        let f: Vec<&str> = l.split_whitespace().collect();
+        let (i, j, v) = (f[0].parse::<usize>().expect("row") - 1, f[1].parse::<usize>().expect("column") - 1, f[2].parse().expect("value"));
+        entries.push((j, i, v));
+        entries.push((i, j, 0.0));
+    }
+    entries.sort_by_key(|&(j, i, _)| (j, i));
+    let (mut col_ptr, mut row_idx, mut values) = (vec![0; n + 1], Vec::new(), Vec::<f64>::new());
+    let mut last = None;
+    for (j, i, v) in entries {
+        if last == Some((j, i)) {
+            *values.last_mut().expect("entry") += v;
+        } else {
+            row_idx.push(i);
+            values.push(v);
+            last = Some((j, i));
+        }
+        col_ptr[j + 1] = row_idx.len();
+    }
+    for j in 0..n {
+        col_ptr[j + 1] = col_ptr[j + 1].max(col_ptr[j]);
+    }
+    (Pattern { n, col_ptr, row_idx }, values)
+}
+
+/// Analysis, first and repeated numeric factorisations and one solve of the matrix in `path`.
+fn run_file(path: &str, ordering: FillOrdering, reps: usize) {
+    let (pattern, values) = read_matrix_market(path);
+    let k = CscMatrix { pattern: &pattern, values };
+    let mut lu = FaerLu::with_method(LinearSolverOptions { ordering, ..Default::default() }, LuMethod::Auto);
+    let t = Instant::now();
+    lu.factorize(&k).expect("factorisation");
+    let first = t.elapsed().as_secs_f64();
+    let mut times: Vec<f64> = (0..reps)
+        .map(|_| {
+            let t = Instant::now();
+            lu.factorize(&k).expect("factorisation");
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let mut rhs = vec![1.0; pattern.n];
+    let t = Instant::now();
+    let stats = lu.solve_in_place(&k, &mut rhs).expect("solve");
+    let solve = t.elapsed().as_secs_f64();
+    let fs = lu.factor_stats().expect("factorised");
+    println!(
+        "{path} {ordering:?}: n={} nnz(A)={} nnz(L+U)={} flops={:.3e} first_factorize={first:.3}s numeric(min/median of {reps})={:.3}/{:.3}s solve={solve:.3}s \
+         residual={:.1e} VmHWM={:.1}MiB [{}]",
+        pattern.n,
+        pattern.nnz(),
+        fs.nnz_lu,
+        fs.flops,
+        times.first().copied().unwrap_or(f64::NAN),
+        times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+        stats.residual,
+        fdfsi::run::peak_resident_mib().unwrap_or(0.0),
+        lu.describe(),
+    );
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let system = args.get(1).map(String::as_str).unwrap_or("coarse");
@@ -104,7 +178,9 @@ fn main() {
     };
     let reps: usize = args.get(3).map(|r| r.parse().expect("REPS")).unwrap_or(3);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    if let Some(cells) = system.strip_prefix("box") {
+    if let Some(path) = system.strip_prefix("mtx:") {
+        run_file(path, ordering, reps);
+    } else if let Some(cells) = system.strip_prefix("box") {
         let nc: usize = cells.parse().expect("boxN");
         let problem = fdfsi::verify::stokes_3d_problem();
         let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, nc, nc, nc);

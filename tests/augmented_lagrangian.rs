@@ -149,9 +149,10 @@ fn stokes_3d_matches_the_direct_solve() {
 }
 
 /// Model problem 2 (2D FSI, 12 steps) with the AL solver: the fluid pressure is its multiplier
-/// block (in 2D the solid pressure and the coupling multipliers stay in the LU block, with the held
-/// factors tried for 8 iterations, the default of time-dependent runs); the quantities equal the direct solve's to 1e-9 relative
-/// (measured 1.3e-14), with Krylov iterations counted in the summary.
+/// block (in 2D the solid pressure and the coupling multipliers stay in the LU block, with the
+/// held factors tried for 8 iterations, the default of time-dependent runs); the quantities equal
+/// the direct solve's to 1e-9 relative (measured 1.3e-14), with Krylov iterations counted in the
+/// summary.
 #[test]
 fn fsi_model_problem_2_matches_the_direct_solve() {
     use fdfsi::case::{Case, LinearMethod};

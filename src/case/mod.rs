@@ -482,7 +482,9 @@ pub struct LinearSpec {
 
 /// The default `refactor_iterations` of time-dependent runs: the Jacobian changes little from
 /// step to step (Schaefer-Turek 2D-2: one factorisation for its first 10 steps at 5.5-9 Krylov
-/// iterations per Newton step; model problem 4: one per step, 3 steps in 54 s against 78 s).
+/// iterations per Newton step; model problem 4 with the fluid pressure alone in the Schur block:
+/// one per step, 3 steps in 54 s against 78 s; with the solid's blocks too, the 3D default: two
+/// per step, the held factors failing once per step).
 pub const TIME_DEPENDENT_REFACTOR_ITERATIONS: usize = 8;
 
 impl Default for LinearSpec {

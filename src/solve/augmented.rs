@@ -4,9 +4,10 @@
 //! **The split.** The unknowns fall into the *multipliers* `Q` (fluid pressure, solid pressure,
 //! coupling multiplier: all discontinuous, so each block's mass matrix `M` is block diagonal, one
 //! small dense block per cell or facet, [`MultiplierBlock`]) and the *primal* rest `F` (velocities,
-//! displacements, and the few unknowns of no block: kernel and trace modes; and in 2D, by default,
-//! the multipliers of groups next to Dirichlet-constrained unknowns and the solid's blocks, see
-//! "Groups at Dirichlet boundaries" and "The solid's blocks" below). With `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
+//! displacements, and the few unknowns of no block: kernel and trace modes; and with
+//! [`Placement::Primal`] the multipliers of groups next to Dirichlet-constrained unknowns and the
+//! solid's blocks, see "Groups at Dirichlet boundaries" and "The solid's blocks" below). With
+//! `B = K_QF`, `B' = K_FQ` and `C = K_QQ`,
 //!
 //! ```text
 //! K = [ A   B' ]      T = [ I   sigma gamma B' M^-1 ]      T K = [ A_gamma   B' + sigma gamma B' M^-1 C ]
@@ -32,46 +33,54 @@
 //! its factor is several times smaller than that of the whole system (Schaefer-Turek 2D-1 on the
 //! medium mesh: 2.2e9 flops and 12.4 M entries against 3.6e10 and 64 M).
 //!
-//! **Scaling.** `gamma` is dimensionless: per block, `gamma_b = gamma eta_b` with
+//! **Scaling.** `gamma` is dimensionless: per block, `gamma_b = gamma eta_b` (times
+//! [`SOLID_GAMMA_SCALE`] for the solid's blocks) with
 //! `eta_b = mean diag(A) / mean diag(B' M^-1 B)` over the primal unknowns the block couples to
-//! (for Stokes, the viscosity up to a constant; with inertia, `rho / dt` and convection enter it).
+//! (for Stokes, the viscosity up to a constant; with inertia, `rho / dt` and convection enter it);
+//! per group, `gamma_g = gamma_b` (times [`BOUNDARY_GAMMA_SCALE`] at Dirichlet boundaries), the
+//! weight that enters `A_gamma`, `T` and `S^-1` above in place of `gamma`.
 //!
 //! **Groups at Dirichlet boundaries.** In a group coupled to a Dirichlet-constrained unknown the
 //! free primal unknowns may control a multiplier mode only weakly (a corner cell: only the bubble
 //! is free, and `int_K div(bubble) = 0`), so `B A^-1 B'` has eigenvalues far below `M / eta`
-//! there, which `-(eta + gamma) M^-1` misses. Two treatments ([`Placement`]):
-//! - `Primal` (the default in 2D): the group stays in the LU block, which takes it as any
-//!   zero-diagonal unknown (after its neighbours). Exact; 3D Stokes cube (4^3 cells): 3 Krylov
-//!   iterations, against 15 with these groups in the Schur block at the full `gamma`. In 3D most
-//!   cells touch the boundary (7 104 of 12 288 pressure unknowns of the cavity at 8^3 cells), and
-//!   these zero diagonals make the LU of the augmented block 4x costlier (1.27e11 flops against
-//!   3.14e10 at 8^3).
-//! - `Schur` (the default in 3D): the group joins the Schur block with its grad-div weight scaled
-//!   by [`BOUNDARY_GAMMA_SCALE`], `gamma_g = 3e-3 gamma_b`, in the augmentation, in `T` and in
-//!   `S^-1` alike (the identities above hold for any positive block-diagonal weight). With the
-//!   full weight the preconditioned spectrum is still clustered at 1 (dense eigenvalues on the
-//!   3^3 Stokes cavity: all within 1e-3) but FGMRES stagnates near 1e-6 even with a pivoted
-//!   dense inverse of `A_gamma`: the large `gamma` on weakly controlled modes makes the operator
-//!   far from normal and the solve lose digits to cancellation. Measured Krylov iterations of the
-//!   3D Stokes cavity (3^3 cells, to 1e-8) against the factor: 15 (1), 11 (1e-1), 5 (1e-2), 7 (1e-3); at
-//!   3e-3, 5-6 on 4^3 to 8^3 cells, 2-4 per Newton step for the Navier-Stokes cavity at 8^3
-//!   (11.4 s against 25.5 s with `Primal`, peak memory 650 against 972 MiB; `examples/growth3d`).
-//!   A local Schur complement `-B_g A_gg^-1 B'_g` of these groups in `S^-1` was tried: no fewer
-//!   iterations than `-(eta + gamma_g) M^-1`.
+//! there, which `-(eta + gamma) M^-1` misses. Two treatments ([`Placement`], set by
+//! [`AlOptions::boundary`]; the case files choose by dimension):
+//! - `Primal` (the case files' default in 2D, and [`AlOptions::default`]'s): the group stays in
+//!   the LU block, which takes it as any zero-diagonal unknown (after its neighbours). Exact; 3D
+//!   Stokes cube (4^3 cells): 3 Krylov iterations, against 15 with these groups in the Schur
+//!   block at the full `gamma`. In 3D most cells touch the boundary (7 104 of 12 288 pressure
+//!   unknowns of the cavity at 8^3 cells), and these zero diagonals make the LU of the augmented
+//!   block 4x costlier (1.27e11 flops against 3.14e10 at 8^3).
+//! - `Schur` (the case files' default in 3D): the group joins the Schur block with its grad-div
+//!   weight scaled by [`BOUNDARY_GAMMA_SCALE`], `gamma_g = 3e-3 gamma_b`, in the augmentation, in
+//!   `T` and in `S^-1` alike (the identities above hold for any positive block-diagonal weight).
+//!   With the full weight the preconditioned spectrum is still clustered at 1 (dense eigenvalues
+//!   on the 3^3 Stokes cavity: all within 1e-3) but FGMRES stagnates near 1e-6 even with a
+//!   pivoted dense inverse of `A_gamma`: the large `gamma` on weakly controlled modes makes the
+//!   operator far from normal and the solve lose digits to cancellation. Measured Krylov
+//!   iterations of the 3D Stokes cavity (3^3 cells, to 1e-8) against the factor: 15 (1),
+//!   11 (1e-1), 5 (1e-2), 7 (1e-3); at 3e-3, 5-6 on 4^3 to 8^3 cells, 2-4 per Newton step for
+//!   the Navier-Stokes cavity at 8^3 (11.4 s against 25.5 s with `Primal`, peak memory 650
+//!   against 972 MiB; `examples/growth3d`). A local Schur complement `-B_g A_gg^-1 B'_g` of
+//!   these groups in `S^-1` was tried: no fewer iterations than `-(eta + gamma_g) M^-1`.
 //!
 //! **The solid's blocks.** An FSI system has two more multiplier blocks
 //! ([`MultiplierBlock::solid`]): the solid pressure (P1disc per solid cell) and the coupling
 //! multiplier (P1disc per coupling facet and component). [`AlOptions::solid`] places them:
-//! - `Primal` (the default in 2D): in the LU block with the solid displacement; the fluid
-//!   pressure alone is the Schur block. Model problem 3: 317 Krylov iterations in its 60 steps
-//!   (4.1 s), against 791-861 (5.9-6.6 s) with them in the Schur block.
-//! - `Schur` (the default in 3D): in the Schur block with their grad-div weight scaled by
-//!   [`SOLID_GAMMA_SCALE`]. The coupling multiplier lives on a surface, where `B A^-1 B'` is not
-//!   spectrally a mass matrix, and the full weight again makes FGMRES stall: model problem 4,
-//!   its first 2 steps with fresh factors, Krylov iterations per Newton step 2-21 at the factor
-//!   1, 3-5 at 0.1, 3-6 at 1e-2, 6-12 at 1e-3. The LU block loses the solid pressure and the
-//!   coupling multipliers, zero diagonals that the ordering must place after their neighbours:
-//!   on the fine mesh of model problem 4 its factorisation falls from 1.36e12 to 4.9e11 flops.
+//! - `Primal` (the case files' default in 2D, and [`AlOptions::default`]'s): in the LU block with
+//!   the solid displacement; the fluid pressure alone is the Schur block. Model problem 3: 317
+//!   Krylov iterations in its 60 steps (4.1 s), against 791-861 (5.9-6.6 s) with them in the
+//!   Schur block.
+//! - `Schur` (the case files' default in 3D): in the Schur block with their grad-div weight
+//!   scaled by [`SOLID_GAMMA_SCALE`]; their groups at Dirichlet boundaries (a solid cell at the
+//!   clamped rim, a coupling facet at a no-slip wall) take [`BOUNDARY_GAMMA_SCALE`] on top, `3e-4
+//!   gamma_b`, as measured below. The coupling multiplier lives on a surface, where `B A^-1 B'`
+//!   is not spectrally a mass matrix, and the full weight again makes FGMRES stall: model
+//!   problem 4, its first 2 steps with fresh factors, Krylov iterations per Newton step 2-21 at
+//!   the factor 1, 3-5 at 0.1, 3-6 at 1e-2, 6-12 at 1e-3. The LU block loses the solid pressure
+//!   and the coupling multipliers, zero diagonals that the ordering must place after their
+//!   neighbours: on the fine mesh of model problem 4 its factorisation falls from 1.36e12 to
+//!   4.9e11 flops.
 //!
 //! **Reuse.** With [`AlOptions::refactor_iterations`] `> 0`, the factorisation of `A_gamma` is
 //! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
@@ -106,7 +115,8 @@ pub struct MultiplierBlock {
     /// The mass matrices of the groups, row-major, one after the other.
     pub mass: Vec<f64>,
     /// A block of the solid (the solid pressure, the coupling multiplier): placed by
-    /// [`AlOptions::solid`], with its weight scaled by [`SOLID_GAMMA_SCALE`].
+    /// [`AlOptions::solid`], with its weight scaled by [`SOLID_GAMMA_SCALE`] (and its groups at
+    /// Dirichlet boundaries by [`BOUNDARY_GAMMA_SCALE`] too).
     pub solid: bool,
 }
 
@@ -543,7 +553,8 @@ impl AugmentedLagrangian {
 
     /// Per block: `sigma` (the sign that makes `sigma B' M^-1 B` positive semi-definite), and
     /// `eta_b = mean diag(A) / mean diag(B' M^-1 B)` over the primal unknowns the block couples
-    /// to; returns `(sigma, gamma eta_b, eta_b)`.
+    /// to; returns `(sigma, gamma_b, eta_b)`, `gamma_b = gamma eta_b` (times
+    /// [`SOLID_GAMMA_SCALE`] for the solid's blocks).
     fn block_scales(&self, a: &CscMatrix<'_>, s: &Structure, ops: &mut GroupOperators) -> Vec<(f64, f64, f64)> {
         let nb = self.split.multipliers.len();
         // (sum of K_iq K_qi, sum of diag A, sum of diag G, count) per block.
@@ -575,7 +586,8 @@ impl AugmentedLagrangian {
             .collect()
     }
 
-    /// Rebuilds the structure when the pattern of `a` or its pinned multipliers changed.
+    /// Rebuilds the structure when the pattern of `a`, its pinned multipliers or its groups at
+    /// Dirichlet boundaries changed.
     fn update_structure(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
         let t0 = std::time::Instant::now();
         let key = super::linear::pattern_key(a.pattern);
@@ -615,7 +627,7 @@ impl AugmentedLagrangian {
         Ok(self.structure.as_ref().map(|s| (s.pattern.clone(), values)))
     }
 
-    /// Builds `A_gamma = K_FF + sigma gamma_b B' M^-1 B` from `a` and factorises it.
+    /// Builds `A_gamma = K_FF + sum_g sigma gamma_g B'_g M_g^-1 B_g` from `a` and factorises it.
     fn factorize_augmented(&self, a: &CscMatrix<'_>, num: &mut Numeric) -> Result<(), LinearSolveError> {
         let t0 = std::time::Instant::now();
         let values = self.assemble_augmented(a, num);
@@ -681,7 +693,7 @@ impl AugmentedLagrangian {
             let (sigma, gamma_b, eta) = num.scales[g.block];
             apply_minv(g, offset, -sigma * (eta + gamma_b * g.gamma_scale), r, z);
         }
-        // v_Q = sigma gamma M^-1 (r_Q - C z_Q) - z_Q, with w = r_Q - C z_Q in y.
+        // v_Q = sigma gamma_g M^-1 (r_Q - C z_Q) - z_Q, with w = r_Q - C z_Q in y.
         for &q in &s.q_dofs {
             y[q] = r[q];
         }
