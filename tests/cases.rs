@@ -758,7 +758,7 @@ fn compare_with_model_problem_3(out3: &Path, out4: &Path, claims: &EquilibriumCl
 /// hold. Regression values (fdfsi at 2ad5061), held to their printed digits. About 30-45 minutes:
 /// run with --ignored (and `FDFSI_LONG_RUNS`, see [`long_run`], to check finished runs).
 #[test]
-#[ignore = "about 30-45 minutes; run with --ignored"]
+#[ignore = "about 20 minutes (30-45 with method = direct); run with --ignored"]
 fn model_problem_4_follows_model_problem_3() {
     let out3 = long_run("model-problem-3");
     let out4 = long_run("model-problem-4");
