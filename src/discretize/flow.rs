@@ -15,7 +15,7 @@ use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
 use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
-use fdfsi_fem::values::{p1disc_basis, CellValues, FacetValues, MapError};
+use fdfsi_fem::values::{p1disc_basis, p1disc_mass, CellValues, FacetValues, MapError};
 use std::sync::Arc;
 use thiserror::Error;
 
@@ -186,21 +186,12 @@ impl<const D: usize> FlowDiscretization<D> {
     pub fn saddle_point_split(&self, formulation: Formulation) -> Result<SaddlePointSplit, FlowError> {
         let mut block = MultiplierBlock::new("pressure");
         let mut cv = self.cell_values(self.cell_rule.clone());
-        let (mut coords, mut psi, mut mass) = (Vec::new(), [0.0; 4], vec![0.0; (D + 1) * (D + 1)]);
+        let (mut coords, mut mass) = (Vec::new(), vec![0.0; (D + 1) * (D + 1)]);
         let pf = self.pressure_field();
         for c in 0..self.mesh.num_cells() {
             self.mesh.cell_coords_into(c, &mut coords);
             cv.reinit(&coords).map_err(|source| FlowError::Map { cell: c, source })?;
-            mass.iter_mut().for_each(|m| *m = 0.0);
-            for q in 0..cv.num_points() {
-                let w = cv.jxw[q] * formulation.weight(&cv.x[q]);
-                p1disc_basis(&cv.x[q], &cv.centroid, &mut psi);
-                for k in 0..=D {
-                    for l in 0..=D {
-                        mass[k * (D + 1) + l] += w * psi[k] * psi[l];
-                    }
-                }
-            }
+            p1disc_mass(&cv, |x| formulation.weight(x), &mut mass);
             let dofs: Vec<usize> = (0..=D).map(|k| pf.dof(c * (D + 1) + k, 0)).collect();
             block.push_group(&dofs, &mass);
         }

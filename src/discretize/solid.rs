@@ -283,20 +283,7 @@ impl<const D: usize> SolidDiscretization<D> {
         for c in 0..self.mesh.num_cells() {
             self.cell_positions(c, None, &mut coords);
             cv.reinit(&coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
-            mass.iter_mut().for_each(|m| *m = 0.0);
-            for q in 0..cv.num_points() {
-                let w = cv.jxw[q] * self.formulation.weight(&cv.x[q]);
-                let psi: [f64; 4] = std::array::from_fn(|k| match k {
-                    0 => 1.0,
-                    k if k <= D => cv.x[q][k - 1] - cv.centroid[k - 1],
-                    _ => 0.0,
-                });
-                for k in 0..=D {
-                    for l in 0..=D {
-                        mass[k * (D + 1) + l] += w * psi[k] * psi[l];
-                    }
-                }
-            }
+            fdfsi_fem::values::p1disc_mass(&cv, |x| self.formulation.weight(x), &mut mass);
             let dofs: Vec<usize> = (0..=D).map(|k| offset + pf.dof(c * (D + 1) + k, 0)).collect();
             block.push_group(&dofs, &mass);
         }

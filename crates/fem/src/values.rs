@@ -96,6 +96,24 @@ pub fn p1disc_basis<const D: usize>(x: &[f64; D], centroid: &[f64; D], out: &mut
     }
 }
 
+/// The mass matrix `int_K psi_k psi_l w(x) dx` of the P1disc basis ([`p1disc_basis`]) on the cell
+/// `cv` was last reinitialised for, with the weight `w` (e.g. `r` when axisymmetric): written
+/// row-major into `mass`, `(D + 1) x (D + 1)`.
+pub fn p1disc_mass<const D: usize>(cv: &CellValues<D>, weight: impl Fn(&[f64; D]) -> f64, mass: &mut [f64]) {
+    let n = D + 1;
+    mass[..n * n].iter_mut().for_each(|m| *m = 0.0);
+    let mut psi = [0.0; 4];
+    for q in 0..cv.num_points() {
+        let w = cv.jxw[q] * weight(&cv.x[q]);
+        p1disc_basis(&cv.x[q], &cv.centroid, &mut psi);
+        for k in 0..n {
+            for l in 0..n {
+                mass[k * n + l] += w * psi[k] * psi[l];
+            }
+        }
+    }
+}
+
 /// Geometric map and function-space values of one cell at the points of a quadrature rule.
 #[derive(Clone, Debug)]
 pub struct CellValues<const D: usize> {
