@@ -43,7 +43,7 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         resume: Option<PathBuf>,
         /// Write the first Newton system (DIR/jacobian.mtx, rhs.mtx, blocks.json; augmented.mtx
-        /// with the augmented-Lagrangian solver) instead of running (flow cases).
+        /// with the augmented-Lagrangian solver) instead of running (flow and FSI cases).
         #[arg(long, value_name = "DIR", conflicts_with = "resume")]
         export_system: Option<PathBuf>,
     },

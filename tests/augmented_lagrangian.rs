@@ -217,7 +217,8 @@ fn fsi_model_problem_4_matches_the_direct_solve() {
 }
 
 /// `fdfsi run --export-system`: the first Newton system of a flow case as MatrixMarket files
-/// with its blocks (and the augmented block with the AL solver); FSI cases are refused by name.
+/// with its blocks (and the augmented block with the AL solver); an FSI case's first step the same
+/// way, with the blocks of its layout; solid cases are refused by name.
 #[test]
 fn the_first_newton_system_is_exported() {
     use fdfsi::case::{Case, LinearMethod};
@@ -226,10 +227,7 @@ fn the_first_newton_system_is_exported() {
     case.solver.linear.method = LinearMethod::AugmentedLagrangian;
     let out = tempfile::tempdir().unwrap();
     fdfsi::run::export::export_system(&case, &dir, out.path(), &mut |_: &str| {}).unwrap();
-    let header = |name: &str| -> Vec<usize> {
-        let text = std::fs::read_to_string(out.path().join(name)).unwrap();
-        text.lines().find(|l| !l.starts_with('%')).unwrap().split_whitespace().map(|v| v.parse().unwrap()).collect()
-    };
+    let header = |name: &str| header_in(out.path(), name);
     let blocks: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.path().join("blocks.json")).unwrap()).unwrap();
     let n = blocks["dofs"].as_u64().unwrap() as usize;
     assert_eq!(blocks["blocks"][0]["name"], "velocity");
@@ -239,7 +237,37 @@ fn the_first_newton_system_is_exported() {
     assert_eq!(rhs, vec![n, 1]);
     let velocity = blocks["blocks"][0]["end"].as_u64().unwrap() as usize;
     assert!(augmented[0] >= velocity && augmented[0] < n, "augmented block of {} unknowns", augmented[0]);
-    let fsi = Case::read(&dir.join("model-problem-2.toml")).unwrap();
-    let e = fdfsi::run::export::export_system(&fsi, &dir, out.path(), &mut |_: &str| {}).unwrap_err();
-    assert!(e.to_string().contains("flow systems"), "{e}");
+    let mut fsi = Case::read(&dir.join("model-problem-2.toml")).unwrap();
+    fsi.solver.linear.method = LinearMethod::AugmentedLagrangian;
+    let out = tempfile::tempdir().unwrap();
+    fdfsi::run::export::export_system(&fsi, &dir, out.path(), &mut |_: &str| {}).unwrap();
+    let blocks: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.path().join("blocks.json")).unwrap()).unwrap();
+    let n = blocks["dofs"].as_u64().unwrap() as usize;
+    let list = blocks["blocks"].as_array().unwrap();
+    let names: Vec<&str> = list.iter().map(|b| b["name"].as_str().unwrap()).collect();
+    assert_eq!(&names[..3], ["fluid velocity", "fluid pressure", "solid displacement"], "{names:?}");
+    assert!(names.contains(&"multiplier"), "{names:?}");
+    let mut end = 0;
+    for b in list {
+        assert_eq!(b["start"].as_u64().unwrap() as usize, end, "blocks are contiguous: {list:?}");
+        end = b["end"].as_u64().unwrap() as usize;
+    }
+    assert_eq!(end, n);
+    let (jacobian, rhs, augmented) =
+        (header_in(out.path(), "jacobian.mtx"), header_in(out.path(), "rhs.mtx"), header_in(out.path(), "augmented.mtx"));
+    assert!(jacobian[0] == n && jacobian[1] == n && jacobian[2] > n, "{jacobian:?}");
+    assert_eq!(rhs, vec![n, 1]);
+    // 2D: fluid pressure cells form the Schur block (those at Dirichlet boundaries stay primal);
+    // the solid's blocks stay in the augmented one.
+    let pressure = list[1]["end"].as_u64().unwrap() as usize - list[1]["start"].as_u64().unwrap() as usize;
+    assert!(augmented[0] >= n - pressure && augmented[0] < n, "augmented block of {} of {n} unknowns", augmented[0]);
+    let solid = Case::read(&dir.join("cook-membrane.toml")).unwrap();
+    let e = fdfsi::run::export::export_system(&solid, &dir, out.path(), &mut |_: &str| {}).unwrap_err();
+    assert!(e.to_string().contains("solid case"), "{e}");
+}
+
+/// The sizes line of a MatrixMarket file.
+fn header_in(dir: &std::path::Path, name: &str) -> Vec<usize> {
+    let text = std::fs::read_to_string(dir.join(name)).unwrap();
+    text.lines().find(|l| !l.starts_with('%')).unwrap().split_whitespace().map(|v| v.parse().unwrap()).collect()
 }

@@ -1097,6 +1097,92 @@ pub struct FsiStep<const D: usize> {
     pub report: FsiStepReport,
 }
 
+/// The Newton problem of one step before its solve: the discretisation on the mesh adapted to
+/// the solid at `t_n`, the fluid problem with `1/dt`, the transferred velocity, the initial
+/// iterate and its constraints. [`step`] solves it; `fdfsi run --export-system` writes its first
+/// system.
+pub struct StepStart<const D: usize> {
+    pub disc: FsiDiscretization<D>,
+    /// The fluid problem of the step (`inv_dt = 1/dt`).
+    pub fluid: FlowProblem<D>,
+    /// `t_{n+1}`.
+    pub time: f64,
+    pub dt: f64,
+    /// The previous velocity transferred to the new velocity nodes (fluid numbering).
+    pub u_old: Vec<f64>,
+    /// The initial iterate: `u_old`, the Dirichlet values, the solid's held pressures.
+    pub x: Vec<f64>,
+    /// The constrained unknowns (identity rows of the Jacobian).
+    pub constrained: Vec<bool>,
+    /// Constrained values, set again after Newton: the linear solves (with iterative
+    /// refinement) may leave round-off on them, and a solid end held on an axis must stay
+    /// exactly on it.
+    fixed: Vec<(usize, f64)>,
+    /// The solid's Dirichlet values at `t_{n+1}` (solid numbering, total displacement).
+    solid_fixed: Vec<(usize, f64)>,
+    /// `dt v_n` (solid numbering) when the solid has inertia.
+    solid_target: Option<Vec<f64>>,
+    seconds: StepTimings,
+}
+
+impl<const D: usize> StepStart<D> {
+    /// Adapts, discretises and transfers for the step from `state` (at `t_n`) to `t_n + dt`.
+    pub fn new(model: &FsiModel<D>, state: &FsiState<D>, dt: f64) -> Result<Self, FsiError> {
+        let clock = Instant::now();
+        let disc = FsiDiscretization::build(model, &state.solid_x)?;
+        let build = clock.elapsed().as_secs_f64();
+        let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
+        let time = state.time + dt;
+        let mut fluid = model.problem.fluid.clone();
+        fluid.params.inv_dt = 1.0 / dt;
+        // Transfer the previous velocity to the new velocity nodes.
+        let clock = Instant::now();
+        let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
+        let mut u_old = vec![0.0; disc.fluid_dofs()];
+        if let Some(prev) = &state.fluid {
+            let v = transfer_p2plus(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes)?;
+            u_old[disc.flow.velocity_field().range()].copy_from_slice(&v);
+        }
+        seconds.transfer = clock.elapsed().as_secs_f64();
+        // Initial iterate and constraints.
+        let mut x = vec![0.0; n];
+        x[..disc.fluid_dofs()].copy_from_slice(&u_old);
+        let mut constrained = vec![false; n];
+        let mut fixed: Vec<(usize, f64)> = Vec::new();
+        for (d, v) in disc.flow.dirichlet_dofs(&fluid, time)? {
+            constrained[d] = true;
+            x[d] = v;
+            fixed.push((d, v));
+        }
+        for &d in &disc.inactive_multiplier_dofs {
+            constrained[d] = true;
+        }
+        let nus = model.solid.displacement_field().num_dofs();
+        x[os + nus..ol].copy_from_slice(&state.solid_x[nus..]);
+        let solid_fixed = model.solid.dirichlet_values(&model.problem.solid, time)?;
+        for &(d, v) in &solid_fixed {
+            constrained[os + d] = true;
+            x[os + d] = if d < nus { v - state.solid_x[d] } else { v };
+            fixed.push((os + d, x[os + d]));
+        }
+        let solid_target = (model.problem.solid.density > 0.0).then(|| state.solid_v.iter().map(|v| v * dt).collect());
+        Ok(StepStart { disc, fluid, time, dt, u_old, x, constrained, fixed, solid_fixed, solid_target, seconds })
+    }
+
+    /// What the assembly needs besides the unknowns, `state` being the one given to [`Self::new`].
+    pub fn input<'a>(&'a self, state: &'a FsiState<D>) -> StepInput<'a, D> {
+        StepInput {
+            fluid: &self.fluid,
+            time: self.time,
+            dt: self.dt,
+            u_old: &self.u_old,
+            solid_base: &state.solid_x,
+            solid_f: &state.solid_f,
+            solid_target: self.solid_target.as_deref(),
+        }
+    }
+}
+
 /// One implicit-Euler FSI step from `state` (at `t_n`) to `t_n + dt` (see the module
 /// documentation); returns the new state and the step.
 pub fn step<const D: usize>(
@@ -1106,72 +1192,29 @@ pub fn step<const D: usize>(
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
 ) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
+    let mut start = StepStart::new(model, state, dt)?;
+    let mut x = std::mem::take(&mut start.x);
     let clock = Instant::now();
-    let disc = FsiDiscretization::build(model, &state.solid_x)?;
-    let build = clock.elapsed().as_secs_f64();
-    let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
-    let t_new = state.time + dt;
-    let mut fluid = model.problem.fluid.clone();
-    fluid.params.inv_dt = 1.0 / dt;
-    // Transfer the previous velocity to the new velocity nodes.
-    let clock = Instant::now();
-    let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
-    let mut u_old = vec![0.0; disc.fluid_dofs()];
-    if let Some(prev) = &state.fluid {
-        let v = transfer_p2plus(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes)?;
-        u_old[disc.flow.velocity_field().range()].copy_from_slice(&v);
-    }
-    seconds.transfer = clock.elapsed().as_secs_f64();
-    // Initial iterate and constraints.
-    let mut x = vec![0.0; n];
-    x[..disc.fluid_dofs()].copy_from_slice(&u_old);
-    let mut constrained = vec![false; n];
-    // Constrained values, set again after Newton: the linear solves (with iterative refinement)
-    // may leave round-off on them, and a solid end held on an axis must stay exactly on it.
-    let mut fixed: Vec<(usize, f64)> = Vec::new();
-    for (d, v) in disc.flow.dirichlet_dofs(&fluid, t_new)? {
-        constrained[d] = true;
-        x[d] = v;
-        fixed.push((d, v));
-    }
-    for &d in &disc.inactive_multiplier_dofs {
-        constrained[d] = true;
-    }
-    let nus = model.solid.displacement_field().num_dofs();
-    x[os + nus..ol].copy_from_slice(&state.solid_x[nus..]);
-    let solid_fixed = model.solid.dirichlet_values(&model.problem.solid, t_new)?;
-    for &(d, v) in &solid_fixed {
-        constrained[os + d] = true;
-        x[os + d] = if d < nus { v - state.solid_x[d] } else { v };
-        fixed.push((os + d, x[os + d]));
-    }
-    let target: Option<Vec<f64>> = (model.problem.solid.density > 0.0).then(|| state.solid_v.iter().map(|v| v * dt).collect());
-    let input = StepInput {
-        fluid: &fluid,
-        time: t_new,
-        dt,
-        u_old: &u_old,
-        solid_base: &state.solid_x,
-        solid_f: &state.solid_f,
-        solid_target: target.as_deref(),
+    let solved = {
+        let (disc, input) = (&start.disc, start.input(state));
+        solver.set_split(disc.saddle_point_split(model)?);
+        newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &start.constrained, k, rhs))
     };
-    let clock = Instant::now();
-    solver.set_split(disc.saddle_point_split(model)?);
-    let report =
-        newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &constrained, k, rhs)).map_err(|e| {
-            match e {
-                NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => {
-                    FsiError::SingularAt { unknown, what: disc.describe_unknown(model, unknown), error: e }
-                }
-                other => FsiError::Newton(other),
-            }
-        })?;
+    let report = solved.map_err(|e| match e {
+        NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => {
+            FsiError::SingularAt { unknown, what: start.disc.describe_unknown(model, unknown), error: e }
+        }
+        other => FsiError::Newton(other),
+    })?;
+    let StepStart { disc, fluid, time: t_new, u_old, fixed, solid_fixed, mut seconds, .. } = start;
     for &(d, v) in &fixed {
         x[d] = v;
     }
     seconds.newton = clock.elapsed().as_secs_f64();
     // Update the solid (updated Lagrangian) and keep the fluid for the next transfer.
     let clock = Instant::now();
+    let (os, ol) = (disc.solid_offset(), disc.multiplier_offset());
+    let nus = model.solid.displacement_field().num_dofs();
     let inc = &x[os..ol];
     let mut solid_f = state.solid_f.clone();
     model.solid.update_deformation(&state.solid_x, inc, &mut solid_f).map_err(SolidError::from)?;
