@@ -441,8 +441,8 @@ pub enum LinearMethod {
     Direct,
     /// FGMRES with the augmented-Lagrangian block preconditioner ([`crate::solve::augmented`]):
     /// an LU of the augmented primal block only. Flow runs: the pressure is the multiplier
-    /// block; FSI runs: the fluid pressure, and in 3D also the solid pressure and the coupling
-    /// multiplier (`solid_multipliers`); solid runs use the direct solver.
+    /// block; FSI runs: the fluid pressure, and in 3D also the coupling multiplier
+    /// (`coupling_multipliers`, `solid_pressure`); solid runs use the direct solver.
     AugmentedLagrangian,
 }
 
@@ -472,19 +472,22 @@ pub struct LinearSpec {
     /// ([`crate::solve::augmented`], "Groups at Dirichlet boundaries").
     #[serde(skip_serializing_if = "Option::is_none")]
     pub boundary_multipliers: Option<Placement>,
-    /// Augmented Lagrangian, FSI runs: where the solid pressure and the coupling multiplier go:
-    /// `"primal"` (the LU block) or `"schur"` (the Schur block with a reduced grad-div weight).
-    /// Unset: `"schur"` in 3D, `"primal"` otherwise ([`crate::solve::augmented`], "The solid's
-    /// blocks").
+    /// Augmented Lagrangian, FSI runs: where the coupling multiplier goes: `"primal"` (the LU
+    /// block) or `"schur"` (the Schur block with a reduced grad-div weight). Unset: `"schur"` in
+    /// 3D, `"primal"` otherwise ([`crate::solve::augmented`], "The solid's blocks").
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub solid_multipliers: Option<Placement>,
+    pub coupling_multipliers: Option<Placement>,
+    /// Augmented Lagrangian, FSI runs with a mixed solid law: where the solid pressure goes,
+    /// `"primal"` (default: the held factors then serve a whole time step) or `"schur"`
+    /// ([`crate::solve::augmented`], "The solid's blocks").
+    pub solid_pressure: Placement,
 }
 
 /// The default `refactor_iterations` of time-dependent runs: the Jacobian changes little from
 /// step to step (Schaefer-Turek 2D-2: one factorisation for its first 10 steps at 5.5-9 Krylov
 /// iterations per Newton step; model problem 4 with the fluid pressure alone in the Schur block:
-/// one per step, 3 steps in 54 s against 78 s; with the solid's blocks too, the 3D default: two
-/// per step, the held factors failing once per step).
+/// one per step, 3 steps in 54 s against 78 s; with the coupling multiplier too, the 3D
+/// default: still one per step, 2 steps in 20 s).
 pub const TIME_DEPENDENT_REFACTOR_ITERATIONS: usize = 8;
 
 impl Default for LinearSpec {
@@ -498,7 +501,8 @@ impl Default for LinearSpec {
             krylov_max_iterations: al.krylov.max_iterations,
             refactor_iterations: None,
             boundary_multipliers: None,
-            solid_multipliers: None,
+            coupling_multipliers: None,
+            solid_pressure: Placement::Primal,
         }
     }
 }
@@ -517,7 +521,8 @@ impl LinearSpec {
             refactor_iterations: self.refactor_iterations.unwrap_or(default_refactor),
             lu: self.lu_options(),
             boundary: self.boundary_multipliers.unwrap_or(default_placement),
-            solid: self.solid_multipliers.unwrap_or(default_placement),
+            solid_pressure: self.solid_pressure,
+            coupling: self.coupling_multipliers.unwrap_or(default_placement),
         }
     }
 

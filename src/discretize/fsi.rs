@@ -35,7 +35,7 @@ use crate::discretize::flow::{AssemblyError, FlowDiscretization, FlowError, Flow
 use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
-use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
+use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::adapt::{
@@ -659,7 +659,7 @@ impl<const D: usize> FsiDiscretization<D> {
 
     /// The multiplier blocks of the coupled system for the block preconditioners
     /// ([`crate::solve::augmented`]): the fluid pressure, and the solid's blocks
-    /// ([`MultiplierBlock::solid`]) the solid pressure (mixed laws) and the coupling multiplier,
+    /// ([`MultiplierRole`]) the solid pressure (mixed laws) and the coupling multiplier,
     /// one group per coupling element and component (its `D` nodal values, mass matrix
     /// `int_e mu_k mu_l (r) ds`). The trace modes and the kernel unknowns have no block: they
     /// stay primal.
@@ -667,7 +667,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let mut split = self.flow.saddle_point_split(model.problem.fluid.formulation)?;
         split.multipliers.extend(model.solid.pressure_block(self.solid_offset())?);
         let c = &self.coupling;
-        let mut block = MultiplierBlock { solid: true, ..MultiplierBlock::new("coupling multiplier") };
+        let mut block = MultiplierBlock { role: MultiplierRole::Coupling, ..MultiplierBlock::new("coupling multiplier") };
         let mut mass = vec![0.0; D * D];
         for e in 0..c.num_elements() {
             mass.iter_mut().for_each(|m| *m = 0.0);

@@ -35,7 +35,7 @@ use crate::physics::solid::{
     area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState, Mat3, SolidCellState,
     SolidMaterial, IDENTITY,
 };
-use crate::solve::augmented::MultiplierBlock;
+use crate::solve::augmented::{MultiplierBlock, MultiplierRole};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::dofs::{BlockLayout, NodeMap};
@@ -277,7 +277,7 @@ impl<const D: usize> SolidDiscretization<D> {
         if !self.mixed {
             return Ok(None);
         }
-        let mut block = MultiplierBlock { solid: true, ..MultiplierBlock::new("solid pressure") };
+        let mut block = MultiplierBlock { role: MultiplierRole::SolidPressure, ..MultiplierBlock::new("solid pressure") };
         let (mut cv, mut coords, mut mass) = (self.cell_values(), Vec::new(), vec![0.0; (D + 1) * (D + 1)]);
         let pf = self.pressure_field();
         for c in 0..self.mesh.num_cells() {

@@ -65,22 +65,34 @@
 //!   these groups in `S^-1` was tried: no fewer iterations than `-(eta + gamma_g) M^-1`.
 //!
 //! **The solid's blocks.** An FSI system has two more multiplier blocks
-//! ([`MultiplierBlock::solid`]): the solid pressure (P1disc per solid cell) and the coupling
-//! multiplier (P1disc per coupling facet and component). [`AlOptions::solid`] places them:
-//! - `Primal` (the case files' default in 2D, and [`AlOptions::default`]'s): in the LU block with
-//!   the solid displacement; the fluid pressure alone is the Schur block. Model problem 3: 317
-//!   Krylov iterations in its 60 steps (4.1 s), against 791-861 (5.9-6.6 s) with them in the
-//!   Schur block.
-//! - `Schur` (the case files' default in 3D): in the Schur block with their grad-div weight
-//!   scaled by [`SOLID_GAMMA_SCALE`]; their groups at Dirichlet boundaries (a solid cell at the
-//!   clamped rim, a coupling facet at a no-slip wall) take [`BOUNDARY_GAMMA_SCALE`] on top, `3e-4
-//!   gamma_b`, as measured below. The coupling multiplier lives on a surface, where `B A^-1 B'`
-//!   is not spectrally a mass matrix, and the full weight again makes FGMRES stall: model
-//!   problem 4, its first 2 steps with fresh factors, Krylov iterations per Newton step 2-21 at
-//!   the factor 1, 3-5 at 0.1, 3-6 at 1e-2, 6-12 at 1e-3. The LU block loses the solid pressure
-//!   and the coupling multipliers, zero diagonals that the ordering must place after their
+//! ([`MultiplierRole`]): the solid pressure (P1disc per solid cell) and the coupling multiplier
+//! (P1disc per coupling facet and component), placed by [`AlOptions::solid_pressure`] and
+//! [`AlOptions::coupling`]:
+//! - `Primal` ([`AlOptions::default`]'s; the case files' default for the solid pressure, and for
+//!   the coupling multiplier in 2D): in the LU block with the solid displacement. Model problem
+//!   3 (2D): 317 Krylov iterations in its 60 steps (4.1 s), against 791-861 (5.9-6.6 s) with both
+//!   in the Schur block.
+//! - `Schur` (the case files' default for the coupling multiplier in 3D): in the Schur block with
+//!   the grad-div weight scaled by [`SOLID_GAMMA_SCALE`]; groups at Dirichlet boundaries (a
+//!   coupling facet at a no-slip wall) take [`BOUNDARY_GAMMA_SCALE`] on top, `3e-4 gamma_b`, as
+//!   measured below. The coupling multiplier lives on a surface, where `B A^-1 B'` is not
+//!   spectrally a mass matrix, and the full weight again makes FGMRES stall: model problem 4, its
+//!   first 2 steps with fresh factors and both solid blocks in the Schur block, Krylov iterations
+//!   per Newton step 2-21 at the factor 1, 3-5 at 0.1, 3-6 at 1e-2, 6-12 at 1e-3. The LU block
+//!   loses the coupling multipliers, zero diagonals that the ordering must place after their
 //!   neighbours: on the fine mesh of model problem 4 its factorisation falls from 1.36e12 to
-//!   4.9e11 flops.
+//!   5.3e11 flops.
+//!
+//! The solid pressure stays primal because of the held factors (**Reuse**, below). Within a time
+//! step the Jacobian changes little (model problem 4, first step, Newton iteration 1 to 2: the
+//! fluid blocks by 5e-6 of their Frobenius norm, the solid displacement block by 5.6e-4, the
+//! solid pressure's `B_s` by 1e-3, the coupling blocks not at all); in the Schur block the
+//! augmentation `sigma gamma_g B_s' M^-1 B_s` multiplies the change of `B_s` by `gamma`, and the
+//! held factors no longer precondition: 8 Krylov iterations left 0.6-0.8 of the residual at
+//! every step's second Newton iteration (40 left 4e-4), so each step factorised twice. Primal,
+//! the held factors serve the whole step (2-7 Krylov iterations per Newton step) for 7.5 % more
+//! LU flops: model problem 4, 2 steps, 35.4 s to 20.1 s; its fine mesh 153 s to 90 s, both
+//! with the same forces to 7 digits.
 //!
 //! **Reuse.** With [`AlOptions::refactor_iterations`] `> 0`, the factorisation of `A_gamma` is
 //! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
@@ -114,16 +126,39 @@ pub struct MultiplierBlock {
     pub offsets: Vec<usize>,
     /// The mass matrices of the groups, row-major, one after the other.
     pub mass: Vec<f64>,
-    /// A block of the solid (the solid pressure, the coupling multiplier): placed by
-    /// [`AlOptions::solid`], with its weight scaled by [`SOLID_GAMMA_SCALE`] (and its groups at
+    /// What the multipliers are: it decides where they go ([`AlOptions::solid_pressure`],
+    /// [`AlOptions::coupling`]) and their weight in the Schur block.
+    pub role: MultiplierRole,
+}
+
+/// What the multipliers of a [`MultiplierBlock`] are.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MultiplierRole {
+    /// The fluid pressure: always in the Schur block (those at Dirichlet boundaries placed by
+    /// [`AlOptions::boundary`]).
+    #[default]
+    FluidPressure,
+    /// The solid pressure (mixed laws): placed by [`AlOptions::solid_pressure`], its weight
+    /// scaled by [`SOLID_GAMMA_SCALE`] in the Schur block.
+    SolidPressure,
+    /// The coupling multiplier on gamma_f: placed by [`AlOptions::coupling`], its weight scaled
+    /// by [`SOLID_GAMMA_SCALE`] in the Schur block.
+    Coupling,
+}
+
+impl MultiplierRole {
+    /// Whether the block belongs to the solid (the solid pressure, the coupling multiplier): its
+    /// grad-div weight in the Schur block is scaled by [`SOLID_GAMMA_SCALE`] (and its groups at
     /// Dirichlet boundaries by [`BOUNDARY_GAMMA_SCALE`] too).
-    pub solid: bool,
+    pub fn is_solid(self) -> bool {
+        self != MultiplierRole::FluidPressure
+    }
 }
 
 impl MultiplierBlock {
     /// An empty block.
     pub fn new(name: &str) -> Self {
-        MultiplierBlock { name: name.into(), dofs: Vec::new(), offsets: vec![0], mass: Vec::new(), solid: false }
+        MultiplierBlock { name: name.into(), dofs: Vec::new(), offsets: vec![0], mass: Vec::new(), role: MultiplierRole::FluidPressure }
     }
 
     /// Appends a group: its dofs and its (row-major, `n x n`) mass matrix.
@@ -160,14 +195,15 @@ pub struct AlOptions {
     pub lu: LinearSolverOptions,
     /// Where the groups coupled to a Dirichlet-constrained unknown go.
     pub boundary: Placement,
-    /// Where the blocks of the solid go ([`MultiplierBlock::solid`]: the solid pressure and the
-    /// coupling multiplier of an FSI system).
-    pub solid: Placement,
+    /// Where the solid pressure of an FSI system goes ([`MultiplierRole::SolidPressure`]).
+    pub solid_pressure: Placement,
+    /// Where the coupling multiplier of an FSI system goes ([`MultiplierRole::Coupling`]).
+    pub coupling: Placement,
 }
 
 /// Where multipliers go: the groups coupled to a Dirichlet-constrained unknown
-/// ([`AlOptions::boundary`]) or the solid's blocks ([`AlOptions::solid`]); see the module
-/// documentation.
+/// ([`AlOptions::boundary`]) or the solid's blocks ([`AlOptions::solid_pressure`],
+/// [`AlOptions::coupling`]); see the module documentation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Placement {
@@ -185,7 +221,7 @@ pub enum Placement {
 /// documentation).
 pub const BOUNDARY_GAMMA_SCALE: f64 = 3e-3;
 
-/// The factor on `gamma` of the solid's blocks ([`MultiplierBlock::solid`]) in the Schur block
+/// The factor on `gamma` of the solid's blocks ([`MultiplierRole::is_solid`]) in the Schur block
 /// (see the module documentation, "The solid's blocks").
 pub const SOLID_GAMMA_SCALE: f64 = 0.1;
 
@@ -197,7 +233,8 @@ impl Default for AlOptions {
             refactor_iterations: 0,
             lu: LinearSolverOptions::default(),
             boundary: Placement::default(),
-            solid: Placement::default(),
+            solid_pressure: Placement::default(),
+            coupling: Placement::default(),
         }
     }
 }
@@ -580,7 +617,7 @@ impl AugmentedLagrangian {
             .map(|(bi, &(kk, diag_a, diag_g, count))| {
                 let sigma = if kk >= 0.0 { 1.0 } else { -1.0 };
                 let eta = if diag_g > 0.0 && count > 0 { diag_a / diag_g } else { 1.0 };
-                let scale = if self.split.multipliers[bi].solid { SOLID_GAMMA_SCALE } else { 1.0 };
+                let scale = if self.split.multipliers[bi].role.is_solid() { SOLID_GAMMA_SCALE } else { 1.0 };
                 (sigma, self.options.gamma * scale * eta, eta)
             })
             .collect()
@@ -870,9 +907,12 @@ impl LinearSolver for AugmentedLagrangian {
     }
 
     fn set_split(&mut self, mut split: SaddlePointSplit) {
-        if self.options.solid == Placement::Primal {
-            split.multipliers.retain(|b| !b.solid);
-        }
+        let (solid_pressure, coupling) = (self.options.solid_pressure, self.options.coupling);
+        split.multipliers.retain(|b| match b.role {
+            MultiplierRole::FluidPressure => true,
+            MultiplierRole::SolidPressure => solid_pressure == Placement::Schur,
+            MultiplierRole::Coupling => coupling == Placement::Schur,
+        });
         if split != self.split {
             self.split = split;
             self.structure = None;
