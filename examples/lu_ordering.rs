@@ -8,7 +8,8 @@
 //!   MatrixMarket `coordinate real general` file, e.g. `augmented.mtx` of
 //!   `fdfsi run --export-system`, to set beside another solver's factorisation of the same file);
 //! * `ORDERING`: `nd` (nested dissection) or `amd`;
-//! * `REPS`: numeric factorisations timed after the first (default 3; min and median printed).
+//! * `REPS`: numeric factorisations timed after the first (default 3; min and median printed);
+//!   0: the ordering and symbolic analysis only (fill and flops, no numeric factorisation).
 //!
 //! One system and ordering per process, so `VmHWM` (peak resident memory) is theirs alone.
 use fdfsi::case::Case;
@@ -136,6 +137,20 @@ fn read_matrix_market(path: &str) -> (Pattern, Vec<f64>) {
 fn run_file(path: &str, ordering: FillOrdering, reps: usize) {
     let (pattern, values) = read_matrix_market(path);
     let k = CscMatrix { pattern: &pattern, values };
+    if reps == 0 {
+        let s = FaerLu::analyse(&k, ordering).expect("analysis");
+        println!(
+            "{path} {ordering:?} (analysis only): n={} nnz(A)={} nnz(L+U)={} flops={:.4e} supernodes={} ordering={:.3}s symbolic={:.3}s",
+            pattern.n,
+            pattern.nnz(),
+            s.nnz_lu,
+            s.flops,
+            s.supernodes,
+            s.ordering_seconds,
+            s.symbolic_seconds
+        );
+        return;
+    }
     let mut lu = FaerLu::with_method(LinearSolverOptions { ordering, ..Default::default() }, LuMethod::Auto);
     let t = Instant::now();
     lu.factorize(&k).expect("factorisation");
