@@ -269,8 +269,8 @@ fn the_first_newton_system_is_exported() {
         (header_in(out.path(), "jacobian.mtx"), header_in(out.path(), "rhs.mtx"), header_in(out.path(), "augmented.mtx"));
     assert!(jacobian[0] == n && jacobian[1] == n && jacobian[2] > n, "{jacobian:?}");
     assert_eq!(rhs, vec![n, 1]);
-    // 2D: fluid pressure cells form the Schur block (those at Dirichlet boundaries stay primal);
-    // the solid's blocks stay in the augmented one.
+    // 2D: at most the fluid pressure leaves the LU block (its cells at Dirichlet boundaries
+    // stay primal, and so do the solid's blocks).
     let pressure = list[1]["end"].as_u64().unwrap() as usize - list[1]["start"].as_u64().unwrap() as usize;
     assert!(augmented[0] >= n - pressure && augmented[0] < n, "augmented block of {} of {n} unknowns", augmented[0]);
     let solid = Case::read(&dir.join("cook-membrane.toml")).unwrap();

@@ -1110,7 +1110,7 @@ pub struct StepStart<const D: usize> {
     pub dt: f64,
     /// The previous velocity transferred to the new velocity nodes (fluid numbering).
     pub u_old: Vec<f64>,
-    /// The initial iterate: `u_old`, the Dirichlet values, the solid's held pressures.
+    /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`.
     pub x: Vec<f64>,
     /// The constrained unknowns (identity rows of the Jacobian).
     pub constrained: Vec<bool>,

@@ -53,12 +53,13 @@ fn export_flow<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir:
     disc.assemble_system(&problem, &x, &vec![0.0; n], t, &constrained, &mut k, &mut rhs)
         .map_err(|e| crate::discretize::flow::FlowError::Map { cell: e.cell, source: e.source })?;
     let blocks = disc.layout.fields.iter().map(|f| (f.name.to_string(), f.range())).collect();
-    write_system(case, dir, &k, &rhs, blocks, disc.saddle_point_split(problem.formulation)?, obs)
+    write_system(dir, &k, &rhs, blocks, obs)?;
+    write_augmented(case, dir, &k, || Ok(disc.saddle_point_split(problem.formulation)?), obs)
 }
 
 fn export_fsi<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &Path, dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
     let model = fsi_model(case, fluid_mesh, case_dir)?;
-    let dt = case.time.as_ref().map_or(1.0, |ts| ts.dt);
+    let dt = case.time.as_ref().expect("fsi_model refuses a case without [time]").dt;
     let state = FsiState::at_rest(&model);
     let start = StepStart::new(&model, &state, dt)?;
     let disc = &start.disc;
@@ -67,19 +68,13 @@ fn export_fsi<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &Path
     disc.assemble(&model, &start.input(&state), &start.x, &start.constrained, &mut k, &mut rhs)
         .map_err(|e| FsiError::Newton(NewtonError::Assembly(e)))?;
     let blocks = disc.layout.blocks().map(|(b, r)| (b.name().to_string(), r)).collect();
-    write_system(case, dir, &k, &rhs, blocks, disc.saddle_point_split(&model)?, obs)
+    write_system(dir, &k, &rhs, blocks, obs)?;
+    write_augmented(case, dir, &k, || Ok(disc.saddle_point_split(&model)?), obs)
 }
 
-/// Writes `jacobian.mtx`, `rhs.mtx`, `blocks.json` and, with the AL solver, `augmented.mtx`.
-fn write_system(
-    case: &Case,
-    dir: &Path,
-    k: &CscMatrix<'_>,
-    rhs: &[f64],
-    blocks: Vec<(String, Range<usize>)>,
-    split: SaddlePointSplit,
-    obs: &mut dyn RunObserver,
-) -> Result<(), RunError> {
+/// Writes `jacobian.mtx`, `rhs.mtx` and `blocks.json` (every block of the layout, empty ones
+/// included, e.g. the solid pressure of a compressible law).
+fn write_system(dir: &Path, k: &CscMatrix<'_>, rhs: &[f64], blocks: Vec<(String, Range<usize>)>, obs: &mut dyn RunObserver) -> Result<(), RunError> {
     write_matrix(&dir.join("jacobian.mtx"), k)?;
     write_vector(&dir.join("rhs.mtx"), rhs)?;
     let n = rhs.len();
@@ -87,9 +82,21 @@ fn write_system(
     let json = serde_json::to_string_pretty(&serde_json::json!({ "dofs": n, "blocks": blocks })).expect("JSON of numbers and names");
     write_atomic(&dir.join("blocks.json"), json.as_bytes())?;
     obs.log(&format!("exported the first Newton system ({n} unknowns, {} entries) to {}", k.pattern.nnz(), dir.display()));
+    Ok(())
+}
+
+/// With the AL solver, writes `augmented.mtx`: the augmented block of `k` under the split that
+/// `split` builds (only then).
+fn write_augmented(
+    case: &Case,
+    dir: &Path,
+    k: &CscMatrix<'_>,
+    split: impl FnOnce() -> Result<SaddlePointSplit, RunError>,
+    obs: &mut dyn RunObserver,
+) -> Result<(), RunError> {
     if case.solver.linear.method == LinearMethod::AugmentedLagrangian {
         let mut al = AugmentedLagrangian::new(case.solver.linear.al_options(case.time.is_some(), case.physics.formulation));
-        crate::solve::linear::LinearSolver::set_split(&mut al, split);
+        crate::solve::linear::LinearSolver::set_split(&mut al, split()?);
         if let Some((pattern, values)) = al.augmented_block(k).map_err(|e| RunError::Unsupported(e.to_string()))? {
             write_matrix(&dir.join("augmented.mtx"), &CscMatrix { pattern: &pattern, values })?;
             obs.log(&format!("and its augmented block ({} unknowns, {} entries)", pattern.n, pattern.nnz()));

@@ -74,14 +74,16 @@
 //!   in the Schur block.
 //! - `Schur` (the case files' default for the coupling multiplier in 3D): in the Schur block with
 //!   the grad-div weight scaled by [`SOLID_GAMMA_SCALE`]; groups at Dirichlet boundaries (a
-//!   coupling facet at a no-slip wall) take [`BOUNDARY_GAMMA_SCALE`] on top, `3e-4 gamma_b`, as
+//!   coupling facet at a no-slip wall; with the solid pressure in the Schur block, a solid cell
+//!   at the clamped rim) take [`BOUNDARY_GAMMA_SCALE`] on top, `3e-4 gamma_b`, as
 //!   measured below. The coupling multiplier lives on a surface, where `B A^-1 B'` is not
 //!   spectrally a mass matrix, and the full weight again makes FGMRES stall: model problem 4, its
 //!   first 2 steps with fresh factors and both solid blocks in the Schur block, Krylov iterations
 //!   per Newton step 2-21 at the factor 1, 3-5 at 0.1, 3-6 at 1e-2, 6-12 at 1e-3. The LU block
 //!   loses the coupling multipliers, zero diagonals that the ordering must place after their
 //!   neighbours: on the fine mesh of model problem 4 its factorisation falls from 1.36e12 to
-//!   5.3e11 flops.
+//!   5.3e11 flops (both with three candidate separators; 4.6e11 with today's eight,
+//!   [`super::ordering`]).
 //!
 //! The solid pressure stays primal because of the held factors (**Reuse**, below). Within a time
 //! step the Jacobian changes little (model problem 4, first step, Newton iteration 1 to 2: the
@@ -91,8 +93,8 @@
 //! held factors no longer precondition: 8 Krylov iterations left 0.6-0.8 of the residual at
 //! every step's second Newton iteration (40 left 4e-4), so each step factorised twice. Primal,
 //! the held factors serve the whole step (2-7 Krylov iterations per Newton step) for 7.5 % more
-//! LU flops: model problem 4, 2 steps, 35.4 s to 20.1 s; its fine mesh 153 s to 90 s, both
-//! with the same forces to 7 digits.
+//! LU flops: model problem 4, 3 steps, 46.5 s to 32.8 s (one build, the placement set in the case
+//! file); its fine mesh, 2 steps, 153 s to 90 s; the same forces to 7 digits.
 //!
 //! **Reuse.** With [`AlOptions::refactor_iterations`] `> 0`, the factorisation of `A_gamma` is
 //! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
