@@ -47,7 +47,7 @@ impl Rng {
 fn coupling_operator_reproduces_constants() {
     let model = tiny_model();
     let base = vec![0.0; model.solid.num_dofs()];
-    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let disc = FsiDiscretization::build(&model, &base, &Default::default()).unwrap();
     let mut fluid = model.problem.fluid.clone();
     let dt = 0.25;
     fluid.params.inv_dt = 1.0 / dt;
@@ -95,7 +95,7 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
         *v = 2e-3 * rng.next();
     }
     let f = model.solid.deformation_gradients(&base).unwrap();
-    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let disc = FsiDiscretization::build(&model, &base, &Default::default()).unwrap();
     let mut fluid = model.problem.fluid.clone();
     let dt = 0.1;
     fluid.params.inv_dt = 1.0 / dt;
@@ -229,7 +229,7 @@ type = "no-slip"
 fn unknowns_are_described_by_field_and_position() {
     let model = tiny_model();
     let base = vec![0.0; model.solid.num_dofs()];
-    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let disc = FsiDiscretization::build(&model, &base, &Default::default()).unwrap();
     let (vel, pres) = (&disc.flow.velocity_field(), &disc.flow.pressure_field());
     let x = disc.flow.velocity_nodes[3];
     assert_eq!(disc.describe_unknown(&model, vel.dof(3, 1)), format!("the fluid velocity y at ({:.6}, {:.6})", x[0], x[1]));
@@ -270,7 +270,7 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
     case.solid.as_mut().unwrap().mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
     let AnyMesh::D3(mesh) = fdfsi::setup::build_mesh(&case, &dir).unwrap() else { panic!("3D") };
     let model = fdfsi::setup::fsi_model::<D>(&case, &mesh, &dir).unwrap();
-    let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()]).unwrap();
+    let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()], &Default::default()).unwrap();
     let c = &disc.coupling;
     let (ne, nf) = (c.num_elements(), c.nf);
     let vel = &disc.flow.velocity_field();
@@ -374,4 +374,48 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
     );
     assert_eq!(null, disc.kernel.len(), "the removed modes span the null space of the pairing");
     assert!(next > 1e-6 * max, "a clear gap between the null space and the rest");
+}
+
+/// A coupling element's solid cells of the last step stay in the pattern of a mesh with the same
+/// topology (the entries hold zeros) and are dropped for another topology; the state carries
+/// them through a checkpoint, so a resumed run builds the patterns of an uninterrupted one.
+#[test]
+fn coupling_cells_are_carried_to_a_mesh_of_the_same_topology() {
+    use fdfsi::discretize::fsi::{CouplingPattern, FsiRestart, FsiState};
+    let model = tiny_model();
+    let base = vec![0.0; model.solid.num_dofs()];
+    let fresh = FsiDiscretization::build(&model, &base, &CouplingPattern::default()).unwrap();
+    let own = fresh.coupling_pattern.clone();
+    let cells = model.solid.mesh.num_cells();
+    let (e, sc) = (0..fresh.coupling.num_elements())
+        .flat_map(|e| (0..cells).map(move |c| (e, c)))
+        .find(|pair| !own.cells.contains(pair))
+        .expect("an element with a solid cell it does not touch");
+    let mut carried = own.clone();
+    carried.cells.push((e, sc));
+    carried.cells.sort_unstable();
+    let with = FsiDiscretization::build(&model, &base, &carried).unwrap();
+    assert_eq!(with.coupling_pattern, carried);
+    let sf = model.solid.displacement_field();
+    let (os, ol) = (with.solid_offset(), with.multiplier_offset());
+    let multiplier = ol + e * 2 * 2;
+    let solid_dofs: Vec<usize> = sf.nodes.cell(sc).iter().map(|&node| os + sf.dof(node, 0)).collect();
+    assert!(solid_dofs.iter().all(|&d| with.pattern.find(multiplier, d).is_some()));
+    assert!(solid_dofs.iter().any(|&d| fresh.pattern.find(multiplier, d).is_none()));
+    assert!(with.pattern.nnz() > fresh.pattern.nnz());
+    // Another topology: the carried cells are dropped.
+    let stale = CouplingPattern { topology: carried.topology ^ 1, cells: carried.cells.clone() };
+    let without = FsiDiscretization::build(&model, &base, &stale).unwrap();
+    assert_eq!(without.coupling_pattern, own);
+    assert_eq!(without.pattern.nnz(), fresh.pattern.nnz());
+    // Through a checkpoint's text and back.
+    let mut state = FsiState::at_rest(&model);
+    state.coupling_pattern = carried.clone();
+    let text = serde_json::to_string(&state.to_restart()).unwrap();
+    let restart: FsiRestart = serde_json::from_str(&text).unwrap();
+    assert_eq!(FsiState::from_restart(&model, 0.0, &restart).unwrap().coupling_pattern, carried);
+    // A checkpoint of an earlier build (no such field) starts afresh.
+    let old: FsiRestart =
+        serde_json::from_str(&text.replace(&format!(",\"coupling_pattern\":{}", serde_json::to_string(&carried).unwrap()), "")).unwrap();
+    assert_eq!(old.coupling_pattern, CouplingPattern::default());
 }

@@ -366,7 +366,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
         *v = 2e-3 * rnd();
     }
     let f = model.solid.deformation_gradients(&base).unwrap();
-    let disc = FsiDiscretization::build(&model, &base).unwrap();
+    let disc = FsiDiscretization::build(&model, &base, &Default::default()).unwrap();
     let ne = disc.coupling.num_elements();
     assert_eq!(disc.coupling.num_chains, 1);
     assert_eq!(disc.multiplier_dofs(), ne * 4 + 2);
@@ -376,7 +376,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
     let mut pinned = model.problem.clone();
     pinned.fluid.dirichlet.push(DirichletBc { boundary: "gamma_f".into(), components: vec![0], value: Arc::new(|_: &[f64; 2], _| [0.0; 2]) });
     let pinned = FsiModel::new(pinned, &fluid_mesh, model.solid.mesh.clone()).unwrap().with_multiplier(MultiplierSpace::P1DiscontinuousTraceMode);
-    let pd = FsiDiscretization::build(&pinned, &base).unwrap();
+    let pd = FsiDiscretization::build(&pinned, &base, &Default::default()).unwrap();
     assert_eq!(pd.inactive_multiplier_dofs, vec![pd.mode_multiplier_dof(0, 0)]);
     let mut fluid = model.problem.fluid.clone();
     let dt = 0.1;

@@ -231,6 +231,10 @@ pub struct FsiRestart {
     /// The fluid velocity of the last step and the solid displacement its adapted mesh was built
     /// for (the mesh is rebuilt from it); `None` while the fluid is at rest.
     pub fluid: Option<FluidRestart>,
+    /// The coupling elements' solid cells of the last step's pattern (empty in checkpoints of
+    /// earlier builds: the next step then starts its pattern afresh).
+    #[serde(default)]
+    pub coupling_pattern: CouplingPattern,
 }
 
 /// The fluid velocity of an FSI step on the mesh adapted to `solid_base`.
@@ -238,6 +242,27 @@ pub struct FsiRestart {
 pub struct FluidRestart {
     pub solid_base: Vec<f64>,
     pub velocity: Vec<f64>,
+}
+
+/// The solid cells in the pattern of each coupling element, carried from step to step while
+/// the adapted fluid mesh keeps its topology.
+///
+/// A coupling element couples its multipliers and the fluid velocity of its cell to the solid
+/// displacement of every solid cell its points project into. As the solid deforms, a point near
+/// the edge of a solid facet may project into the neighbouring cell, which changes the pattern
+/// of the whole system, and with it the split and the LU's ordering and symbolic analysis of the
+/// next solve (model problem 4, fine mesh: 8-13 s a step). While the adapted mesh keeps its
+/// topology, the pattern keeps every cell an element coupled to since the topology was last new
+/// (the extra entries hold zeros): it changes only when a point lands in a cell it never
+/// touched. The cells are part of the state (and of checkpoints), so that a resumed run builds
+/// the patterns of an uninterrupted one.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CouplingPattern {
+    /// Fingerprint of the adapted mesh's topology (its cells' nodes and the fluid cell of each
+    /// coupling element): the cells are carried only to a mesh with the same one.
+    pub topology: u64,
+    /// `(coupling element, solid cell)` pairs, sorted.
+    pub cells: Vec<(usize, usize)>,
 }
 
 /// The state at `t_n`.
@@ -252,6 +277,8 @@ pub struct FsiState<const D: usize> {
     pub solid_v: Vec<f64>,
     /// `None`: fluid at rest.
     pub fluid: Option<FluidSnapshot<D>>,
+    /// The coupling elements' solid cells of the last step's pattern.
+    pub coupling_pattern: CouplingPattern,
 }
 
 impl<const D: usize> FsiState<D> {
@@ -264,6 +291,7 @@ impl<const D: usize> FsiState<D> {
             solid_f: vec![IDENTITY; model.solid.mesh.num_cells() * model.solid.points_per_cell()],
             solid_v: vec![0.0; n],
             fluid: None,
+            coupling_pattern: CouplingPattern::default(),
         }
     }
 }
@@ -276,6 +304,7 @@ impl<const D: usize> FsiState<D> {
             solid_f: self.solid_f.clone(),
             solid_v: self.solid_v.clone(),
             fluid: self.fluid.as_ref().map(|f| FluidRestart { solid_base: f.solid_base.clone(), velocity: f.velocity.clone() }),
+            coupling_pattern: self.coupling_pattern.clone(),
         }
     }
 
@@ -285,7 +314,7 @@ impl<const D: usize> FsiState<D> {
         let fluid = match &r.fluid {
             None => None,
             Some(f) => {
-                let disc = FsiDiscretization::build(model, &f.solid_base)?;
+                let disc = FsiDiscretization::build(model, &f.solid_base, &CouplingPattern::default())?;
                 let vel = &disc.flow.velocity_field();
                 if vel.num_dofs() != f.velocity.len() {
                     return Err(FsiError::Restart(format!(
@@ -302,7 +331,14 @@ impl<const D: usize> FsiState<D> {
                 })
             }
         };
-        Ok(FsiState { time, solid_x: r.solid_x.clone(), solid_f: r.solid_f.clone(), solid_v: r.solid_v.clone(), fluid })
+        Ok(FsiState {
+            time,
+            solid_x: r.solid_x.clone(),
+            solid_f: r.solid_f.clone(),
+            solid_v: r.solid_v.clone(),
+            fluid,
+            coupling_pattern: r.coupling_pattern.clone(),
+        })
     }
 }
 
@@ -402,6 +438,8 @@ pub struct FsiDiscretization<const D: usize> {
     /// and `(M z_j) . lambda = 0`: lambda is M-orthogonal to the kernel and the constraints are
     /// tested only with its M-orthogonal complement.
     pub kernel: Vec<Vec<(usize, f64)>>,
+    /// The coupling elements' solid cells in `pattern`.
+    pub coupling_pattern: CouplingPattern,
     pub pattern: Pattern,
     flow_map: Vec<usize>,
     solid_map: Vec<usize>,
@@ -446,10 +484,37 @@ fn position_map(local: &Pattern, global: &Pattern, offset: usize) -> Vec<usize> 
     out
 }
 
+/// The coupling elements' solid cells of the pattern: those their points lie in, with the cells
+/// of `carried` if the adapted mesh (`mesh`, the elements' fluid cells) has its topology.
+fn coupling_pattern<const D: usize>(mesh: &Mesh<D>, coupling: &CouplingElements<D>, carried: &CouplingPattern) -> CouplingPattern {
+    let words = std::iter::once(mesh.cell_nodes.len()).chain(mesh.cell_nodes.iter().copied()).chain(coupling.fluid_cell.iter().copied());
+    let topology = crate::solve::linear::fnv1a(words.map(|w| w as u64));
+    let mut cells: Vec<(usize, usize)> = (0..coupling.num_elements())
+        .flat_map(|e| coupling.solid_cell[coupling.point_start[e]..coupling.point_start[e + 1]].iter().map(move |&sc| (e, sc)))
+        .collect();
+    cells.sort_unstable();
+    cells.dedup();
+    let own = cells.len();
+    let same = carried.topology == topology;
+    if same {
+        cells.extend_from_slice(&carried.cells);
+        cells.sort_unstable();
+        cells.dedup();
+    }
+    tracing::debug!(
+        "coupling pattern: {} (element, solid cell) pairs, {own} of this step's points, {} new to the carried ones{}",
+        cells.len(),
+        cells.len() - if same { carried.cells.len() } else { 0 },
+        if same { "" } else { " (the mesh's topology is new)" }
+    );
+    CouplingPattern { topology, cells }
+}
+
 impl<const D: usize> FsiDiscretization<D> {
     /// Adapts the original fluid mesh of `model` to gamma_s at the solid displacement `solid_x`
-    /// and builds the monolithic discretisation.
-    pub fn build(model: &FsiModel<D>, solid_x: &[f64]) -> Result<Self, FsiError> {
+    /// and builds the monolithic discretisation; its pattern keeps the coupling cells of
+    /// `carried` if the adapted mesh has their topology ([`CouplingPattern`]).
+    pub fn build(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern) -> Result<Self, FsiError> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
         let adapted = adapt_with(&model.background, &surface, &model.problem.adapt)?;
@@ -502,8 +567,9 @@ impl<const D: usize> FsiDiscretization<D> {
         let (os, ol, n) = (layout.offset(Block::SolidDisplacement), layout.offset(Block::Multiplier), layout.num_dofs());
         let kernel_first = layout.offset(Block::KernelUnknowns) - ol;
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
-        // displacement of every solid cell its points land in.
+        // displacement of every solid cell its points land in (and of the carried ones).
         let sf = model.solid.displacement_field();
+        let coupling_pattern = coupling_pattern(&flow.mesh, &coupling, carried);
         let coupling_dofs: Vec<Vec<usize>> = (0..ne)
             .map(|e| {
                 let mut d: Vec<usize> = (0..D * D).map(|k| ol + e * D * D + k).collect();
@@ -513,9 +579,8 @@ impl<const D: usize> FsiDiscretization<D> {
                 for &node in vel.nodes.cell(coupling.fluid_cell[e]) {
                     d.extend((0..D).map(|a| vel.dof(node, a)));
                 }
-                let mut cells: Vec<usize> = coupling.solid_cell[coupling.point_start[e]..coupling.point_start[e + 1]].to_vec();
-                cells.sort_unstable();
-                cells.dedup();
+                let first = coupling_pattern.cells.partition_point(|&(f, _)| f < e);
+                let cells = coupling_pattern.cells[first..].iter().take_while(|&&(f, _)| f == e).map(|&(_, sc)| sc);
                 for sc in cells {
                     for &node in sf.nodes.cell(sc) {
                         d.extend((0..D).map(|a| os + sf.dof(node, a)));
@@ -553,6 +618,7 @@ impl<const D: usize> FsiDiscretization<D> {
             layout,
             inactive_multiplier_dofs,
             kernel,
+            coupling_pattern,
             pattern,
             flow_map,
             solid_map,
@@ -1129,7 +1195,7 @@ impl<const D: usize> StepStart<D> {
     /// Adapts, discretises and transfers for the step from `state` (at `t_n`) to `t_n + dt`.
     pub fn new(model: &FsiModel<D>, state: &FsiState<D>, dt: f64) -> Result<Self, FsiError> {
         let clock = Instant::now();
-        let disc = FsiDiscretization::build(model, &state.solid_x)?;
+        let disc = FsiDiscretization::build(model, &state.solid_x, &state.coupling_pattern)?;
         let build = clock.elapsed().as_secs_f64();
         let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
         let time = state.time + dt;
@@ -1252,7 +1318,8 @@ pub fn step<const D: usize>(
         max_solid_increment,
         seconds,
     };
-    let new_state = FsiState { time: t_new, solid_x, solid_f, solid_v, fluid: Some(snapshot) };
+    let coupling_pattern = disc.coupling_pattern.clone();
+    let new_state = FsiState { time: t_new, solid_x, solid_f, solid_v, fluid: Some(snapshot), coupling_pattern };
     Ok((new_state, FsiStep { disc, x, u_old, fluid_problem: fluid, report }))
 }
 

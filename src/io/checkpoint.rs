@@ -7,7 +7,8 @@
 //! - the step number `k` and time `t_k`;
 //! - the state: for a flow run the solution `x^k` and, for BDF2, `x^{k-1}`; for an FSI run the
 //!   solid displacement, deformation gradients and velocity, the fluid velocity and the solid
-//!   position its (adapted) mesh was built for; for a solid run the load factor, the solution,
+//!   position its (adapted) mesh was built for, the coupling cells of its pattern
+//!   ([`crate::discretize::fsi::CouplingPattern`]); for a solid run the load factor, the solution,
 //!   the deformation gradients (updated Lagrangian) and the predictor;
 //! - the run's running totals (Newton iterations, residuals, phase timings) for `summary.json`;
 //! - the builds of fdfsi that ran it so far (see [`crate::io::provenance`]).

@@ -372,7 +372,7 @@ impl AugmentedLagrangian {
     /// A solver with the given options; it is the direct LU until a split is given
     /// ([`LinearSolver::set_split`]).
     pub fn new(options: AlOptions) -> Self {
-        let inner = LinearSolverOptions { check_accuracy: false, ..options.lu.clone() };
+        let inner = LinearSolverOptions { check_accuracy: false, reuse_analysis: true, ..options.lu.clone() };
         let numeric = Numeric {
             lu: FaerLu::new(inner),
             scales: Vec::new(),

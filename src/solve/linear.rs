@@ -63,6 +63,15 @@ pub struct LinearSolverOptions {
     /// partial-pivoting LU when it is inaccurate. Off for the inner solve of a Krylov method,
     /// whose convergence is the check.
     pub check_accuracy: bool,
+    /// For a new pattern with the held analysis's size and zero-diagonal unknowns, keep the
+    /// whole analysis (with a new scatter map) when every entry lies in the held factor
+    /// structure (its fill then lies there too; a failed factorisation on it analyses afresh),
+    /// and otherwise keep the ordering (a new symbolic analysis, without the nested dissection).
+    /// On for the AL solver's inner LU, whose pattern grows by a few entries from FSI step to
+    /// step ([`crate::discretize::fsi::CouplingPattern`]). Off for the direct solve, whose
+    /// resumed runs repeat an uninterrupted run's arithmetic bit for bit (a resumed run analyses
+    /// its first pattern afresh).
+    pub reuse_analysis: bool,
 }
 
 impl Default for LinearSolverOptions {
@@ -74,6 +83,7 @@ impl Default for LinearSolverOptions {
             ordering: FillOrdering::default(),
             threads: 1,
             check_accuracy: true,
+            reuse_analysis: false,
         }
     }
 }
@@ -240,6 +250,8 @@ struct StaticSymbolic {
     len_val: usize,
     max_r: usize,
     max_k: usize,
+    /// [`zero_diagonal_key`] of the analysed matrix.
+    zero_key: u64,
     stats: FactorStats,
 }
 
@@ -253,7 +265,10 @@ struct StaticLu {
     rel: Vec<usize>,
 }
 
-fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSymbolic, LinearSolveError> {
+/// The static LU's analysis of `a`: a fill-reducing ordering of its nonzero-diagonal unknowns
+/// (or, with `kept`, theirs in that permutation of an earlier analysis with the same ones) and
+/// the supernodal structure.
+fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering, kept: Option<&[usize]>) -> Result<StaticSymbolic, LinearSolveError> {
     let t_start = std::time::Instant::now();
     use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering};
     use faer::sparse::linalg::SupernodalThreshold;
@@ -261,10 +276,7 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
     let n = p.n;
     let err = |m: String| LinearSolveError::Symbolic(m);
     // Zero-diagonal dofs.
-    let mut zero = vec![false; n];
-    for j in 0..n {
-        zero[j] = p.find(j, j).map(|k| a.values[k] == 0.0).unwrap_or(true);
-    }
+    let zero = zero_diagonals(a);
     // Fill-reducing order of the nonzero-diagonal dofs (`pos[local]` = position).
     let regular: Vec<usize> = (0..n).filter(|&j| !zero[j]).collect();
     let mut local = vec![usize::MAX; n];
@@ -290,7 +302,11 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         other => other,
     };
     let mut pos = vec![0usize; m];
-    if m > 0 {
+    if let Some(perm) = kept {
+        for (new, &j) in perm.iter().filter(|&&j| !zero[j]).enumerate() {
+            pos[local[j]] = new;
+        }
+    } else if m > 0 {
         match ordering {
             FillOrdering::Amd | FillOrdering::Auto => {
                 let mut amd_fwd = vec![0usize; m];
@@ -404,53 +420,111 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<StaticSy
         *u += l_len;
     }
     let len_val = u_ptr[nsup];
-    // Scatter map of A's entries.
-    let mut scatter = vec![0usize; p.nnz()];
-    let pos_in = |s: usize, i: usize| -> Option<usize> {
-        let (b, e) = (sn_begin[s], sn_begin[s + 1]);
-        if i >= b && i < e {
-            Some(i - b)
-        } else {
-            rows[row_ptr[s]..row_ptr[s + 1]].binary_search(&i).ok().map(|q| e - b + q)
-        }
+    let zero_key = zero_diagonal_key(&zero);
+    let mut sym = StaticSymbolic {
+        n,
+        perm,
+        sn_begin,
+        row_ptr,
+        rows,
+        l_ptr,
+        u_ptr,
+        owner,
+        scatter: Vec::new(),
+        len_val,
+        max_r,
+        max_k,
+        zero_key,
+        stats: FactorStats {
+            ordering,
+            supernodes: nsup,
+            nnz_lu: len_val,
+            flops,
+            threaded_flops,
+            ordering_seconds,
+            symbolic_seconds: 0.0,
+            mode_unknowns: mode_spans.len(),
+            mode_unknowns_joined: 0,
+        },
     };
-    for jo in 0..n {
-        let j = perm_inv[jo];
-        for idx in p.col_ptr[jo]..p.col_ptr[jo + 1] {
-            let i = perm_inv[p.row_idx[idx]];
-            scatter[idx] = if i >= j {
-                let s = owner[j];
-                let (b, e) = (sn_begin[s], sn_begin[s + 1]);
-                let ld = e - b + row_ptr[s + 1] - row_ptr[s];
-                let q = pos_in(s, i).ok_or_else(|| err(format!("entry ({i}, {j}) outside the factor structure")))?;
-                l_ptr[s] + (j - b) * ld + q
+    sym.scatter = sym.scatter_map(p, &perm_inv)?;
+    sym.stats.mode_unknowns_joined = mode_spans.iter().filter(|&&(first, last)| sym.owner[first] == sym.owner[last]).count();
+    sym.stats.symbolic_seconds = t_start.elapsed().as_secs_f64();
+    Ok(sym)
+}
+
+/// A fingerprint of the zero-diagonal unknowns.
+fn zero_diagonal_key(zero: &[bool]) -> u64 {
+    fnv1a(zero.iter().enumerate().filter(|(_, &z)| z).map(|(j, _)| j as u64))
+}
+
+/// The zero-diagonal unknowns of `a` (no stored diagonal, or a stored zero).
+fn zero_diagonals(a: &CscMatrix<'_>) -> Vec<bool> {
+    let p = a.pattern;
+    (0..p.n).map(|j| p.find(j, j).map(|k| a.values[k] == 0.0).unwrap_or(true)).collect()
+}
+
+impl StaticSymbolic {
+    /// Position in the value array of each stored entry of `p` (`perm_inv[old] = new`); an
+    /// error names an entry outside the factor structure.
+    fn scatter_map(&self, p: &Pattern, perm_inv: &[usize]) -> Result<Vec<usize>, LinearSolveError> {
+        let err = |m: String| LinearSolveError::Symbolic(m);
+        let (sn_begin, row_ptr, rows, owner, l_ptr, u_ptr) = (&self.sn_begin, &self.row_ptr, &self.rows, &self.owner, &self.l_ptr, &self.u_ptr);
+        let n = self.n;
+        let mut scatter = vec![0usize; p.nnz()];
+        let pos_in = |s: usize, i: usize| -> Option<usize> {
+            let (b, e) = (sn_begin[s], sn_begin[s + 1]);
+            if i >= b && i < e {
+                Some(i - b)
             } else {
-                let s = owner[i];
-                let (b, e) = (sn_begin[s], sn_begin[s + 1]);
-                let k = e - b;
-                let r = row_ptr[s + 1] - row_ptr[s];
-                let q = pos_in(s, j).ok_or_else(|| err(format!("entry ({i}, {j}) outside the factor structure")))?;
-                if q < k {
-                    l_ptr[s] + q * (k + r) + (i - b)
+                rows[row_ptr[s]..row_ptr[s + 1]].binary_search(&i).ok().map(|q| e - b + q)
+            }
+        };
+        for jo in 0..n {
+            let j = perm_inv[jo];
+            for idx in p.col_ptr[jo]..p.col_ptr[jo + 1] {
+                let i = perm_inv[p.row_idx[idx]];
+                scatter[idx] = if i >= j {
+                    let s = owner[j];
+                    let (b, e) = (sn_begin[s], sn_begin[s + 1]);
+                    let ld = e - b + row_ptr[s + 1] - row_ptr[s];
+                    let q = pos_in(s, i).ok_or_else(|| err(format!("entry ({i}, {j}) outside the factor structure")))?;
+                    l_ptr[s] + (j - b) * ld + q
                 } else {
-                    u_ptr[s] + (i - b) * r + (q - k)
-                }
-            };
+                    let s = owner[i];
+                    let (b, e) = (sn_begin[s], sn_begin[s + 1]);
+                    let k = e - b;
+                    let r = row_ptr[s + 1] - row_ptr[s];
+                    let q = pos_in(s, j).ok_or_else(|| err(format!("entry ({i}, {j}) outside the factor structure")))?;
+                    if q < k {
+                        l_ptr[s] + q * (k + r) + (i - b)
+                    } else {
+                        u_ptr[s] + (i - b) * r + (q - k)
+                    }
+                };
+            }
         }
+        Ok(scatter)
     }
-    let mode_unknowns_joined = mode_spans.iter().filter(|&&(first, last)| owner[first] == owner[last]).count();
-    let stats = FactorStats {
-        ordering,
-        supernodes: nsup,
-        nnz_lu: len_val,
-        flops,
-        threaded_flops,
-        ordering_seconds,
-        symbolic_seconds: t_start.elapsed().as_secs_f64(),
-        mode_unknowns: mode_spans.len(),
-        mode_unknowns_joined,
-    };
-    Ok(StaticSymbolic { n, perm, sn_begin, row_ptr, rows, l_ptr, u_ptr, owner, scatter, len_val, max_r, max_k, stats })
+
+    /// Whether `a` has the analysed matrix's size and zero-diagonal unknowns (then the
+    /// ordering may serve it).
+    fn same_unknowns(&self, a: &CscMatrix<'_>) -> bool {
+        a.pattern.n == self.n && zero_diagonal_key(&zero_diagonals(a)) == self.zero_key
+    }
+
+    /// The scatter map of `a` if this analysis serves it: the same size and zero-diagonal
+    /// unknowns, every entry inside the factor structure.
+    fn serves(&self, a: &CscMatrix<'_>) -> Option<Vec<usize>> {
+        if !self.same_unknowns(a) {
+            return None;
+        }
+        let mut perm_inv = vec![0usize; self.n];
+        for (new, &old) in self.perm.iter().enumerate() {
+            perm_inv[old] = new;
+        }
+        self.scatter_map(a.pattern, &perm_inv).ok()
+    }
 }
 
 /// Merges consecutive supernodes (first columns `begin`, `nsup + 1` entries; sorted off-diagonal
@@ -799,7 +873,7 @@ impl FaerLu {
     /// Symbolic analysis of the static LU alone (ordering, supernodes, fill and flop count),
     /// without any numeric work: to compare orderings on a pattern.
     pub fn analyse(a: &CscMatrix<'_>, ordering: FillOrdering) -> Result<FactorStats, LinearSolveError> {
-        static_symbolic(a, ordering).map(|s| s.stats)
+        static_symbolic(a, ordering, None).map(|s| s.stats)
     }
 
     /// Size and cost of the static LU in use (`None` when faer's pivoting LU is active or
@@ -886,6 +960,21 @@ impl FaerLu {
         (res, refinements)
     }
 
+    /// A symbolic analysis for the pattern of `a`, with a new ordering or the permutation
+    /// `kept` of an earlier analysis of the same unknowns.
+    fn analyse_pattern(&mut self, a: &CscMatrix<'_>, kept: Option<&[usize]>) {
+        self.static_lu = None;
+        self.pivoting = None;
+        if self.method == LuMethod::Auto {
+            // A failed static analysis (cannot happen for a valid pattern) just means pivoting.
+            self.static_lu = static_symbolic(a, self.options.ordering, kept).ok().map(StaticLu::new);
+            if kept.is_some() {
+                tracing::debug!("new pattern with the held unknowns: ordering kept");
+            }
+        }
+        self.symbolic_count += 1;
+    }
+
     fn factorize_pivoting(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
         let view = faer_view(a);
         let par = self.par();
@@ -913,7 +1002,7 @@ pub(super) fn pattern_key(p: &Pattern) -> u64 {
 
 /// FNV-1a over whole words: a few milliseconds for millions of entries, where the default
 /// SipHash took 1.7 % of a Schaefer-Turek 2D-1 solve; no adversary chooses the inputs.
-pub(super) fn fnv1a(words: impl IntoIterator<Item = u64>) -> u64 {
+pub(crate) fn fnv1a(words: impl IntoIterator<Item = u64>) -> u64 {
     words.into_iter().fold(0xcbf2_9ce4_8422_2325, |h, w| (h ^ w).wrapping_mul(0x0100_0000_01b3))
 }
 
@@ -943,20 +1032,38 @@ impl LinearSolver for FaerLu {
     fn factorize(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
         let key = pattern_key(a.pattern);
         self.active = Active::None;
+        let mut reused = false;
         if self.key != Some(key) {
-            self.key = None;
-            self.static_lu = None;
-            self.pivoting = None;
-            if self.method == LuMethod::Auto {
-                // A failed static analysis (cannot happen for a valid pattern) just means pivoting.
-                self.static_lu = static_symbolic(a, self.options.ordering).ok().map(StaticLu::new);
+            let served = match (&self.static_lu, self.options.reuse_analysis) {
+                (Some(s), true) => s.sym.serves(a),
+                _ => None,
+            };
+            if let Some(scatter) = served {
+                tracing::debug!("new pattern inside the held factor structure: ordering and symbolic analysis kept");
+                self.static_lu.as_mut().expect("held").sym.scatter = scatter;
+                reused = true;
+            } else {
+                let kept = match (&self.static_lu, self.options.reuse_analysis) {
+                    (Some(s), true) if s.sym.same_unknowns(a) => Some(std::mem::take(&mut self.static_lu.as_mut().expect("held").sym.perm)),
+                    _ => None,
+                };
+                self.analyse_pattern(a, kept.as_deref());
             }
             self.key = Some(key);
-            self.symbolic_count += 1;
         }
         let par = self.par();
+        let mut done = None;
+        if reused {
+            match self.static_lu.as_mut().expect("held").factorize(a, par) {
+                Ok(()) => done = Some(Ok(())),
+                Err(e) => {
+                    tracing::debug!("the kept analysis failed on the new pattern ({e}): analysing afresh");
+                    self.analyse_pattern(a, None);
+                }
+            }
+        }
         if let Some(s) = self.static_lu.as_mut() {
-            let static_result = s.factorize(a, par);
+            let static_result = done.unwrap_or_else(|| s.factorize(a, par));
             if static_result.is_ok() {
                 self.active = Active::Static;
                 if !self.options.check_accuracy || self.check_accuracy(a) <= STATIC_CHECK_TOLERANCE {
@@ -1193,6 +1300,62 @@ mod tests {
         (p, v, zero)
     }
 
+    /// Keeps `(i, j)` entries of `p` with `keep(i, j)`, adds `extra` (both orders), values from `v`
+    /// (new entries `value`).
+    fn edited(p: &Pattern, v: &[f64], keep: impl Fn(usize, usize) -> bool, extra: &[(usize, usize)], value: f64) -> (Pattern, Vec<f64>) {
+        let mut cols: Vec<Vec<(usize, f64)>> =
+            (0..p.n).map(|j| (p.col_ptr[j]..p.col_ptr[j + 1]).filter(|&k| keep(p.row_idx[k], j)).map(|k| (p.row_idx[k], v[k])).collect()).collect();
+        for &(i, j) in extra {
+            cols[j].push((i, value));
+            cols[i].push((j, value));
+        }
+        let (mut col_ptr, mut row_idx, mut values) = (vec![0], Vec::new(), Vec::new());
+        for mut c in cols {
+            c.sort_by_key(|e| e.0);
+            row_idx.extend(c.iter().map(|e| e.0));
+            values.extend(c.iter().map(|e| e.1));
+            col_ptr.push(row_idx.len());
+        }
+        (Pattern { n: p.n, col_ptr, row_idx }, values)
+    }
+
+    /// With `reuse_analysis`, a pattern inside the held factor structure keeps the analysis, and
+    /// one outside it with the same unknowns keeps the ordering (a new symbolic analysis); the
+    /// solves stay exact either way.
+    #[test]
+    fn held_analysis_serves_patterns_inside_its_factor_structure() {
+        let (p, v, zero) = fsi_like(12, 8, 6);
+        let n = p.n;
+        let mut lu = FaerLu::new(LinearSolverOptions { reuse_analysis: true, ..Default::default() });
+        let solve = |lu: &mut FaerLu, pattern: &Pattern, values: Vec<f64>| {
+            let a = CscMatrix { pattern, values };
+            lu.factorize(&a).unwrap();
+            let x: Vec<f64> = (0..n).map(|i| hash01(3 * i + 1)).collect();
+            let mut b = vec![0.0; n];
+            a.mul_vec(&x, &mut b);
+            lu.solve_in_place(&a, &mut b).unwrap();
+            b.iter().zip(&x).map(|(y, x)| (y - x).abs()).fold(0.0, f64::max)
+        };
+        assert!(solve(&mut lu, &p, v.clone()) < 1e-10);
+        assert_eq!(lu.symbolic_factorizations(), 1);
+        // Drop one off-diagonal pair between velocity dofs: inside the structure.
+        let (i0, j0) = (0..n)
+            .flat_map(|j| (p.col_ptr[j]..p.col_ptr[j + 1]).map(move |k| (k, j)))
+            .map(|(k, j)| (p.row_idx[k], j))
+            .find(|&(i, j)| i > j && !zero[i] && !zero[j])
+            .unwrap();
+        let (p2, v2) = edited(&p, &v, |i, j| (i, j) != (i0, j0) && (j, i) != (i0, j0), &[], 0.0);
+        assert!(p2.nnz() == p.nnz() - 2);
+        assert!(solve(&mut lu, &p2, v2) < 1e-10);
+        assert_eq!(lu.symbolic_factorizations(), 1, "a pattern inside the factor structure keeps the analysis");
+        // Couple the first and the last velocity dof: outside the structure, same unknowns.
+        let last = (0..n).rev().find(|&j| !zero[j]).unwrap();
+        assert!(p.find(last, 0).is_none());
+        let (p3, v3) = edited(&p, &v, |_, _| true, &[(last, 0)], 0.3);
+        assert!(solve(&mut lu, &p3, v3) < 1e-10);
+        assert_eq!(lu.symbolic_factorizations(), 2);
+    }
+
     #[test]
     fn auto_ordering_picks_by_degree_and_size() {
         // A sparse 2D-like system (about 5 entries per row) gets AMD ...
@@ -1221,7 +1384,7 @@ mod tests {
         let (p, v, zero) = fsi_like(40, 30, 25);
         let a = CscMatrix { pattern: &p, values: v };
         for ordering in [FillOrdering::NestedDissection, FillOrdering::Amd] {
-            let sym = static_symbolic(&a, ordering).unwrap();
+            let sym = static_symbolic(&a, ordering, None).unwrap();
             let n = p.n;
             let mut pos = vec![0; n];
             let mut seen = vec![false; n];
