@@ -15,7 +15,8 @@
 //!
 //! Floating-point values are written in their shortest round-trip decimal form and read back
 //! exactly (serde_json's `float_roundtrip`), so a resumed run repeats the arithmetic of an
-//! uninterrupted one bit for bit. On resume, `history.csv` and `solution.pvd` are cut back to
+//! uninterrupted one bit for bit (with the direct solver; the AL solver's held factors and kept
+//! LU ordering are not saved, so its resumed runs agree to the Krylov tolerance). On resume, `history.csv` and `solution.pvd` are cut back to
 //! step `k` (rows and entries written after the checkpoint by the interrupted run are dropped).
 //!
 //! The file is written to a temporary name and renamed, so a run killed while writing leaves the

@@ -5,8 +5,8 @@
 //! or AMD ordering, chosen by the system's size and dimension, [`FillOrdering`]; pivoting only inside supernode diagonal blocks), validated
 //! after each factorisation and backed by faer's sparse partial-pivoting LU (pure Rust). The
 //! symbolic factorisation (fill-reducing ordering, elimination structure) depends only on the
-//! [`Pattern`] and is computed once per pattern; every Newton iteration only refactors
-//! numerically. After each solve the residual
+//! [`Pattern`] and is computed once per pattern (or kept for a slightly changed one, with
+//! [`LinearSolverOptions::reuse_analysis`]); every Newton iteration only refactors numerically. After each solve the residual
 //! `|b - A x| / |b|` is checked and the solution refined iteratively (`x += A^{-1} r`) while it is
 //! above [`LinearSolverOptions::refine_tolerance`].
 //!
@@ -66,7 +66,8 @@ pub struct LinearSolverOptions {
     /// For a new pattern with the held analysis's size and zero-diagonal unknowns, keep the
     /// whole analysis (with a new scatter map) when every entry lies in the held factor
     /// structure (its fill then lies there too; a failed factorisation on it analyses afresh),
-    /// and otherwise keep the ordering (a new symbolic analysis, without the nested dissection).
+    /// and otherwise keep the ordering (a new symbolic analysis, without the nested dissection)
+    /// while its flops stay within 1.1x of the analysis that ordered (else it orders afresh).
     /// On for the AL solver's inner LU, whose pattern grows by a few entries from FSI step to
     /// step ([`crate::discretize::fsi::CouplingPattern`]). Off for the direct solve, whose
     /// resumed runs repeat an uninterrupted run's arithmetic bit for bit (a resumed run analyses
@@ -99,7 +100,7 @@ pub enum FillOrdering {
     /// Measured (BENCHMARKS.md, "Orderings"): nested dissection needs 1.7-2.8x fewer flops in
     /// 3D, 25 % fewer on the 2D Schaefer-Turek medium mesh (145k dofs), and ties on 2D systems
     /// of 30-40k dofs, where its ordering costs twice AMD's: a 2D FSI run, which analyses a new
-    /// pattern every step, is faster with AMD.
+    /// pattern whenever the adapted mesh changes its topology, is faster with AMD.
     #[default]
     Auto,
     /// Multilevel nested dissection ([`super::ordering`]) of the nonzero-diagonal dofs.
@@ -252,6 +253,9 @@ struct StaticSymbolic {
     max_k: usize,
     /// [`zero_diagonal_key`] of the analysed matrix.
     zero_key: u64,
+    /// Flops of the analysis that computed the ordering (this one's, or the earlier one's whose
+    /// ordering it kept).
+    ordered_flops: f64,
     stats: FactorStats,
 }
 
@@ -435,6 +439,7 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering, kept: Option<&[usi
         max_r,
         max_k,
         zero_key,
+        ordered_flops: flops,
         stats: FactorStats {
             ordering,
             supernodes: nsup,
@@ -507,23 +512,33 @@ impl StaticSymbolic {
         Ok(scatter)
     }
 
-    /// Whether `a` has the analysed matrix's size and zero-diagonal unknowns (then the
+    /// Whether `a` has the analysed matrix's size and zero-diagonal unknowns `zero` (then the
     /// ordering may serve it).
-    fn same_unknowns(&self, a: &CscMatrix<'_>) -> bool {
-        a.pattern.n == self.n && zero_diagonal_key(&zero_diagonals(a)) == self.zero_key
+    fn same_unknowns(&self, a: &CscMatrix<'_>, zero: &[bool]) -> bool {
+        a.pattern.n == self.n && zero_diagonal_key(zero) == self.zero_key
     }
 
-    /// The scatter map of `a` if this analysis serves it: the same size and zero-diagonal
-    /// unknowns, every entry inside the factor structure.
-    fn serves(&self, a: &CscMatrix<'_>) -> Option<Vec<usize>> {
-        if !self.same_unknowns(a) {
+    /// The scatter map of `a` (zero-diagonal unknowns `zero`) if this analysis serves it: the
+    /// same size and zero-diagonal unknowns, every entry inside the factor structure, and every
+    /// zero-diagonal unknown after its nonzero-diagonal neighbours, as [`static_symbolic`] orders
+    /// them (none without such neighbours: those also need their supernode, `merge_supernodes`).
+    fn serves(&self, a: &CscMatrix<'_>, zero: &[bool]) -> Option<Vec<usize>> {
+        if !self.same_unknowns(a, zero) {
             return None;
         }
+        let p = a.pattern;
         let mut perm_inv = vec![0usize; self.n];
         for (new, &old) in self.perm.iter().enumerate() {
             perm_inv[old] = new;
         }
-        self.scatter_map(a.pattern, &perm_inv).ok()
+        let ordered = (0..self.n).filter(|&j| zero[j]).all(|j| {
+            let mut regular = p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().filter(|&&i| !zero[i]).peekable();
+            regular.peek().is_some() && regular.all(|&i| perm_inv[i] < perm_inv[j])
+        });
+        if !ordered {
+            return None;
+        }
+        self.scatter_map(p, &perm_inv).ok()
     }
 }
 
@@ -968,11 +983,42 @@ impl FaerLu {
         if self.method == LuMethod::Auto {
             // A failed static analysis (cannot happen for a valid pattern) just means pivoting.
             self.static_lu = static_symbolic(a, self.options.ordering, kept).ok().map(StaticLu::new);
-            if kept.is_some() {
-                tracing::debug!("new pattern with the held unknowns: ordering kept");
-            }
         }
         self.symbolic_count += 1;
+    }
+
+    /// For a new pattern with [`LinearSolverOptions::reuse_analysis`]: keeps the held analysis
+    /// if it serves `a` (returns true: a new scatter map only), else analyses with the held
+    /// ordering if `a` has its unknowns and the fill stays within [`KEPT_ORDERING_MAX_FLOPS`]
+    /// of the analysis that ordered, else afresh.
+    fn reanalyse(&mut self, a: &CscMatrix<'_>) -> bool {
+        let zero = zero_diagonals(a);
+        let Some(held) = self.static_lu.as_mut().filter(|s| s.sym.same_unknowns(a, &zero)) else {
+            self.analyse_pattern(a, None);
+            return false;
+        };
+        if let Some(scatter) = held.sym.serves(a, &zero) {
+            tracing::debug!("new pattern inside the held factor structure: ordering and symbolic analysis kept");
+            held.sym.scatter = scatter;
+            return true;
+        }
+        let (perm, ordered_flops) = (std::mem::take(&mut held.sym.perm), held.sym.ordered_flops);
+        self.analyse_pattern(a, Some(&perm));
+        match self.static_lu.as_mut() {
+            Some(s) if s.sym.stats.flops <= KEPT_ORDERING_MAX_FLOPS * ordered_flops => {
+                s.sym.ordered_flops = ordered_flops;
+                s.sym.stats.ordering_seconds = 0.0;
+                tracing::debug!("new pattern with the held unknowns: ordering kept ({:.3e} flops)", s.sym.stats.flops);
+            }
+            kept => {
+                tracing::debug!(
+                    "new pattern with the held unknowns: the held ordering needs {:.3e} flops against {ordered_flops:.3e}: ordering afresh",
+                    kept.map_or(f64::NAN, |s| s.sym.stats.flops)
+                );
+                self.analyse_pattern(a, None);
+            }
+        }
+        false
     }
 
     fn factorize_pivoting(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
@@ -1018,6 +1064,12 @@ fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
+/// Largest growth of the LU's flops under a kept ordering ([`LinearSolverOptions::reuse_analysis`])
+/// against the analysis that computed it, before the pattern is ordered afresh: a mesh whose
+/// topology changed at the same number of unknowns would otherwise carry an ordering of another
+/// graph, and its fill would grow from step to step.
+const KEPT_ORDERING_MAX_FLOPS: f64 = 1.1;
+
 /// Accuracy a static-pivoting factorisation must reach on its check system (with the iterative
 /// refinement every solve gets) to be used; otherwise the partial-pivoting LU takes over.
 const STATIC_CHECK_TOLERANCE: f64 = 1e-8;
@@ -1034,28 +1086,17 @@ impl LinearSolver for FaerLu {
         self.active = Active::None;
         let mut reused = false;
         if self.key != Some(key) {
-            let served = match (&self.static_lu, self.options.reuse_analysis) {
-                (Some(s), true) => s.sym.serves(a),
-                _ => None,
-            };
-            if let Some(scatter) = served {
-                tracing::debug!("new pattern inside the held factor structure: ordering and symbolic analysis kept");
-                self.static_lu.as_mut().expect("held").sym.scatter = scatter;
-                reused = true;
-            } else {
-                let kept = match (&self.static_lu, self.options.reuse_analysis) {
-                    (Some(s), true) if s.sym.same_unknowns(a) => Some(std::mem::take(&mut self.static_lu.as_mut().expect("held").sym.perm)),
-                    _ => None,
-                };
-                self.analyse_pattern(a, kept.as_deref());
+            reused = self.options.reuse_analysis && self.reanalyse(a);
+            if !self.options.reuse_analysis {
+                self.analyse_pattern(a, None);
             }
             self.key = Some(key);
         }
         let par = self.par();
-        let mut done = None;
+        let mut factorized = false;
         if reused {
             match self.static_lu.as_mut().expect("held").factorize(a, par) {
-                Ok(()) => done = Some(Ok(())),
+                Ok(()) => factorized = true,
                 Err(e) => {
                     tracing::debug!("the kept analysis failed on the new pattern ({e}): analysing afresh");
                     self.analyse_pattern(a, None);
@@ -1063,7 +1104,7 @@ impl LinearSolver for FaerLu {
             }
         }
         if let Some(s) = self.static_lu.as_mut() {
-            let static_result = done.unwrap_or_else(|| s.factorize(a, par));
+            let static_result = if factorized { Ok(()) } else { s.factorize(a, par) };
             if static_result.is_ok() {
                 self.active = Active::Static;
                 if !self.options.check_accuracy || self.check_accuracy(a) <= STATIC_CHECK_TOLERANCE {
@@ -1319,9 +1360,10 @@ mod tests {
         (Pattern { n: p.n, col_ptr, row_idx }, values)
     }
 
-    /// With `reuse_analysis`, a pattern inside the held factor structure keeps the analysis, and
-    /// one outside it with the same unknowns keeps the ordering (a new symbolic analysis); the
-    /// solves stay exact either way.
+    /// With `reuse_analysis`, a pattern inside the held factor structure keeps the analysis, one
+    /// outside it with the same unknowns keeps the ordering (a new symbolic analysis), and one
+    /// whose fill would grow past `KEPT_ORDERING_MAX_FLOPS` under it (the same graph with its
+    /// nonzero-diagonal unknowns renumbered) is ordered afresh; the solves stay exact throughout.
     #[test]
     fn held_analysis_serves_patterns_inside_its_factor_structure() {
         let (p, v, zero) = fsi_like(12, 8, 6);
@@ -1348,12 +1390,50 @@ mod tests {
         assert!(p2.nnz() == p.nnz() - 2);
         assert!(solve(&mut lu, &p2, v2) < 1e-10);
         assert_eq!(lu.symbolic_factorizations(), 1, "a pattern inside the factor structure keeps the analysis");
-        // Couple the first and the last velocity dof: outside the structure, same unknowns.
-        let last = (0..n).rev().find(|&j| !zero[j]).unwrap();
-        assert!(p.find(last, 0).is_none());
-        let (p3, v3) = edited(&p, &v, |_, _| true, &[(last, 0)], 0.3);
+        // Couple two velocity dofs two apart in the graph, outside the factor structure: the same
+        // unknowns, a little more fill.
+        let regular_order = |lu: &FaerLu| -> Vec<usize> { lu.static_lu.as_ref().unwrap().sym.perm.iter().copied().filter(|&j| !zero[j]).collect() };
+        let held = regular_order(&lu);
+        let column = |j: usize| p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].to_vec();
+        let (p3, v3) = (0..n)
+            .filter(|&k| !zero[k])
+            .flat_map(|k| column(k).into_iter().flat_map(move |i| column(k).into_iter().map(move |j| (i, j))))
+            .filter(|&(i, j)| i < j && !zero[i] && !zero[j] && p.find(i, j).is_none())
+            .map(|pair| edited(&p, &v, |_, _| true, &[pair], 0.3))
+            .find(|(pe, ve)| {
+                let zero_e = zero_diagonals(&CscMatrix { pattern: pe, values: ve.clone() });
+                lu.static_lu.as_ref().unwrap().sym.serves(&CscMatrix { pattern: pe, values: ve.clone() }, &zero_e).is_none()
+            })
+            .expect("a pair outside the factor structure");
         assert!(solve(&mut lu, &p3, v3) < 1e-10);
         assert_eq!(lu.symbolic_factorizations(), 2);
+        assert_eq!(regular_order(&lu), held, "the ordering is kept");
+        // The nonzero-diagonal unknowns shuffled among themselves: the held ordering is of
+        // another graph.
+        let regular: Vec<usize> = (0..n).filter(|&j| !zero[j]).collect();
+        let mut shuffled = regular.clone();
+        shuffled.sort_by(|&a, &b| hash01(5 * a + 3).total_cmp(&hash01(5 * b + 3)));
+        let mut relabel: Vec<usize> = (0..n).collect();
+        regular.iter().zip(&shuffled).for_each(|(&from, &to)| relabel[from] = to);
+        let mut cols: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        for j in 0..n {
+            for k in p.col_ptr[j]..p.col_ptr[j + 1] {
+                cols[relabel[j]].push((relabel[p.row_idx[k]], v[k]));
+            }
+        }
+        let (mut col_ptr, mut row_idx, mut v4) = (vec![0], Vec::new(), Vec::new());
+        for mut c in cols {
+            c.sort_by_key(|e| e.0);
+            row_idx.extend(c.iter().map(|e| e.0));
+            v4.extend(c.iter().map(|e| e.1));
+            col_ptr.push(row_idx.len());
+        }
+        let p4 = Pattern { n, col_ptr, row_idx };
+        let fresh = FaerLu::analyse(&CscMatrix { pattern: &p4, values: v4.clone() }, FillOrdering::default()).unwrap().flops;
+        assert!(solve(&mut lu, &p4, v4) < 1e-10);
+        let stats = lu.factor_stats().unwrap();
+        assert_ne!(regular_order(&lu), held, "ordered afresh");
+        assert!(stats.flops <= KEPT_ORDERING_MAX_FLOPS * fresh, "{} flops against {fresh} fresh", stats.flops);
     }
 
     #[test]
