@@ -110,10 +110,10 @@
 //! An FSI step on a mesh adapted like the last one (the same topology, its nodes at gamma_f
 //! moved) gives the same pattern and groups with other mass matrices: the split and the pattern
 //! of `A_gamma` are kept (the LU, keyed by that pattern, keeps its analysis either way), the
-//! inverse masses updated, but the held factors dropped. The moved nodes change `B` and `M`, and `gamma` multiplies that
-//! change: on model problem 4 the factors of the last step left the residual at 1.0 after 8
-//! Krylov iterations. Model problem 4, 3 steps, two runs each in turn: 27.7-30.4 s to 25.7-25.8 s,
-//! the same quantities bit for bit.
+//! inverse masses updated, but the held factors dropped. The moved nodes change `B` and `M`,
+//! and `gamma` multiplies that change: on model problem 4 the factors of the last step left the
+//! residual at 1.0 after 8 Krylov iterations. Model problem 4, 3 steps, two runs each in turn:
+//! 27.7-30.4 s to 25.7-25.8 s, the same quantities bit for bit.
 //!
 //! **Tolerance.** FGMRES stops at `|b - K x| <= tol |b|` with `tol` the larger of
 //! [`KrylovOptions::rel_tol`] and the forcing term a Newton solve sets
@@ -947,9 +947,9 @@ impl LinearSolver for AugmentedLagrangian {
         }
         if same_groups(&split, &self.split) {
             // The mesh moved but kept its topology (an FSI step adapted like the last one): the
-            // structure stays, the inverse masses follow. The held factors go: gamma multiplies the change of `B` and `M`
-            // (model problem 4: held factors of the last step left the residual at 1.0 after 8
-            // Krylov iterations).
+            // structure stays, the inverse masses follow. The held factors go: gamma multiplies
+            // the change of `B` and `M` (model problem 4: held factors of the last step left the
+            // residual at 1.0 after 8 Krylov iterations).
             self.masses_changed = true;
         } else {
             self.structure = None;

@@ -6,8 +6,8 @@
 //! after each factorisation and backed by faer's sparse partial-pivoting LU (pure Rust). The
 //! symbolic factorisation (fill-reducing ordering, elimination structure) depends only on the
 //! [`Pattern`] and is computed once per pattern (or kept for a slightly changed one, with
-//! [`LinearSolverOptions::reuse_analysis`]); every Newton iteration only refactors numerically. After each solve the residual
-//! `|b - A x| / |b|` is checked and the solution refined iteratively (`x += A^{-1} r`) while it is
+//! [`LinearSolverOptions::reuse_analysis`]); every Newton iteration only refactors numerically.
+//! After each solve the residual `|b - A x| / |b|` is checked and the solution refined iteratively (`x += A^{-1} r`) while it is
 //! above [`LinearSolverOptions::refine_tolerance`].
 //!
 //! Why a factorisation of our own beside faer's: faer's sparse LU bounds its static structure by
@@ -361,10 +361,7 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering, kept: Option<&[usi
     }
     let mut perm: Vec<usize> = (0..n).collect();
     perm.sort_by_key(|&j| (key[j], is_mode[j], j));
-    let mut perm_inv = vec![0usize; n];
-    for (new, &old) in perm.iter().enumerate() {
-        perm_inv[old] = new;
-    }
+    let perm_inv = inverse_permutation(&perm);
     // Supernodal Cholesky structure of the permuted pattern.
     let sym = SymbolicSparseColMatRef::new_checked(n, n, &p.col_ptr, None, &p.row_idx);
     // faer's default supernode relaxation; more or none changed neither fill nor time measurably.
@@ -458,6 +455,15 @@ fn static_symbolic(a: &CscMatrix<'_>, ordering: FillOrdering, kept: Option<&[usi
     Ok(sym)
 }
 
+/// `inv[perm[new]] = new`.
+fn inverse_permutation(perm: &[usize]) -> Vec<usize> {
+    let mut inv = vec![0usize; perm.len()];
+    for (new, &old) in perm.iter().enumerate() {
+        inv[old] = new;
+    }
+    inv
+}
+
 /// A fingerprint of the zero-diagonal unknowns.
 fn zero_diagonal_key(zero: &[bool]) -> u64 {
     fnv1a(zero.iter().enumerate().filter(|(_, &z)| z).map(|(j, _)| j as u64))
@@ -527,10 +533,7 @@ impl StaticSymbolic {
             return None;
         }
         let p = a.pattern;
-        let mut perm_inv = vec![0usize; self.n];
-        for (new, &old) in self.perm.iter().enumerate() {
-            perm_inv[old] = new;
-        }
+        let perm_inv = inverse_permutation(&self.perm);
         let ordered = (0..self.n).filter(|&j| zero[j]).all(|j| {
             let mut regular = p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().filter(|&&i| !zero[i]).peekable();
             regular.peek().is_some() && regular.all(|&i| perm_inv[i] < perm_inv[j])
@@ -1350,6 +1353,12 @@ mod tests {
             cols[j].push((i, value));
             cols[i].push((j, value));
         }
+        from_columns(cols)
+    }
+
+    /// The pattern and values of columns given as unsorted `(row, value)` lists.
+    fn from_columns(cols: Vec<Vec<(usize, f64)>>) -> (Pattern, Vec<f64>) {
+        let n = cols.len();
         let (mut col_ptr, mut row_idx, mut values) = (vec![0], Vec::new(), Vec::new());
         for mut c in cols {
             c.sort_by_key(|e| e.0);
@@ -1357,7 +1366,7 @@ mod tests {
             values.extend(c.iter().map(|e| e.1));
             col_ptr.push(row_idx.len());
         }
-        (Pattern { n: p.n, col_ptr, row_idx }, values)
+        (Pattern { n, col_ptr, row_idx }, values)
     }
 
     /// With `reuse_analysis`, a pattern inside the held factor structure keeps the analysis, one
@@ -1401,8 +1410,8 @@ mod tests {
             .filter(|&(i, j)| i < j && !zero[i] && !zero[j] && p.find(i, j).is_none())
             .map(|pair| edited(&p, &v, |_, _| true, &[pair], 0.3))
             .find(|(pe, ve)| {
-                let zero_e = zero_diagonals(&CscMatrix { pattern: pe, values: ve.clone() });
-                lu.static_lu.as_ref().unwrap().sym.serves(&CscMatrix { pattern: pe, values: ve.clone() }, &zero_e).is_none()
+                let ae = CscMatrix { pattern: pe, values: ve.clone() };
+                lu.static_lu.as_ref().unwrap().sym.serves(&ae, &zero_diagonals(&ae)).is_none()
             })
             .expect("a pair outside the factor structure");
         assert!(solve(&mut lu, &p3, v3) < 1e-10);
@@ -1421,14 +1430,7 @@ mod tests {
                 cols[relabel[j]].push((relabel[p.row_idx[k]], v[k]));
             }
         }
-        let (mut col_ptr, mut row_idx, mut v4) = (vec![0], Vec::new(), Vec::new());
-        for mut c in cols {
-            c.sort_by_key(|e| e.0);
-            row_idx.extend(c.iter().map(|e| e.0));
-            v4.extend(c.iter().map(|e| e.1));
-            col_ptr.push(row_idx.len());
-        }
-        let p4 = Pattern { n, col_ptr, row_idx };
+        let (p4, v4) = from_columns(cols);
         let fresh = FaerLu::analyse(&CscMatrix { pattern: &p4, values: v4.clone() }, FillOrdering::default()).unwrap().flops;
         assert!(solve(&mut lu, &p4, v4) < 1e-10);
         let stats = lu.factor_stats().unwrap();
