@@ -87,7 +87,8 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     // Mass conservation to round-off.
     assert!((q(&s, "inlet_flux") + 1.0).abs() < 1e-12);
     assert!((q(&s, "inlet_flux") + q(&s, "outlet_flux")).abs() < 1e-12);
-    assert_eq!(s.symbolic_factorizations, 1);
+    // The default augmented-Lagrangian solver: one split of the system, one analysis of its LU.
+    assert_eq!(s.symbolic_factorizations, 2);
     // The written solution reads back: P2 nodes carry the Poiseuille profile.
     let entries = read_pvd(&out.join("solution.pvd")).unwrap();
     assert_eq!(entries.len(), 1);
@@ -214,7 +215,7 @@ fn schaefer_turek_2d1_matches_the_benchmark() {
     assert!(r.len() >= 3 && r.len() <= 8, "{r:?}");
     let (a, b) = (r[r.len() - 3], r[r.len() - 2]);
     assert!(b < 1e-2 * a, "{r:?}");
-    assert_eq!(s.symbolic_factorizations, 1, "one symbolic factorisation per mesh");
+    assert_eq!(s.symbolic_factorizations, 2, "one split and one LU analysis per mesh");
 }
 
 #[test]
@@ -422,16 +423,19 @@ fn history_columns(out: &Path) -> std::collections::BTreeMap<String, Vec<f64>> {
     cols
 }
 
-/// Model problem 1 checks on a history: flux in = flux out every step (README: to 3e-15, round-off
-/// of fluxes of 0.2-1; held at 3e-14) and 3-4 Newton iterations in every step.
+/// Model problem 1 checks on a history: flux in = flux out every step and 3-5 Newton iterations
+/// in every step. The flux balance holds to the linear solve's precision: 3e-15 with the direct
+/// solver (round-off of fluxes of 0.2-1), 4.2e-13 with the default augmented-Lagrangian solver
+/// (its FGMRES solves stop at the Eisenstat-Walker forcing term, not at round-off, and Newton at
+/// `|R| <= 1e-10`; README); held at 1e-12.
 fn check_model_problem_1(out: &Path, steps: usize) -> std::collections::BTreeMap<String, Vec<f64>> {
     let h = history_columns(out);
     assert_eq!(h["step"].len(), steps);
     for (k, (i, o)) in h["inlet_flux"].iter().zip(&h["outlet_flux"]).enumerate() {
-        assert!((i + o).abs() < 3e-14, "step {}: flux in {i}, out {o}", k + 1);
+        assert!((i + o).abs() < 1e-12, "step {}: flux in {i}, out {o}", k + 1);
     }
     let its = &h["newton_iterations"];
-    assert!(its.iter().all(|n| (3.0..=4.0).contains(n)), "3-4 Newton iterations per step: {its:?}");
+    assert!(its.iter().all(|n| (3.0..=5.0).contains(n)), "3-5 Newton iterations per step: {its:?}");
     h
 }
 
