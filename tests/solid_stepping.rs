@@ -2,7 +2,9 @@
 //! increments are cut when an element inverts, Cook's membrane shows no locking for Q2/P1disc,
 //! and the implicit-Euler inertia term tends to the quasi-static solution for long steps.
 
-use fdfsi::discretize::solid::{solve_dynamic_step, solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidProblem};
+use fdfsi::discretize::solid::{
+    solve_dynamic_step, solve_quasi_static, InertiaHistory, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidProblem,
+};
 use fdfsi::fem::generate::rectangle_quads;
 use fdfsi::fem::mesh::GeometryOrder;
 use fdfsi::physics::fluid::Formulation;
@@ -131,13 +133,15 @@ fn inertia_with_long_steps_tends_to_the_quasi_static_solution() {
     let stat = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Total, 1), &mut FaerLu::default(), &study_newton()).unwrap();
     problem.density = 1.0;
     let zero = vec![0.0; disc.num_dofs()];
-    let (x, v, _) = solve_dynamic_step(&disc, &problem, &zero, &zero, 1e6, 1.0, &mut FaerLu::default(), &study_newton()).unwrap();
+    // An implicit-Euler step of `dt` from rest: `a = 1 / dt`, `u* = v* = 0`.
+    let euler = |dt: f64| InertiaHistory { a: 1.0 / dt, u_star: &zero, v_star: &zero };
+    let (x, v, _) = solve_dynamic_step(&disc, &problem, &zero, &euler(1e6), 1.0, &mut FaerLu::default(), &study_newton()).unwrap();
     let d = max_diff(&x, &stat.x);
     println!("dt = 1e6: max |x_dyn - x_static| = {d:.2e}");
     assert!(d < 1e-8);
     assert!(v.iter().all(|x| x.is_finite()));
     // A short step moves much less than the static solution (inertia resists).
-    let (x, _, _) = solve_dynamic_step(&disc, &problem, &zero, &zero, 0.1, 1.0, &mut FaerLu::default(), &study_newton()).unwrap();
+    let (x, _, _) = solve_dynamic_step(&disc, &problem, &zero, &euler(0.1), 1.0, &mut FaerLu::default(), &study_newton()).unwrap();
     let tip = disc.node_near(&[4.0, 1.0]);
     let (uy_dyn, uy_stat) = (disc.displacement(&x, tip)[1], disc.displacement(&stat.x, tip)[1]);
     println!("dt = 0.1: tip u_y = {uy_dyn:.3e} vs static {uy_stat:.3e}");

@@ -22,6 +22,20 @@ fn bdf2_is_second_order() {
     assert!((s.observed_rate - 1.93).abs() < 0.006, "{s:?}");
 }
 
+/// Solid dynamics on an affine motion with no spatial error (`fdfsi verify`'s
+/// `solid-dynamics-*`, module doc of `fdfsi::verify`): implicit Euler rate at least 0.9, BDF2
+/// rate at least 1.8 (the expected orders, independent references), and the rates README.md
+/// prints, 1.00 and 2.03, as regression values to their two decimals.
+#[test]
+fn solid_dynamics_is_first_order_with_euler_and_second_order_with_bdf2() {
+    for (scheme, at_least, printed) in [(TimeScheme::Euler, 0.9, 1.00), (TimeScheme::Bdf2, 1.8, 2.03)] {
+        let s = fdfsi::verify::solid_time_convergence(scheme).unwrap();
+        println!("{scheme:?}: errors {:?} rate {}", s.errors, s.observed_rate);
+        assert!(s.observed_rate >= at_least, "{s:?}");
+        assert!((s.observed_rate - printed).abs() < 0.006, "{s:?}");
+    }
+}
+
 /// A step whose Newton solve fails is halved until it converges, and the run goes on; with no
 /// cuts allowed the same step is an error naming the step.
 #[test]

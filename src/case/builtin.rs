@@ -22,4 +22,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("slab-3d-poiseuille", include_str!("../../cases/slab-3d-poiseuille.toml")),
     ("cook-membrane", include_str!("../../cases/cook-membrane.toml")),
     ("cylinder-inflation-axisymmetric", include_str!("../../cases/cylinder-inflation-axisymmetric.toml")),
+    ("turek-hron-csm1", include_str!("../../cases/turek-hron-csm1.toml")),
+    ("turek-hron-csm2", include_str!("../../cases/turek-hron-csm2.toml")),
+    ("turek-hron-csm3", include_str!("../../cases/turek-hron-csm3.toml")),
 ];

@@ -110,13 +110,32 @@ pub struct SolidSpec {
     /// The material laws are solved in solid-only cases (no fluid mesh).
     #[serde(default)]
     pub model: SolidModel,
-    /// Shear modulus G (material laws; > 0).
+    /// Shear modulus G (the Lame constant mu; material laws; > 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shear_modulus: Option<f64>,
     /// Bulk modulus K (> 0): omitted for the incompressible neo-Hookean law (det F = 1); required
     /// by the compressible laws.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bulk_modulus: Option<f64>,
+    /// Young's modulus E: with one other elastic constant, instead of `shear_modulus` and
+    /// `bulk_modulus` (see [`SolidSpec::moduli`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub youngs_modulus: Option<f64>,
+    /// Poisson's ratio nu in (-1, 0.5): with one other elastic constant.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub poissons_ratio: Option<f64>,
+    /// The first Lame constant lambda: with one other elastic constant.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lame_lambda: Option<f64>,
+    /// Reference density rho_0 (>= 0): the solid's inertia `rho_0 d^2u/dt^2` per unit reference
+    /// volume in time-dependent runs (solid-only and FSI); 0 (the default) leaves it out.
+    #[serde(default)]
+    pub density: f64,
+    /// Body force per unit reference volume (e.g. gravity: `rho_0 g`), one entry per dimension:
+    /// numbers or expressions of the reference position x, y, z and the time t (0 in
+    /// quasi-static runs, where the force is ramped with the load factor).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_force: Option<Vec<Scalar>>,
     /// Boundary conditions of the solid.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary: Vec<SolidBoundarySpec>,
@@ -142,6 +161,67 @@ pub struct SolidSpec {
     pub pivot: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translate: Option<Vec<f64>>,
+}
+
+/// The shear and bulk moduli of a solid law.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Moduli {
+    /// Shear modulus G (= mu).
+    pub shear: f64,
+    /// Bulk modulus K; `None` for an incompressible law.
+    pub bulk: Option<f64>,
+}
+
+impl SolidSpec {
+    /// The shear and bulk moduli from the elastic constants given: `shear_modulus` alone (an
+    /// incompressible law) or any two of `shear_modulus` (G), `bulk_modulus` (K), `lame_lambda`
+    /// (lambda), `youngs_modulus` (E) and `poissons_ratio` (nu), by the isotropic relations
+    /// `K = lambda + 2 G / 3`, `E = 2 G (1 + nu) = 3 K (1 - 2 nu)`, `lambda = 2 G nu / (1 - 2 nu)`.
+    /// Fails on any other count, or when the result is not `G > 0, K > 0` (`-1 < nu < 0.5`).
+    pub fn moduli(&self) -> Result<Moduli, String> {
+        let given = [
+            ("shear_modulus", self.shear_modulus),
+            ("bulk_modulus", self.bulk_modulus),
+            ("lame_lambda", self.lame_lambda),
+            ("youngs_modulus", self.youngs_modulus),
+            ("poissons_ratio", self.poissons_ratio),
+        ];
+        let named: Vec<&str> = given.iter().filter(|(_, v)| v.is_some()).map(|(n, _)| *n).collect();
+        if let Some((name, v)) = given.iter().find(|(_, v)| v.is_some_and(|v| !v.is_finite())) {
+            return Err(format!("solid.{name} must be a finite number, got {}", v.unwrap_or(f64::NAN)));
+        }
+        let (g, k, l, e, nu) = (self.shear_modulus, self.bulk_modulus, self.lame_lambda, self.youngs_modulus, self.poissons_ratio);
+        let (shear, bulk) = match (g, k, l, e, nu) {
+            (Some(g), None, None, None, None) => (g, None),
+            (Some(g), Some(k), None, None, None) => (g, Some(k)),
+            (Some(g), None, Some(l), None, None) => (g, Some(l + 2.0 * g / 3.0)),
+            (Some(g), None, None, Some(e), None) => (g, Some(e * g / (3.0 * (3.0 * g - e)))),
+            (Some(g), None, None, None, Some(nu)) => (g, Some(2.0 * g * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu)))),
+            (None, Some(k), Some(l), None, None) => (1.5 * (k - l), Some(k)),
+            (None, Some(k), None, Some(e), None) => (3.0 * k * e / (9.0 * k - e), Some(k)),
+            (None, Some(k), None, None, Some(nu)) => (3.0 * k * (1.0 - 2.0 * nu) / (2.0 * (1.0 + nu)), Some(k)),
+            (None, None, Some(l), Some(e), None) => {
+                let r = (e * e + 9.0 * l * l + 2.0 * e * l).sqrt();
+                ((e - 3.0 * l + r) / 4.0, Some((e + 3.0 * l + r) / 6.0))
+            }
+            (None, None, Some(l), None, Some(nu)) => (l * (1.0 - 2.0 * nu) / (2.0 * nu), Some(l * (1.0 + nu) / (3.0 * nu))),
+            (None, None, None, Some(e), Some(nu)) => (e / (2.0 * (1.0 + nu)), Some(e / (3.0 * (1.0 - 2.0 * nu)))),
+            _ => {
+                let got = if named.is_empty() { "none".to_string() } else { named.join(", ") };
+                return Err(format!(
+                    "solid: give shear_modulus alone (incompressible) or two of shear_modulus, bulk_modulus, lame_lambda, youngs_modulus, poissons_ratio; got {got}"
+                ));
+            }
+        };
+        if !(shear > 0.0) || bulk.is_some_and(|k| !(k > 0.0)) || nu.is_some_and(|nu| !(nu > -1.0 && nu < 0.5)) {
+            return Err(format!(
+                "solid: {} give shear modulus {shear:.6e} and bulk modulus {}: both must be positive (Poisson's ratio in (-1, 0.5))",
+                named.join(" and "),
+                bulk.map_or("none".into(), |k| format!("{k:.6e}"))
+            ));
+        }
+        Ok(Moduli { shear, bulk })
+    }
 }
 
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {
@@ -567,6 +647,24 @@ pub struct OutputSpec {
     /// Linear combinations of other quantities (evaluated after them, in file order).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub combination: Vec<CombinationSpec>,
+    /// Periodic quantities: mean, amplitude and frequency of their last period, written to
+    /// `summary.json` at the end of a time-dependent run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub oscillation: Vec<OscillationSpec>,
+}
+
+/// The last period of a quantity of `history.csv` ([`crate::post::oscillation`]): its mean
+/// `(max + min) / 2`, amplitude `(max - min) / 2` and frequency, written to `summary.json` as
+/// `QUANTITY_mean`, `QUANTITY_amplitude` and `QUANTITY_frequency`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OscillationSpec {
+    /// A quantity of the run (a probe, boundary integral, domain quantity, combination or
+    /// built-in quantity).
+    pub quantity: String,
+    /// Only the steps from this time on (when the motion has become periodic); default 0.
+    #[serde(default)]
+    pub from: f64,
 }
 
 /// A quantity of the whole fluid domain.
@@ -983,6 +1081,32 @@ impl Expr {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every pair of elastic constants of one material (Turek-Hron's bar: G = 0.5e6, nu = 0.4,
+    /// so E = 1.4e6, lambda = 2e6, K = 2e6 + 1e6/3) gives its G and K.
+    #[test]
+    fn any_two_elastic_constants_give_the_shear_and_bulk_moduli() {
+        let (g, k, l, e, nu) = (0.5e6, 2.0e6 + 1.0e6 / 3.0, 2.0e6, 1.4e6, 0.4);
+        let all = [Some(g), Some(k), Some(l), Some(e), Some(nu)];
+        let solid = |c: [Option<f64>; 5]| {
+            let text = "mesh = { kind = \"rectangle\", x = [0.0, 1.0], y = [0.0, 1.0], n = [1, 1] }\nmodel = \"saint-venant-kirchhoff\"\n";
+            let mut spec: SolidSpec = toml::from_str(text).unwrap();
+            [spec.shear_modulus, spec.bulk_modulus, spec.lame_lambda, spec.youngs_modulus, spec.poissons_ratio] = c;
+            spec
+        };
+        for a in 0..5 {
+            for b in a + 1..5 {
+                let mut c = [None; 5];
+                (c[a], c[b]) = (all[a], all[b]);
+                let m = solid(c).moduli().unwrap_or_else(|err| panic!("pair {a}, {b}: {err}"));
+                assert!((m.shear - g).abs() < 1e-9 * g && (m.bulk.unwrap() - k).abs() < 1e-9 * k, "pair {a}, {b}: {m:?}");
+            }
+        }
+        assert_eq!(solid([Some(g), None, None, None, None]).moduli().unwrap(), Moduli { shear: g, bulk: None });
+        assert!(solid([None; 5]).moduli().unwrap_err().contains("got none"));
+        assert!(solid([Some(g), Some(k), Some(l), None, None]).moduli().is_err());
+        assert!(solid([None, None, None, Some(e), Some(0.5)]).moduli().is_err());
+    }
 
     const GOOD: &str = r#"
 title = "t"

@@ -179,16 +179,19 @@ fn boundary_time_functions(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `body_force`: one expression per dimension.
+/// `body_force` (of the fluid) and `solid.body_force`: one expression per dimension.
 fn body_force(c: &Case, p: &mut Problems) {
-    let Some(f) = &c.body_force else { return };
-    let d = c.dim();
-    if f.len() != d {
-        p.push(format!("body_force needs {d} entries, got {}", f.len()));
-    }
-    for v in f {
-        if let Err(e) = Expr::compile(v) {
-            p.push(format!("body_force: {e}"));
+    let forces = [("body_force", &c.body_force), ("solid.body_force", &c.solid.as_ref().and_then(|s| s.body_force.clone()))];
+    for (key, f) in forces {
+        let Some(f) = f else { continue };
+        let d = c.dim();
+        if f.len() != d {
+            p.push(format!("{key} needs {d} entries, got {}", f.len()));
+        }
+        for v in f {
+            if let Err(e) = Expr::compile(v) {
+                p.push(format!("{key}: {e}"));
+            }
         }
     }
 }
@@ -245,7 +248,8 @@ fn fsi_time(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `[[output.combination]]`: each term names a quantity defined before it.
+/// `[[output.combination]]`: each term names a quantity defined before it; `[[output.oscillation]]`:
+/// a quantity of a time-dependent run.
 fn combinations(c: &Case, p: &mut Problems) {
     let builtin = c.builtin_quantities();
     let mut known: HashSet<&str> = c.output.probe.iter().map(|q| q.name.as_str()).collect();
@@ -259,6 +263,17 @@ fn combinations(c: &Case, p: &mut Problems) {
             }
         }
         known.insert(&comb.name);
+    }
+    for o in &c.output.oscillation {
+        if !known.contains(o.quantity.as_str()) {
+            p.push(format!("oscillation: unknown quantity '{}'", o.quantity));
+        }
+        if !(o.from >= 0.0 && o.from.is_finite()) {
+            p.push(format!("oscillation of '{}': `from` must be a finite time >= 0, got {}", o.quantity, o.from));
+        }
+        if c.time.is_none() {
+            p.push(format!("oscillation of '{}': needs a time-dependent run ([time])", o.quantity));
+        }
     }
 }
 
@@ -287,14 +302,29 @@ fn solid(c: &Case, p: &mut Problems) {
 /// `[solid]` with a material model: moduli, `[solid.loading]` steps and `[[solid.boundary]]`.
 fn solid_material(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     let d = c.dim();
-    match solid.shear_modulus {
-        Some(g) => p.positive(g, "solid.shear_modulus"),
-        None => p.push(format!("solid.model = {} needs shear_modulus", spelled(&solid.model))),
+    let before = p.0.len();
+    for (name, v) in [("shear_modulus", solid.shear_modulus), ("bulk_modulus", solid.bulk_modulus), ("youngs_modulus", solid.youngs_modulus)] {
+        if let Some(v) = v {
+            p.positive(v, &format!("solid.{name}"));
+        }
     }
-    if let Some(k) = solid.bulk_modulus {
-        p.positive(k, "solid.bulk_modulus");
-    } else if solid.model != SolidModel::NeoHookean {
-        p.push(format!("solid.model = {} needs bulk_modulus", spelled(&solid.model)));
+    if let Some(nu) = solid.poissons_ratio.filter(|nu| !(*nu > -1.0 && *nu < 0.5)) {
+        p.push(format!("solid.poissons_ratio must lie in (-1, 0.5), got {nu}"));
+    }
+    if let Some(l) = solid.lame_lambda.filter(|l| !l.is_finite()) {
+        p.push(format!("solid.lame_lambda must be a finite number, got {l}"));
+    }
+    if p.0.len() == before {
+        match solid.moduli() {
+            Ok(m) if m.bulk.is_none() && solid.model != SolidModel::NeoHookean => {
+                p.push(format!("solid.model = {} needs bulk_modulus (or another elastic constant besides shear_modulus)", spelled(&solid.model)))
+            }
+            Ok(_) => {}
+            Err(e) => p.push(format!("solid.model = {}: {e}", spelled(&solid.model))),
+        }
+    }
+    if !(solid.density >= 0.0 && solid.density.is_finite()) {
+        p.push(format!("solid.density must be a finite number >= 0, got {}", solid.density));
     }
     if solid.loading.steps == 0 {
         p.push("solid.loading.steps must be >= 1");

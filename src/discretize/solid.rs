@@ -88,12 +88,24 @@ pub struct SolidProblem<const D: usize> {
     /// Reference density `rho_0` for solid inertia ([`solve_dynamic_step`]); 0 (the default of
     /// [`SolidProblem::new`]) switches inertia off. Quasi-static solves ignore it.
     pub density: f64,
+    /// Body force `b(X, load)` per unit reference volume (e.g. `rho_0 g`): the external work
+    /// `int b . w dV_0`.
+    pub body_force: Option<LoadFn<D>>,
 }
 
 impl<const D: usize> SolidProblem<D> {
-    /// A problem without boundary conditions, pressure pin or inertia.
+    /// A problem without boundary conditions, pressure pin, inertia or body force.
     pub fn new(formulation: Formulation, material: Arc<dyn SolidMaterial>) -> Self {
-        SolidProblem { formulation, material, dirichlet: Vec::new(), traction: Vec::new(), pressure: Vec::new(), pin_pressure: None, density: 0.0 }
+        SolidProblem {
+            formulation,
+            material,
+            dirichlet: Vec::new(),
+            traction: Vec::new(),
+            pressure: Vec::new(),
+            pin_pressure: None,
+            density: 0.0,
+            body_force: None,
+        }
     }
     /// Adds a prescribed displacement.
     pub fn with_displacement(
@@ -387,8 +399,8 @@ impl<const D: usize> SolidDiscretization<D> {
             rhs,
             &self.colouring,
             constrained,
-            || (self.cell_values(), Vec::new(), vec![0.0; n], vec![0.0; nu]),
-            |c, (cv, coords, loc, tgt), local: &mut LocalSystem| {
+            || (self.cell_values(), Vec::new(), vec![0.0; n], vec![0.0; nu], vec![[0.0; D]; nq]),
+            |c, (cv, coords, loc, tgt, bf), local: &mut LocalSystem| {
                 self.cell_positions(c, base, coords);
                 cv.reinit(coords).map_err(|source| SolidAssemblyError::Map { cell: c, source })?;
                 self.layout.cell_dofs_into(c, &mut local.dofs);
@@ -402,13 +414,20 @@ impl<const D: usize> SolidDiscretization<D> {
                     }
                     coef
                 });
+                let x0 = &self.qp_x0[c * nq..(c + 1) * nq];
+                if let Some(b) = &problem.body_force {
+                    for (v, x) in bf.iter_mut().zip(x0) {
+                        *v = b(x, load);
+                    }
+                }
                 let state = SolidCellState {
                     u: &loc[..nu],
                     p: &loc[nu..],
                     f_prev: f_prev.map(|f| &f[c * nq..(c + 1) * nq]),
-                    x0: &self.qp_x0[c * nq..(c + 1) * nq],
+                    x0,
                     x0_centroid: self.centroid_x0[c],
                     inertia: inert.map(|coefficient| InertiaState { coefficient, target: &tgt[..] }),
+                    body_force: problem.body_force.as_ref().map(|_| &bf[..]),
                 };
                 solid_cell(cv, formulation, material, &state, &mut local.ke, &mut local.fe).map_err(|e| SolidAssemblyError::Inverted {
                     cell: c,
@@ -770,17 +789,31 @@ impl<const D: usize> SolidDiscretization<D> {
     }
 }
 
-/// One implicit-Euler step of the solid with inertia (total Lagrangian):
-/// `rho_0 (v_{n+1} - v_n)/dt + div-terms = loads`, `v_{n+1} = (u_{n+1} - u_n)/dt`, i.e. the
-/// inertia term `rho_0/dt^2 (u - u_n - dt v_n)`. `x_n` holds `u_n` (and the last pressure, the
-/// initial guess), `v_n` the nodal velocity in the same layout. Returns `(x_{n+1}, v_{n+1})`.
-#[allow(clippy::too_many_arguments)]
+/// The time discretisation of a dynamic step, `v_{n+1} = a (u_{n+1} - u*)` and
+/// `a_{n+1} = a (v_{n+1} - v*)` with `a = a0 / dt`: implicit Euler `a0 = 1`, `u* = u_n`,
+/// `v* = v_n`; BDF2 `a0 = 3/2`, `u* = (4 u_n - u_{n-1}) / 3`, `v* = (4 v_n - v_{n-1}) / 3`
+/// ([`crate::time::step_history`] gives both). The inertia `rho_0 a_{n+1}` is then
+/// `rho_0 a^2 (u_{n+1} - u* - v* / a)`.
+#[derive(Clone, Copy, Debug)]
+pub struct InertiaHistory<'a> {
+    /// `a0 / dt`.
+    pub a: f64,
+    /// `u*`, on the layout's unknowns (the pressure entries are not used).
+    pub u_star: &'a [f64],
+    /// `v*`, likewise.
+    pub v_star: &'a [f64],
+}
+
+/// One step of the solid with inertia (total Lagrangian), `rho_0 a_{n+1} + div-terms = loads` at
+/// `load` (the time `t_{n+1}` when the problem was set up without a load ramp), with the time
+/// discretisation `history`. `x_n` holds `u_n` and the last pressure: the initial guess. Returns
+/// `(x_{n+1}, v_{n+1})` (`v` zero on the pressure unknowns). Without a density it is a static
+/// solve at `load`.
 pub fn solve_dynamic_step<const D: usize>(
     disc: &SolidDiscretization<D>,
     problem: &SolidProblem<D>,
     x_n: &[f64],
-    v_n: &[f64],
-    dt: f64,
+    history: &InertiaHistory<'_>,
     load: f64,
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
@@ -794,13 +827,13 @@ pub fn solve_dynamic_step<const D: usize>(
         constrained[d] = true;
         x[d] = v;
     }
-    let target: Vec<f64> = (0..n).map(|i| if i < nu_global { x_n[i] + dt * v_n[i] } else { 0.0 }).collect();
-    let coef = problem.density / (dt * dt);
-    let inertia = if problem.density > 0.0 { Some((coef, target.as_slice())) } else { None };
+    let a = history.a;
+    let target: Vec<f64> = (0..n).map(|i| if i < nu_global { history.u_star[i] + history.v_star[i] / a } else { 0.0 }).collect();
+    let inertia = (problem.density > 0.0).then_some((problem.density * a * a, target.as_slice()));
     let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| {
         disc.assemble_system(problem, load, None, None, inertia, xx, &constrained, k, rhs)
     })?;
-    let v: Vec<f64> = (0..n).map(|i| if i < nu_global { (x[i] - x_n[i]) / dt } else { 0.0 }).collect();
+    let v: Vec<f64> = (0..n).map(|i| if i < nu_global { a * (x[i] - history.u_star[i]) } else { 0.0 }).collect();
     Ok((x, v, report))
 }
 

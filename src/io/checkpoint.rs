@@ -25,6 +25,7 @@
 use crate::discretize::fsi::FsiRestart;
 use crate::discretize::solid::LoadState;
 use crate::io::{write_atomic, OutputError};
+use crate::time::solid::DynamicState;
 use crate::time::Timings;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -66,6 +67,9 @@ pub enum RestartState {
     Fsi(FsiRestart),
     /// A solid run: the state after the last load step.
     Solid(LoadState),
+    /// A solid run with inertia: the state after the last time step.
+    #[serde(rename = "solid-dynamic")]
+    SolidDynamic(DynamicState),
 }
 
 impl RestartState {
@@ -74,6 +78,7 @@ impl RestartState {
             RestartState::Flow { .. } => "flow",
             RestartState::Fsi(_) => "FSI",
             RestartState::Solid(_) => "solid",
+            RestartState::SolidDynamic(_) => "dynamic solid",
         }
     }
 }
@@ -186,6 +191,23 @@ impl Checkpoint {
         ] {
             if found != expected {
                 return Err(CheckpointError::Size { path, what, found, expected });
+            }
+        }
+        Ok(s.clone())
+    }
+
+    /// The state of a dynamic solid run, checked against the run's number of unknowns.
+    pub fn dynamic_solid_state(&self, out_dir: &Path, num_dofs: usize) -> Result<DynamicState, CheckpointError> {
+        let path = Self::path(out_dir).display().to_string();
+        let s = match &self.state {
+            RestartState::SolidDynamic(s) => s,
+            other => return Err(CheckpointError::Kind { path, found: other.kind(), expected: "dynamic solid" }),
+        };
+        let (xp, vp) = s.previous.as_ref().map_or((num_dofs, num_dofs), |(x, v)| (x.len(), v.len()));
+        for (what, found) in [("the solid state", s.x.len()), ("the velocity", s.v.len()), ("the previous state", xp), ("the previous velocity", vp)]
+        {
+            if found != num_dofs {
+                return Err(CheckpointError::Size { path, what, found, expected: num_dofs });
             }
         }
         Ok(s.clone())

@@ -310,6 +310,8 @@ pub struct SolidCellState<'a, const D: usize> {
     pub x0_centroid: [f64; D],
     /// Optional inertia.
     pub inertia: Option<InertiaState<'a>>,
+    /// Optional body force per unit reference volume at each quadrature point.
+    pub body_force: Option<&'a [[f64; D]]>,
 }
 
 /// `det F <= 0` at a quadrature point: the element is inverted.
@@ -472,7 +474,8 @@ pub fn solid_cell<const D: usize>(
                 if let Some(inert) = &state.inertia {
                     inertial = inert.coefficient * (u_pt[aa] - target[aa]) * phi[i] / jp;
                 }
-                re[k] += w * (s + inertial);
+                let external = state.body_force.map_or(0.0, |b| b[q][aa] * phi[i] / jp);
+                re[k] += w * (s + inertial - external);
                 let row = k * n;
                 for l in 0..nu {
                     let agl = &ag[l];
@@ -678,6 +681,8 @@ mod tests {
         let x0: Vec<f64> = (0..n).map(|i| if i < nu { 0.08 * rnd() } else { rnd() }).collect();
         let target: Vec<f64> = (0..nu).map(|_| 0.05 * rnd()).collect();
         let xq0: Vec<[f64; D]> = cv.x.iter().map(|x| std::array::from_fn(|d| x[d] * 0.9 + 0.01)).collect();
+        // A body force (with the inertia) does not depend on the unknowns: the tangent is unchanged.
+        let bf: Vec<[f64; D]> = cv.x.iter().map(|x| std::array::from_fn(|d| 2.0 * x[d] - 0.5)).collect();
         let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
             ke.iter_mut().for_each(|v| *v = 0.0);
             re.iter_mut().for_each(|v| *v = 0.0);
@@ -688,6 +693,7 @@ mod tests {
                 x0: &xq0,
                 x0_centroid: cv.centroid,
                 inertia: if inertia { Some(InertiaState { coefficient: 3.7, target: &target }) } else { None },
+                body_force: inertia.then_some(&bf[..]),
             };
             solid_cell(cv, formulation, material, &st, ke, re).unwrap();
         };

@@ -1,2 +1,4 @@
-//! Post-processing: the quantities of `history.csv` and `summary.json`, and the profiles.
+//! Post-processing: the quantities of `history.csv` and `summary.json`, the profiles, and the
+//! statistics of periodic quantities.
+pub mod oscillation;
 pub mod quantities;

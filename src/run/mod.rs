@@ -60,6 +60,8 @@ pub enum RunError {
     BadSchedule { dt: f64, end: f64 },
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
+    #[error(transparent)]
+    Plot(#[from] crate::io::plot::PlotError),
     #[error("{out_dir}: the run will write about {needed} but only {available} are free; free some space, choose another --out or write the fields less often (time.output_every)")]
     DiskFull { out_dir: String, needed: String, available: String },
     #[error("{0}")]

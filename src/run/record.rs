@@ -8,7 +8,9 @@
 use super::{log_newton, RunError, RunObserver, RunOptions, RunSummary};
 use crate::case::Case;
 use crate::io::checkpoint::{Checkpoint, Progress, RestartState, CHECKPOINT_VERSION};
+use crate::io::plot::Table;
 use crate::io::History;
+use crate::post::oscillation::last_period;
 use crate::time::march::{march, MarchOptions, Schedule, StepDone, Stepper, Watch};
 use crate::time::Timings;
 use fdfsi_fem::vtk::PvdSeries;
@@ -245,6 +247,8 @@ where
     }
     let march_options = MarchOptions { checkpoint_every: options.checkpoint_every, stop: options.stop.clone() };
     march(stepper, schedule, start.first, &march_options, &mut timings, &mut recorder).map_err(|e| RunError::from_march(e, &options.out_dir))?;
+    let statistics = oscillations(case, &options.out_dir, recorder.obs)?;
+    recorder.last.extend(statistics);
     recorder.log_quantities();
     Ok(Recorded {
         steps: schedule.num_steps(),
@@ -255,6 +259,33 @@ where
         timings,
         dofs: recorder.outputs.dofs(stepper),
     })
+}
+
+/// The `[[output.oscillation]]` statistics ([`last_period`]) of the run's whole `history.csv`
+/// (all parts of a resumed run): `QUANTITY_mean`, `_amplitude` and `_frequency`. A quantity
+/// with less than one whole period after its `from` gets none, and a log line says so.
+fn oscillations(case: &Case, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<Vec<(String, f64)>, RunError> {
+    let mut out = Vec::new();
+    if case.output.oscillation.is_empty() {
+        return Ok(out);
+    }
+    let table = Table::read(&out_dir.join("history.csv"))?;
+    let column = |name: &str| table.column(name).ok_or_else(|| RunError::Unsupported(format!("oscillation: history.csv has no column '{name}'")));
+    let t = column("time")?;
+    for o in &case.output.oscillation {
+        match last_period(&t, &column(&o.quantity)?, o.from) {
+            Some(s) => {
+                obs.log(&format!("oscillation of {}: the last of {} whole periods after t = {}", o.quantity, s.periods, o.from));
+                out.extend(
+                    [("mean", s.mean), ("amplitude", s.amplitude), ("frequency", s.frequency)].map(|(k, v)| (format!("{}_{k}", o.quantity), v)),
+                );
+            }
+            None => {
+                obs.log(&format!("oscillation of {}: less than one whole period after t = {}: no mean, amplitude or frequency", o.quantity, o.from))
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Records the state of a solve without time steps (a steady flow) as step 0 `done` of a run of

@@ -1,25 +1,28 @@
-//! Solid-only runs: a case with a `[solid]` material law and no fluid mesh, loaded
-//! quasi-statically ([`QuasiStaticStepper`]).
+//! Solid-only runs: a case with a `[solid]` material law and no fluid mesh.
 //!
-//! Boundary values are multiplied by the load factor, ramped from 0 to 1 in
+//! Without `[time]` the solid is loaded quasi-statically ([`QuasiStaticStepper`]): boundary
+//! values and the body force are multiplied by the load factor, ramped from 0 to 1 in
 //! `solid.loading.steps` equal increments; an increment that fails is cut into 2, 4, ... 64
-//! sub-increments. Runs write checkpoints and stop on Ctrl-C like every run. Results in
-//! `--out DIR`:
-//! - `solution.pvd` + `solution_solid_NNNNNN.vtu`: the deformed solid of the last step (see
+//! sub-increments. With `[time]` it moves in time from rest ([`DynamicStepper`]: inertia
+//! `solid.density`, `time.scheme` implicit Euler or BDF2), its boundary values and body force
+//! evaluated at each step's time. Runs write checkpoints and stop on Ctrl-C like every run.
+//! Results in `--out DIR`:
+//! - `solution.pvd` + `solution_solid_NNNNNN.vtu`: the deformed solid of the last step
+//!   (quasi-static) or at `t = 0` and every `time.output_every` steps (see
 //!   [`crate::io::fields::solid_grid`]);
-//! - `history.csv`: one row per load step (`time` is the load factor) with the Newton
-//!   iterations, the final residual and the `displacement` probes;
+//! - `history.csv`: one row per step (`time` is the load factor of a quasi-static run) with the
+//!   Newton iterations, the final residual and the `displacement` probes;
 //! - `summary.json` as for every run.
 
 use super::record::{march_and_record, RunOutputs, Start};
 use super::{RunError, RunObserver, RunOptions, RunSummary};
 use crate::case::{Case, CaseError, ProbeField};
-use crate::discretize::solid::{LoadState, SolidDiscretization};
+use crate::discretize::solid::{LoadState, SolidDiscretization, SolidProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::solid_grid;
 use crate::setup::{displacement_probes, solid_mesh, solid_problem, SetupError};
 use crate::time::march::StepDone;
-use crate::time::solid::QuasiStaticStepper;
+use crate::time::solid::{DynamicState, DynamicStepper, QuasiStaticStepper};
 use crate::time::Schedule;
 use fdfsi_fem::vtk::PvdSeries;
 use std::time::Instant;
@@ -45,54 +48,113 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     let t = Instant::now();
     let mesh = solid_mesh::<D>(spec, &options.case_dir)?;
     let cells = mesh.num_cells();
-    let problem = solid_problem::<D>(case, spec, true)?;
+    let time = case.time.as_ref();
+    let problem = solid_problem::<D>(case, spec, time.is_none())?;
     let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
     disc.check_problem(&problem)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
-    obs.log(&format!("solid: {} on {cells} cells, {} dofs; {} load steps", problem.material.name(), disc.num_dofs(), spec.loading.steps));
+    let steps = match time {
+        None => format!("{} load steps", spec.loading.steps),
+        Some(ts) => format!("{} time steps of {} ({:?}), density {}", crate::time::num_steps(ts.dt, ts.end), ts.dt, ts.scheme, spec.density),
+    };
+    obs.log(&format!("solid: {} on {cells} cells, {} dofs; {steps}", problem.material.name(), disc.num_dofs()));
     if let Some(p) = case.output.probe.iter().find(|p| p.field != ProbeField::Displacement) {
         return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
     }
-    let outputs = SolidOutputs { probes: displacement_probes(case, &disc)? };
+    let outputs = SolidOutputs::<D> { probes: displacement_probes(case, &disc)? };
     let mut start = Start::of(options, obs, t);
     start.timings.mesh = mesh_seconds;
-    let at_rest = LoadState::at_rest(&disc, spec.loading.mode);
-    let state = match &options.resume {
-        None => at_rest,
-        Some(c) => c.solid_state(&options.out_dir, &at_rest)?,
+    let mut lu = case.solver.linear_solver(time.is_some(), case.physics.formulation);
+    let newton = case.solver.newton.clone();
+    let recorded = match time {
+        None => {
+            let at_rest = LoadState::at_rest(&disc, spec.loading.mode);
+            let state = match &options.resume {
+                None => at_rest,
+                Some(c) => c.solid_state(&options.out_dir, &at_rest)?,
+            };
+            let mut stepper = QuasiStaticStepper::new(&disc, &problem, lu.as_mut(), newton, state);
+            let steps = spec.loading.steps;
+            let schedule = Schedule { dt: 1.0 / steps as f64, end: 1.0, max_cuts: LOAD_STEP_CUTS };
+            // The fields of the last step only.
+            march_and_record(case, options, obs, &mut stepper, outputs, &schedule, steps, start, false)?
+        }
+        Some(ts) => {
+            let state = match &options.resume {
+                None => DynamicState::at_rest(disc.num_dofs()),
+                Some(c) => c.dynamic_solid_state(&options.out_dir, disc.num_dofs())?,
+            };
+            let mut stepper = DynamicStepper::new(&disc, &problem, lu.as_mut(), newton, ts.scheme, state);
+            let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
+            march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, true)?
+        }
     };
-    let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
-    let mut stepper = QuasiStaticStepper::new(&disc, &problem, lu.as_mut(), case.solver.newton.clone(), state);
-    let steps = spec.loading.steps;
-    let schedule = Schedule { dt: 1.0 / steps as f64, end: 1.0, max_cuts: LOAD_STEP_CUTS };
-    // The fields of the last step only.
-    let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, steps, start, false)?;
     let symbolic = lu.symbolic_factorizations();
     Ok(recorded.summary(case, D, cells, symbolic))
 }
 
-/// The outputs of a solid run: its displacement probes and the deformed solid.
-struct SolidOutputs {
+/// What the outputs of a solid run read from its stepper.
+trait SolidStepper<const D: usize> {
+    fn disc(&self) -> &SolidDiscretization<D>;
+    fn problem(&self) -> &SolidProblem<D>;
+    /// The unknowns: total displacement and pressure.
+    fn x(&self) -> &[f64];
+    /// What a checkpoint saves.
+    fn restart(&self) -> RestartState;
+}
+
+impl<const D: usize> SolidStepper<D> for QuasiStaticStepper<'_, D> {
+    fn disc(&self) -> &SolidDiscretization<D> {
+        self.disc
+    }
+    fn problem(&self) -> &SolidProblem<D> {
+        self.problem
+    }
+    fn x(&self) -> &[f64] {
+        &self.state.x
+    }
+    fn restart(&self) -> RestartState {
+        RestartState::Solid(self.state.clone())
+    }
+}
+
+impl<const D: usize> SolidStepper<D> for DynamicStepper<'_, D> {
+    fn disc(&self) -> &SolidDiscretization<D> {
+        self.disc
+    }
+    fn problem(&self) -> &SolidProblem<D> {
+        self.problem
+    }
+    fn x(&self) -> &[f64] {
+        &self.state.x
+    }
+    fn restart(&self) -> RestartState {
+        RestartState::SolidDynamic(self.state.clone())
+    }
+}
+
+/// The outputs of a solid run in `D` dimensions: its displacement probes and the deformed solid.
+struct SolidOutputs<const D: usize> {
     /// (name, solid node, component).
     probes: Vec<(String, usize, usize)>,
 }
 
-impl<const D: usize> RunOutputs<QuasiStaticStepper<'_, D>> for SolidOutputs {
-    fn quantities(&mut self, s: &QuasiStaticStepper<'_, D>, _done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
-        Ok(self.probes.iter().map(|(name, node, a)| (name.clone(), s.disc.displacement(&s.state.x, *node)[*a])).collect())
+impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
+    fn quantities(&mut self, s: &S, _done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
+        Ok(self.probes.iter().map(|(name, node, a)| (name.clone(), s.disc().displacement(s.x(), *node)[*a])).collect())
     }
 
-    fn write_fields(&mut self, s: &QuasiStaticStepper<'_, D>, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
-        series.add(done.time, "solid", &solid_grid(s.disc, s.problem.material.as_ref(), &s.state.x)?)?;
+    fn write_fields(&mut self, s: &S, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
+        series.add(done.time, "solid", &solid_grid(s.disc(), s.problem().material.as_ref(), s.x())?)?;
         Ok(())
     }
 
-    fn restart(&self, s: &QuasiStaticStepper<'_, D>, _done: &StepDone) -> RestartState {
-        RestartState::Solid(s.state.clone())
+    fn restart(&self, s: &S, _done: &StepDone) -> RestartState {
+        s.restart()
     }
 
-    fn dofs(&self, s: &QuasiStaticStepper<'_, D>) -> Vec<(String, usize)> {
-        solid_dofs(s.disc)
+    fn dofs(&self, s: &S) -> Vec<(String, usize)> {
+        solid_dofs(s.disc())
     }
 }
 

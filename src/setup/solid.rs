@@ -61,8 +61,8 @@ fn place<const D: usize>(mesh: &mut Mesh<D>, solid: &SolidSpec) {
 
 /// The material law of a solid spec.
 pub fn material(spec: &SolidSpec) -> Result<Arc<dyn SolidMaterial>, SetupError> {
-    let g = spec.shear_modulus.ok_or_else(|| invalid("solid.shear_modulus is required".into()))?;
-    let k = spec.bulk_modulus;
+    let moduli = spec.moduli().map_err(invalid)?;
+    let (g, k) = (moduli.shear, moduli.bulk);
     let need_k = || k.ok_or_else(|| invalid(format!("solid.model = {:?} needs bulk_modulus", spec.model)));
     Ok(match spec.model {
         SolidModel::Fixed => return Err(invalid("solid.model = \"fixed\" has no material law to solve".into())),
@@ -82,28 +82,43 @@ fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, SetupError> {
     values.iter().map(|v| Expr::compile(v).map_err(invalid)).collect()
 }
 
-/// The solid problem of a case: boundary values times the load factor when `ramp` (quasi-static
-/// runs), constant otherwise (FSI runs, where the solver passes the time in the load argument).
+/// The solid problem of a case. When `ramp` (quasi-static runs) the boundary values and the body
+/// force are multiplied by the load factor and their expressions see `t = 0`; otherwise
+/// (time-dependent solid-only and FSI runs, whose solvers pass the time in the load argument)
+/// they are evaluated at `t` = that time.
 pub fn solid_problem<const D: usize>(case: &Case, spec: &SolidSpec, ramp: bool) -> Result<SolidProblem<D>, SetupError> {
-    let scale = move |load: f64| if ramp { load } else { 1.0 };
+    // (scale, t) of a load argument.
+    let at = move |load: f64| if ramp { (load, 0.0) } else { (1.0, load) };
     let mut p = SolidProblem::new(case.physics.formulation, material(spec)?);
+    p.density = spec.density;
     for b in &spec.boundary {
         let exprs = compile(&b.value)?;
         match b.kind {
             SolidBoundaryType::Displacement => {
                 let comps: Vec<usize> = b.components.clone().unwrap_or_else(|| (0..D).collect());
-                p = p.with_displacement(&b.name, &comps, move |x, load| std::array::from_fn(|a| scale(load) * exprs[a].eval(x, 0.0)));
+                p = p.with_displacement(&b.name, &comps, move |x, load| vector_at(&exprs, x, at(load)));
             }
             SolidBoundaryType::Traction => {
-                p = p.with_traction(&b.name, move |x, load| std::array::from_fn(|a| scale(load) * exprs[a].eval(x, 0.0)));
+                p = p.with_traction(&b.name, move |x, load| vector_at(&exprs, x, at(load)));
             }
             SolidBoundaryType::Pressure => {
-                let value = exprs[0].eval(&[0.0; 3], 0.0);
-                p = p.with_pressure(&b.name, move |load| scale(load) * value);
+                p = p.with_pressure(&b.name, move |load| {
+                    let (scale, t) = at(load);
+                    scale * exprs[0].eval(&[0.0; 3], t)
+                });
             }
         }
     }
+    if let Some(f) = &spec.body_force {
+        let exprs = compile(f)?;
+        p.body_force = Some(Arc::new(move |x, load| vector_at(&exprs, x, at(load))));
+    }
     Ok(p)
+}
+
+/// `scale * e_a(x, t)` for each component `a`.
+fn vector_at<const D: usize>(exprs: &[Expr], x: &[f64; D], (scale, t): (f64, f64)) -> [f64; D] {
+    std::array::from_fn(|a| scale * exprs[a].eval(x, t))
 }
 
 /// The case's `displacement` probes as (name, solid node, component): each probe point must

@@ -14,6 +14,13 @@
 //! `p = 0`, `g(t) = sin(2 t)`, `rho = eta = 1`, body force `f_x = g'(t) y (1 - y) + 2 g(t)`.
 //! The field lies in the P2 space and `u . grad u = 0`, so the error at `T = 1` is the time
 //! discretisation's alone; `h` is the time step, expected rates 1 (Euler) and 2 (BDF2).
+//!
+//! Solid dynamics (`solid-dynamics-euler`, `solid-dynamics-bdf2`): a Saint Venant-Kirchhoff
+//! square (`mu = 1`, `lambda = 1.5`, `rho_0 = 1`, plane strain) in the affine motion
+//! `u = s(t) A X`, `s(t) = 1 - cos(2 pi t)` (from rest), `A = [[0.05, 0.02], [-0.03, 0.04]]`:
+//! its stress is uniform, so the body force is the inertia alone, `b = rho_0 s''(t) A X`; the
+//! displacement on `left` and `bottom`, the traction `P N` on `right` and `top`. The motion lies
+//! in the Q2 space: the displacement error at `T = 0.5` is the time discretisation's alone.
 
 pub mod manufactured;
 pub mod solid_exact;
@@ -232,8 +239,8 @@ pub enum VerifyError {
 }
 
 /// All studies of `fdfsi verify`: Stokes (plane, axisymmetric, 3D), time convergence (Euler,
-/// BDF2) and the neo-Hookean solid (Rivlin bending, cylinder inflation in plane strain and
-/// axisymmetric; see [`solid_exact`]).
+/// BDF2) of a flow and of a solid, and the neo-Hookean solid (Rivlin bending, cylinder inflation
+/// in plane strain and axisymmetric; see [`solid_exact`]).
 pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(VerifyReport, Vec<StokesRun>), VerifyError> {
     let mut runs = Vec::new();
     progress("stokes-plane");
@@ -248,6 +255,9 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
     progress("time-euler, time-bdf2");
     studies.push(time_convergence(crate::time::TimeScheme::Euler)?);
     studies.push(time_convergence(crate::time::TimeScheme::Bdf2)?);
+    progress("solid-dynamics-euler, solid-dynamics-bdf2");
+    studies.push(solid_time_convergence(crate::time::TimeScheme::Euler)?);
+    studies.push(solid_time_convergence(crate::time::TimeScheme::Bdf2)?);
     progress("solid: rivlin-bending, cylinder-inflation, homogeneous states");
     for run in solid_exact::solid_studies(effort)? {
         studies.extend(run.studies);
@@ -340,3 +350,65 @@ pub fn time_convergence(scheme: crate::time::TimeScheme) -> Result<Study, crate:
     Ok(Study::new(name, "velocity_l2", rate, &h, errors))
 }
 pub mod womersley;
+
+/// Time convergence of a solid with inertia, implicit Euler or BDF2, on the affine motion of the
+/// module doc: displacement L2 error at `T = 0.5` for `dt = T/10 .. T/80`.
+pub fn solid_time_convergence(scheme: crate::time::TimeScheme) -> Result<Study, VerifyError> {
+    use crate::discretize::solid::{solid_errors, ExactSolid, SolidDiscretization, SolidProblem};
+    use crate::physics::solid::{SaintVenantKirchhoff, SolidMaterial};
+    use crate::time::march::Stepper;
+    use crate::time::solid::{DynamicState, DynamicStepper};
+    use crate::time::TimeScheme;
+    use std::f64::consts::PI;
+    const A: [[f64; 2]; 2] = [[0.05, 0.02], [-0.03, 0.04]];
+    let (mu, lambda, rho, t_end) = (1.0, 1.5, 1.0, 0.5);
+    let s = |t: f64| 1.0 - (2.0 * PI * t).cos();
+    let s2 = |t: f64| 4.0 * PI * PI * (2.0 * PI * t).cos();
+    let affine = |c: f64, x: &[f64; 2]| -> [f64; 2] { std::array::from_fn(|i| c * (A[i][0] * x[0] + A[i][1] * x[1])) };
+    // First Piola-Kirchhoff stress P = F S, S = lambda tr(E) I + 2 mu E (plane strain).
+    let stress = move |t: f64| -> [[f64; 2]; 2] {
+        let f: [[f64; 2]; 2] = std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 } + s(t) * A[i][j]));
+        let e: [[f64; 2]; 2] =
+            std::array::from_fn(|i| std::array::from_fn(|j| 0.5 * ((0..2).map(|k| f[k][i] * f[k][j]).sum::<f64>() - if i == j { 1.0 } else { 0.0 })));
+        let tr = e[0][0] + e[1][1];
+        let ss: [[f64; 2]; 2] = std::array::from_fn(|i| std::array::from_fn(|j| 2.0 * mu * e[i][j] + if i == j { lambda * tr } else { 0.0 }));
+        std::array::from_fn(|i| std::array::from_fn(|j| (0..2).map(|k| f[i][k] * ss[k][j]).sum()))
+    };
+    let material: Arc<dyn SolidMaterial> = Arc::new(SaintVenantKirchhoff { mu, lambda });
+    let mut problem = SolidProblem::new(Formulation::Plane, material.clone())
+        .with_displacement("left", &[0, 1], move |x, t| affine(s(t), x))
+        .with_displacement("bottom", &[0, 1], move |x, t| affine(s(t), x))
+        .with_traction("right", move |_, t| {
+            let p = stress(t);
+            [p[0][0], p[1][0]]
+        })
+        .with_traction("top", move |_, t| {
+            let p = stress(t);
+            [p[0][1], p[1][1]]
+        });
+    problem.density = rho;
+    problem.body_force = Some(Arc::new(move |x: &[f64; 2], t| affine(rho * s2(t), x)));
+    let mesh = fdfsi_fem::generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, fdfsi_fem::mesh::GeometryOrder::Quadratic);
+    let disc = SolidDiscretization::build(mesh, Formulation::Plane, material.as_ref())?;
+    let steps = [10usize, 20, 40, 80];
+    let mut errors = Vec::new();
+    for &n in &steps {
+        let mut lu = FaerLu::default();
+        let newton = NewtonOptions { abs_tol: 1e-12, rel_tol: 1e-12, ..Default::default() };
+        let mut stepper = DynamicStepper::new(&disc, &problem, &mut lu, newton, scheme, DynamicState::at_rest(disc.num_dofs()));
+        let dt = t_end / n as f64;
+        for k in 0..n {
+            stepper.advance(k as f64 * dt, (k + 1) as f64 * dt, false)?;
+        }
+        let c = s(t_end);
+        let (u, g) = (move |x: &[f64; 2]| affine(c, x), move |_: &[f64; 2]| std::array::from_fn(|i| std::array::from_fn(|j| c * A[i][j])));
+        let e = solid_errors(&disc, &stepper.state.x, &ExactSolid { displacement: &u, gradient: &g, pressure: None }, 6)?;
+        errors.push(e.displacement_l2);
+    }
+    let h: Vec<f64> = steps.iter().map(|&n| t_end / n as f64).collect();
+    let (name, rate) = match scheme {
+        TimeScheme::Euler => ("solid-dynamics-euler", 1.0),
+        TimeScheme::Bdf2 => ("solid-dynamics-bdf2", 2.0),
+    };
+    Ok(Study::new(name, "displacement_l2", rate, &h, errors))
+}

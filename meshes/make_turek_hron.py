@@ -1,0 +1,114 @@
+"""Gmsh meshes of the Turek-Hron FSI benchmark (Turek & Hron 2006).
+
+The elastic bar: length 0.35 from x = 0.6 back to where it meets the rigid cylinder (centre
+(0.2, 0.2), radius 0.05), height 0.02 (y from 0.19 to 0.21); its left end is the cylinder's
+arc, where it is clamped. Point A = (0.6, 0.2), the middle of the tip, is a node of every mesh.
+
+turek-hron-bar-N.msh: the bar in N x N/10 9-node quadrilaterals (structured, transfinite; the
+clamped end curved on the arc). Physical groups: surface "bar"; curves "clamp" (the arc),
+"bottom" (y = 0.19), "tip" (x = 0.6), "top" (y = 0.21).
+
+turek-hron-cfd-N.msh: the CFD benchmarks' fluid, the channel [0, 2.5] x [0, 0.41] less the
+cylinder and the bar (rigid), in second-order (curved) triangles: size h = 0.04 / 2^N in the
+channel, h / 4 on the cylinder and the bar. Physical groups: surface "fluid"; curves "inlet"
+(x = 0), "outlet" (x = 2.5), "walls" (y = 0 and 0.41), "obstacle" (the cylinder's free arc and
+the bar's three sides: the drag and lift act on both).
+
+MSH 4.1 ASCII. Run: python make_turek_hron.py   (needs the `gmsh` package from PyPI)
+"""
+import math
+
+import gmsh
+
+XC, YC, R = 0.2, 0.2, 0.05
+X_TIP, Y0, Y1 = 0.6, 0.19, 0.21
+LEVELS = {"turek-hron-bar-40": 40, "turek-hron-bar-80": 80}
+L, H = 2.5, 0.41
+CFD_LEVELS = {"turek-hron-cfd-0": 0, "turek-hron-cfd-1": 1}
+
+
+def bar(name, n_long):
+    """The bar in n_long x n_long / 10 quadrilaterals (n_long a multiple of 20, so that A is a
+    vertex)."""
+    n_thick = n_long // 10
+    x_arc = XC + math.sqrt(R * R - (Y0 - YC) ** 2)
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add(name)
+    geo = gmsh.model.geo
+    c = geo.addPoint(XC, YC, 0)
+    p1, p2 = geo.addPoint(x_arc, Y0, 0), geo.addPoint(X_TIP, Y0, 0)
+    p3, p4 = geo.addPoint(X_TIP, Y1, 0), geo.addPoint(x_arc, Y1, 0)
+    bottom, tip, top = geo.addLine(p1, p2), geo.addLine(p2, p3), geo.addLine(p3, p4)
+    clamp = geo.addCircleArc(p4, c, p1)
+    surface = geo.addPlaneSurface([geo.addCurveLoop([bottom, tip, top, clamp])])
+    for curve, n in ((bottom, n_long), (top, n_long), (tip, n_thick), (clamp, n_thick)):
+        geo.mesh.setTransfiniteCurve(curve, n + 1)
+    geo.mesh.setTransfiniteSurface(surface, cornerTags=[p1, p2, p3, p4])
+    geo.mesh.setRecombine(2, surface)
+    geo.synchronize()
+    gmsh.model.addPhysicalGroup(2, [surface], 1, name="bar")
+    for k, (group, curve) in enumerate((("clamp", clamp), ("bottom", bottom), ("tip", tip), ("top", top)), start=2):
+        gmsh.model.addPhysicalGroup(1, [curve], k, name=group)
+    gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
+    gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(2)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(f"{name}.msh")
+    gmsh.finalize()
+    print(name, "written")
+
+
+def cfd(name, level):
+    """The channel less cylinder and bar, h = 0.04 / 2^level in the channel, h / 4 at the
+    obstacle."""
+    h = 0.04 / 2**level
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add(name)
+    occ = gmsh.model.occ
+    x_arc = XC + math.sqrt(R * R - (Y0 - YC) ** 2)
+    channel = occ.addRectangle(0, 0, 0, L, H)
+    obstacle, _ = occ.fuse([(2, occ.addDisk(XC, YC, 0, R, R))], [(2, occ.addRectangle(x_arc - 0.001, Y0, 0, X_TIP - x_arc + 0.001, Y1 - Y0))])
+    occ.cut([(2, channel)], obstacle)
+    occ.synchronize()
+    surfaces = gmsh.model.getEntities(2)
+    gmsh.model.addPhysicalGroup(2, [s[1] for s in surfaces], 1, name="fluid")
+    groups = {"inlet": [], "outlet": [], "walls": [], "obstacle": []}
+    for dim, tag in gmsh.model.getBoundary(surfaces, oriented=False):
+        cx, cy, _ = occ.getCenterOfMass(dim, tag)
+        if abs(cx) < 1e-9:
+            groups["inlet"].append(tag)
+        elif abs(cx - L) < 1e-9:
+            groups["outlet"].append(tag)
+        elif abs(cy) < 1e-9 or abs(cy - H) < 1e-9:
+            groups["walls"].append(tag)
+        else:
+            groups["obstacle"].append(tag)
+    for k, (group, tags) in enumerate(groups.items(), start=2):
+        gmsh.model.addPhysicalGroup(1, tags, k, name=group)
+    dist = gmsh.model.mesh.field.add("Distance")
+    gmsh.model.mesh.field.setNumbers(dist, "CurvesList", groups["obstacle"])
+    gmsh.model.mesh.field.setNumber(dist, "Sampling", 200)
+    thr = gmsh.model.mesh.field.add("Threshold")
+    gmsh.model.mesh.field.setNumber(thr, "InField", dist)
+    gmsh.model.mesh.field.setNumber(thr, "SizeMin", h / 4)
+    gmsh.model.mesh.field.setNumber(thr, "SizeMax", h)
+    gmsh.model.mesh.field.setNumber(thr, "DistMin", 0.01)
+    gmsh.model.mesh.field.setNumber(thr, "DistMax", 0.3)
+    gmsh.model.mesh.field.setAsBackgroundMesh(thr)
+    for opt in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+        gmsh.option.setNumber(opt, 0)
+    gmsh.option.setNumber("Mesh.Algorithm", 6)
+    gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(2)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(f"{name}.msh")
+    gmsh.finalize()
+    print(name, "written")
+
+
+for name, n in LEVELS.items():
+    bar(name, n)
+for name, level in CFD_LEVELS.items():
+    cfd(name, level)
