@@ -25,4 +25,6 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("turek-hron-csm1", include_str!("../../cases/turek-hron-csm1.toml")),
     ("turek-hron-csm2", include_str!("../../cases/turek-hron-csm2.toml")),
     ("turek-hron-csm3", include_str!("../../cases/turek-hron-csm3.toml")),
+    ("turek-hron-cfd1", include_str!("../../cases/turek-hron-cfd1.toml")),
+    ("turek-hron-cfd2", include_str!("../../cases/turek-hron-cfd2.toml")),
 ];

@@ -1123,6 +1123,10 @@ impl LinearSolver for FaerLu {
                     Ok(()) => LinearSolveError::Numeric(format!("the static LU is inaccurate (check residual {:.1e})", self.check_accuracy(a))),
                 });
             }
+            match &static_result {
+                Err(e) => tracing::debug!("the static LU failed ({e}): faer's partial-pivoting LU for this pattern"),
+                Ok(()) => tracing::debug!("the static LU is inaccurate: faer's partial-pivoting LU for this pattern"),
+            }
             self.static_lu = None;
             self.active = Active::None;
         }
