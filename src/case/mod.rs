@@ -204,6 +204,9 @@ impl SolidSpec {
                 let r = (e * e + 9.0 * l * l + 2.0 * e * l).sqrt();
                 ((e - 3.0 * l + r) / 4.0, Some((e + 3.0 * l + r) / 6.0))
             }
+            (None, None, Some(_), None, Some(0.0)) => {
+                return Err("solid: lame_lambda and poissons_ratio = 0 do not determine the shear modulus; give another pair".into())
+            }
             (None, None, Some(l), None, Some(nu)) => (l * (1.0 - 2.0 * nu) / (2.0 * nu), Some(l * (1.0 + nu) / (3.0 * nu))),
             (None, None, None, Some(e), Some(nu)) => (e / (2.0 * (1.0 + nu)), Some(e / (3.0 * (1.0 - 2.0 * nu)))),
             _ => {
@@ -213,9 +216,10 @@ impl SolidSpec {
                 ));
             }
         };
-        if !(shear > 0.0) || bulk.is_some_and(|k| !(k > 0.0)) || nu.is_some_and(|nu| !(nu > -1.0 && nu < 0.5)) {
+        let admissible = |v: f64| v > 0.0 && v.is_finite();
+        if !admissible(shear) || bulk.is_some_and(|k| !admissible(k)) || nu.is_some_and(|nu| !(nu > -1.0 && nu < 0.5)) {
             return Err(format!(
-                "solid: {} give shear modulus {shear:.6e} and bulk modulus {}: both must be positive (Poisson's ratio in (-1, 0.5))",
+                "solid: {} give shear modulus {shear:.6e} and bulk modulus {}: both must be positive and finite (Poisson's ratio in (-1, 0.5))",
                 named.join(" and "),
                 bulk.map_or("none".into(), |k| format!("{k:.6e}"))
             ));
@@ -1106,6 +1110,9 @@ mod tests {
         assert!(solid([None; 5]).moduli().unwrap_err().contains("got none"));
         assert!(solid([Some(g), Some(k), Some(l), None, None]).moduli().is_err());
         assert!(solid([None, None, None, Some(e), Some(0.5)]).moduli().is_err());
+        // Singular pairs: E = 3 G (K infinite), lambda with nu = 0.
+        assert!(solid([Some(g), None, None, Some(3.0 * g), None]).moduli().unwrap_err().contains("finite"));
+        assert!(solid([None, None, Some(l), None, Some(0.0)]).moduli().unwrap_err().contains("do not determine"));
     }
 
     const GOOD: &str = r#"

@@ -264,7 +264,14 @@ fn combinations(c: &Case, p: &mut Problems) {
         }
         known.insert(&comb.name);
     }
+    let mut written: HashSet<String> = HashSet::new();
     for o in &c.output.oscillation {
+        for suffix in ["mean", "amplitude", "frequency"] {
+            let name = format!("{}_{suffix}", o.quantity);
+            if known.contains(name.as_str()) || !written.insert(name.clone()) {
+                p.push(format!("oscillation of '{}': its quantity {name} is already defined", o.quantity));
+            }
+        }
         if !known.contains(o.quantity.as_str()) {
             p.push(format!("oscillation: unknown quantity '{}'", o.quantity));
         }
@@ -320,11 +327,24 @@ fn solid_material(c: &Case, solid: &SolidSpec, p: &mut Problems) {
                 p.push(format!("solid.model = {} needs bulk_modulus (or another elastic constant besides shear_modulus)", spelled(&solid.model)))
             }
             Ok(_) => {}
-            Err(e) => p.push(format!("solid.model = {}: {e}", spelled(&solid.model))),
+            Err(e) => p.push(e),
         }
     }
     if !(solid.density >= 0.0 && solid.density.is_finite()) {
         p.push(format!("solid.density must be a finite number >= 0, got {}", solid.density));
+    }
+    if c.mesh.is_none() {
+        // Solid-only: [time] means dynamics (inertia, total Lagrangian); without it the load is
+        // ramped quasi-statically.
+        let loading_given = solid.loading.steps != 1 || solid.loading.mode != crate::discretize::solid::Lagrangian::Updated;
+        match &c.time {
+            Some(_) if !(solid.density > 0.0) => {
+                p.push("a solid-only run with [time] is dynamic: it needs solid.density > 0 (for a static solve, drop [time] and use solid.loading)")
+            }
+            Some(_) if loading_given => p.push("solid.loading applies to quasi-static runs (no [time]); a dynamic run applies its loads in time"),
+            None if solid.density > 0.0 => p.push("solid.density (inertia) needs a time-dependent run: add [time]"),
+            _ => {}
+        }
     }
     if solid.loading.steps == 0 {
         p.push("solid.loading.steps must be >= 1");

@@ -27,8 +27,8 @@
 //! axisymmetric):
 //!
 //! ```text
-//! R_u(w) = int_{Omega_n} P_n : grad_n w dV_n  + int rho_0/dt^2 (u - u_target) . w dV_0
-//!          - <t_0, w>_{Gamma_0} + <p_f n, w>_{gamma}                      (boundary terms: solid.rs)
+//! R_u(w) = int_{Omega_n} P_n : grad_n w dV_n  + int rho_0 a^2 (u - u_target) . w dV_0
+//!          - int b . w dV_0 - <t_0, w>_{Gamma_0} + <p_f n, w>_{gamma}    (boundary terms: solid.rs)
 //! R_p(q) = - int_{Omega_n} q (J - 1 + p / K) / J_n dV_n                   (mixed materials only)
 //! P_n    = (P_dev(F) - p J F^{-T}) F_n^T / J_n
 //! ```
@@ -284,9 +284,10 @@ pub fn transpose(m: &Mat3) -> Mat3 {
     std::array::from_fn(|i| std::array::from_fn(|j| m[j][i]))
 }
 
-/// Solid inertia by implicit Euler: the term `coefficient (u - target) . w` per reference volume,
-/// with `coefficient = rho_0 / dt^2` and `target` the local displacement the solid would reach by
-/// keeping its velocity (`u_n + dt v_n` in total Lagrangian, `dt v_n` for an increment).
+/// Solid inertia: the term `coefficient (u - target) . w` per reference volume, with
+/// `coefficient = rho_0 a^2` and `target = u* + v* / a` for a time scheme `v_{n+1} = a (u - u*)`,
+/// `a_{n+1} = a (v_{n+1} - v*)` ([`crate::discretize::solid::InertiaHistory`]; implicit Euler:
+/// `a = 1/dt`, target `u_n + dt v_n` in total Lagrangian, `dt v_n` for an increment).
 #[derive(Clone, Copy)]
 pub struct InertiaState<'a> {
     pub coefficient: f64,

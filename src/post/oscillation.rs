@@ -5,7 +5,9 @@
 //! The period is the time between the last two upward crossings of the signal's mid-value (over
 //! the analysed window), each located by linear interpolation between the samples; the extrema
 //! are the samples' (the sampling error of an extremum is about `(pi dt / T)^2 / 2` of the
-//! amplitude: 1.5e-4 at 100 samples a period).
+//! amplitude: 1.5e-4 at 100 samples a period). A crossing counts only after the signal has been
+//! below the mid-value by a tenth of the half range, so that noise about the mid-value does not
+//! make crossings, and a signal whose range is below 1e-9 of its size does not oscillate.
 
 /// The statistics of the last period of a signal.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -26,12 +28,19 @@ pub fn last_period(t: &[f64], y: &[f64], from: f64) -> Option<Oscillation> {
         return None;
     }
     let (lo, hi) = window.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, y)| (lo.min(*y), hi.max(*y)));
-    let mid = 0.5 * (lo + hi);
-    let crossings: Vec<f64> = window
-        .windows(2)
-        .filter(|w| w[0].1 < mid && w[1].1 >= mid)
-        .map(|w| w[0].0 + (mid - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0))
-        .collect();
+    if !(hi - lo > 1e-9 * hi.abs().max(lo.abs())) {
+        return None;
+    }
+    let (mid, armed_below) = (0.5 * (lo + hi), 0.5 * (lo + hi) - 0.05 * (hi - lo));
+    let mut crossings = Vec::new();
+    let mut armed = false;
+    for w in window.windows(2) {
+        armed |= w[0].1 < armed_below;
+        if armed && w[0].1 < mid && w[1].1 >= mid {
+            crossings.push(w[0].0 + (mid - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0));
+            armed = false;
+        }
+    }
     let [.., a, b] = crossings[..] else { return None };
     let (lo, hi) =
         window.iter().filter(|(t, _)| *t >= a && *t <= b).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, y)| (lo.min(*y), hi.max(*y)));
@@ -56,5 +65,12 @@ mod tests {
         // Less than a period: nothing to report.
         assert_eq!(last_period(&t, &y, 7.5), None);
         assert_eq!(last_period(&t[..10], &y[..10], 0.0), None);
+        // Noise about the mid-value of a sine makes no extra crossings.
+        let noisy: Vec<f64> = y.iter().enumerate().map(|(k, v)| v + if k % 2 == 0 { 1e-3 } else { -1e-3 }).collect();
+        let n = last_period(&t, &noisy, 4.0).unwrap();
+        assert!((n.frequency - f).abs() < 1e-4 * f, "{n:?}");
+        // A constant (to round-off) does not oscillate.
+        let flat: Vec<f64> = t.iter().map(|t| 5.0 + 1e-14 * (40.0 * t).sin()).collect();
+        assert_eq!(last_period(&t, &flat, 0.0), None);
     }
 }

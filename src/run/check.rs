@@ -184,23 +184,24 @@ impl Ctx<'_> {
         let problem = solid_problem::<D>(case, spec, true)?;
         let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
         disc.check_problem(&problem)?;
+        let lagrangian = if case.time.is_some() { crate::discretize::solid::Lagrangian::Total } else { spec.loading.mode };
         let description = format!(
             "{}: solid-only ({}), {D}D mesh of {cells} cells; {}; nnz {}; {:?} Lagrangian",
             case.title,
             problem.material.name(),
             disc.layout.fields.iter().map(|f| format!("{} {}", f.name, f.num_dofs())).collect::<Vec<_>>().join(", "),
             disc.pattern.nnz(),
-            spec.loading.mode
+            lagrangian
         );
-        let steps = spec.loading.steps;
+        let (steps, step_kind, field_writes, rows) = time_steps(case).unwrap_or((spec.loading.steps, "load steps", 1, spec.loading.steps));
         Ok(CheckSummary {
             description,
             dofs: with_total(super::solid::solid_dofs(&disc)),
             steps,
-            step_kind: "load steps",
-            field_writes: 1,
+            step_kind,
+            field_writes,
             field_bytes: solid_vtu_bytes(&disc),
-            history_bytes: history_bytes(steps, case.output.probe.len() + case.output.combination.len()),
+            history_bytes: history_bytes(rows, case.output.probe.len() + case.output.combination.len()),
         })
     }
 
@@ -290,14 +291,7 @@ impl Ctx<'_> {
             name_of(&case.physics.formulation),
             disc.pattern.nnz()
         );
-        let (steps, step_kind, field_writes, rows) = match &case.time {
-            None => (1, "steady solve", 1, 1),
-            Some(ts) => {
-                let steps = num_steps(ts.dt, ts.end);
-                let every = ts.output_every.max(1);
-                (steps, "time steps", 1 + steps / every + usize::from(!steps.is_multiple_of(every)), steps + 1)
-            }
-        };
+        let (steps, step_kind, field_writes, rows) = time_steps(case).unwrap_or((1, "steady solve", 1, 1));
         Ok(CheckSummary {
             description,
             dofs,
@@ -404,6 +398,15 @@ fn solid_vtu_bytes<const D: usize>(disc: &SolidDiscretization<D>) -> u64 {
 fn history_bytes(rows: usize, quantities: usize) -> u64 {
     let row = 48 + 23 * quantities as u64;
     (rows as u64 + 1).saturating_mul(row)
+}
+
+/// `(steps, "time steps", field writes, history rows)` of a time-dependent run (the initial state
+/// written and recorded too); `None` without `[time]`.
+fn time_steps(case: &Case) -> Option<(usize, &'static str, usize, usize)> {
+    let ts = case.time.as_ref()?;
+    let steps = num_steps(ts.dt, ts.end);
+    let every = ts.output_every.max(1);
+    Some((steps, "time steps", 1 + steps / every + usize::from(!steps.is_multiple_of(every)), steps + 1))
 }
 
 #[cfg(test)]

@@ -280,9 +280,10 @@ fn oscillations(case: &Case, out_dir: &Path, obs: &mut dyn RunObserver) -> Resul
                     [("mean", s.mean), ("amplitude", s.amplitude), ("frequency", s.frequency)].map(|(k, v)| (format!("{}_{k}", o.quantity), v)),
                 );
             }
-            None => {
-                obs.log(&format!("oscillation of {}: less than one whole period after t = {}: no mean, amplitude or frequency", o.quantity, o.from))
-            }
+            None => obs.log(&format!(
+                "oscillation of {}: no whole period after t = {} (or a non-finite value): no mean, amplitude or frequency",
+                o.quantity, o.from
+            )),
         }
     }
     Ok(out)

@@ -63,7 +63,7 @@ fn place<const D: usize>(mesh: &mut Mesh<D>, solid: &SolidSpec) {
 pub fn material(spec: &SolidSpec) -> Result<Arc<dyn SolidMaterial>, SetupError> {
     let moduli = spec.moduli().map_err(invalid)?;
     let (g, k) = (moduli.shear, moduli.bulk);
-    let need_k = || k.ok_or_else(|| invalid(format!("solid.model = {:?} needs bulk_modulus", spec.model)));
+    let need_k = || k.ok_or_else(|| invalid(format!("solid.model = {} needs bulk_modulus", crate::case::name_of(&spec.model))));
     Ok(match spec.model {
         SolidModel::Fixed => return Err(invalid("solid.model = \"fixed\" has no material law to solve".into())),
         SolidModel::NeoHookean => match k {
