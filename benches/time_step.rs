@@ -74,7 +74,7 @@ impl<const D: usize> System<D> {
         let n = self.disc.num_dofs();
         let t = (self.level.step + 1) as f64 * self.options.dt;
         let mut problem = self.problem.clone();
-        let (inv_dt, u_star) = step_history(self.options.scheme, self.options.dt, &self.x, self.level.x_prev.as_deref());
+        let (inv_dt, u_star) = step_history(self.options.scheme, self.options.dt, 1.0, &self.x, self.level.x_prev.as_deref());
         problem.params.inv_dt = inv_dt;
         let mut constrained = vec![false; n];
         for (d, _) in self.disc.dirichlet_dofs(&problem, t).expect("dirichlet dofs") {

@@ -249,7 +249,7 @@ mod tests {
             time: 0.30000000000000004,
             state: RestartState::Flow {
                 x: awkward.to_vec(),
-                level: crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) },
+                level: crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()), dt: 0.1 },
             },
             progress: Progress { newton_iterations: 7, krylov_iterations: 0, residual_norms: vec![1e-11], timings: Timings::default() },
             builds: vec![crate::io::provenance::Build::current()],
@@ -259,7 +259,7 @@ mod tests {
         let (x, level) = back.flow_state(dir.path(), awkward.len()).unwrap();
         assert_eq!(x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), awkward.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
         assert_eq!(back.builds, c.builds);
-        assert_eq!(level, crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()) });
+        assert_eq!(level, crate::time::TimeLevel { step: 3, time: 0.30000000000000004, x_prev: Some(awkward.iter().map(|v| -v).collect()), dt: 0.1 });
         let e = back.flow_state(dir.path(), 5).unwrap_err().to_string();
         assert!(e.contains("holds 6 values for the solution but the case has 5"), "{e}");
         assert!(back.fsi_state(dir.path(), 6).unwrap_err().to_string().contains("checkpoint is of a flow run"));

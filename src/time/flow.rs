@@ -2,7 +2,7 @@
 //! that integrate a flow problem without a case (convergence studies, benchmarks).
 
 use super::march::{march, Advance, MarchError, MarchOptions, Schedule, StepDone, Stepper, Watch};
-use super::{step_history, TimeLevel, TimeScheme, Timings};
+use super::{step_history, step_ratio, TimeLevel, TimeScheme, Timings};
 use crate::discretize::flow::{FlowDiscretization, FlowError, FlowProblem};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonOptions, NewtonReport};
@@ -19,11 +19,13 @@ pub struct FlowStepper<'a, const D: usize> {
     pub x: Vec<f64>,
     /// `u^{n-1}`, when the next step may use BDF2.
     pub x_prev: Option<Vec<f64>>,
+    /// The length of the last step (0 at the start).
+    pub last_dt: f64,
     /// `a0/dt` of the last (sub)step and its history `u*` (see [`crate::time`]): what the
     /// residual of the step needs, e.g. for consistent boundary forces.
     pub inv_dt: f64,
     pub u_star: Vec<f64>,
-    marked: (Vec<f64>, Option<Vec<f64>>),
+    marked: (Vec<f64>, Option<Vec<f64>>, f64),
     /// Whether the solver has the discretisation's saddle-point split.
     split_given: bool,
 }
@@ -48,6 +50,7 @@ impl<'a, const D: usize> FlowStepper<'a, D> {
             scheme,
             x,
             x_prev: level.x_prev,
+            last_dt: level.dt,
             inv_dt: 0.0,
             u_star: Vec::new(),
             marked: Default::default(),
@@ -57,7 +60,7 @@ impl<'a, const D: usize> FlowStepper<'a, D> {
 
     /// The time level after step `step` at `time` (what a restart needs besides `x`).
     pub fn level(&self, step: usize, time: f64) -> TimeLevel {
-        TimeLevel { step, time, x_prev: self.x_prev.clone() }
+        TimeLevel { step, time, x_prev: self.x_prev.clone(), dt: self.last_dt }
     }
 }
 
@@ -71,7 +74,8 @@ impl<const D: usize> Stepper for FlowStepper<'_, D> {
         }
         let dt = t1 - t0;
         let x_n = self.x.clone();
-        let (inv_dt, u_star) = if cut { (1.0 / dt, x_n.clone()) } else { step_history(self.scheme, dt, &x_n, self.x_prev.as_deref()) };
+        let omega = step_ratio(dt, self.last_dt);
+        let (inv_dt, u_star) = if cut { (1.0 / dt, x_n.clone()) } else { step_history(self.scheme, dt, omega, &x_n, self.x_prev.as_deref()) };
         let newton = match solve_step(self.disc, self.problem, &mut self.x, &u_star, inv_dt, t1, self.solver, &self.newton) {
             Ok(r) => r,
             Err(e) => {
@@ -81,16 +85,17 @@ impl<const D: usize> Stepper for FlowStepper<'_, D> {
         };
         // After a cut step BDF2 restarts with an Euler step.
         self.x_prev = if cut { None } else { Some(x_n) };
+        self.last_dt = dt;
         (self.inv_dt, self.u_star) = (inv_dt, u_star);
         Ok(Advance { newton, phases: Timings::default() })
     }
 
     fn mark(&mut self) {
-        self.marked = (self.x.clone(), self.x_prev.clone());
+        self.marked = (self.x.clone(), self.x_prev.clone(), self.last_dt);
     }
 
     fn rewind(&mut self) {
-        (self.x, self.x_prev) = self.marked.clone();
+        (self.x, self.x_prev, self.last_dt) = self.marked.clone();
     }
 }
 

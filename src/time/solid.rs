@@ -3,7 +3,7 @@
 //! [`DynamicStepper`] takes time steps of `rho_0 u'' = div P + b` (implicit Euler or BDF2).
 
 use super::march::{Advance, Stepper};
-use super::{step_history, TimeScheme, Timings};
+use super::{step_history, step_ratio, TimeScheme, Timings};
 use crate::discretize::solid::{solve_dynamic_step, InertiaHistory, LoadState, SolidDiscretization, SolidError, SolidProblem};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::NewtonOptions;
@@ -62,8 +62,8 @@ pub struct DynamicState {
     /// `(x, v)` one step back, when the next step may use BDF2 (`None` at the start and after a
     /// cut step).
     pub previous: Option<(Vec<f64>, Vec<f64>)>,
-    /// The size of the step that reached this state (0 at the start): BDF2's formula needs the
-    /// next step to be as long (a shorter last step of a run takes an Euler step).
+    /// The size of the step that reached this state (0 at the start): BDF2's coefficients
+    /// depend on the next step's ratio to it ([`crate::time::step_ratio`]).
     #[serde(default)]
     pub dt: f64,
 }
@@ -81,9 +81,9 @@ impl DynamicState {
 /// second order for both, and L-stable: it damps the unresolved high frequencies of a stiff
 /// solid, while a resolved oscillation of frequency `omega` loses only a factor
 /// `1 - (omega dt)^4 / 4` of its amplitude per step (FSI3's 5.3 Hz at dt = 1e-3: 6e-5 a
-/// period). Like the fluid's, BDF2 starts with an Euler step and takes Euler steps in the
-/// sub-steps of a cut step and the step after it, and for a step of another length than the
-/// last (a run's shorter last step): its formula assumes equal steps.
+/// period). Like the fluid's, BDF2 starts with an Euler step, takes Euler steps in the sub-steps
+/// of a cut step and the step after it, and the variable-step formula for a step of another
+/// length than the last (a run's shorter last step; [`step_history`]).
 pub struct DynamicStepper<'a, const D: usize> {
     pub disc: &'a SolidDiscretization<D>,
     pub problem: &'a SolidProblem<D>,
@@ -113,10 +113,10 @@ impl<const D: usize> Stepper for DynamicStepper<'_, D> {
 
     fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, SolidError> {
         let dt = t1 - t0;
-        let equal_steps = (dt - self.state.dt).abs() <= 1e-9 * dt;
-        let previous = if cut || !equal_steps { None } else { self.state.previous.as_ref() };
-        let (a, u_star) = step_history(self.scheme, dt, &self.state.x, previous.map(|p| p.0.as_slice()));
-        let (_, v_star) = step_history(self.scheme, dt, &self.state.v, previous.map(|p| p.1.as_slice()));
+        let previous = if cut { None } else { self.state.previous.as_ref() };
+        let omega = step_ratio(dt, self.state.dt);
+        let (a, u_star) = step_history(self.scheme, dt, omega, &self.state.x, previous.map(|p| p.0.as_slice()));
+        let (_, v_star) = step_history(self.scheme, dt, omega, &self.state.v, previous.map(|p| p.1.as_slice()));
         let history = InertiaHistory { a, u_star: &u_star, v_star: &v_star };
         let (x, v, newton) = solve_dynamic_step(self.disc, self.problem, &self.state.x, &history, t1, self.solver, &self.newton)?;
         let old = std::mem::replace(&mut self.state, DynamicState { x, v, previous: None, dt });
