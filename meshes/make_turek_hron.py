@@ -27,14 +27,29 @@ L, H = 2.5, 0.41
 CFD_LEVELS = {"turek-hron-cfd-0": 0, "turek-hron-cfd-1": 1}
 
 
+def start(name):
+    """A new Gmsh model `name`."""
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add(name)
+
+
+def finish(name):
+    """Meshes the model in second-order cells and writes `name`.msh (MSH 4.1)."""
+    gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(2)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(f"{name}.msh")
+    gmsh.finalize()
+    print(name, "written")
+
+
 def bar(name, n_long):
     """The bar in n_long x n_long / 10 quadrilaterals (n_long a multiple of 20, so that A is a
     vertex)."""
     n_thick = n_long // 10
     x_arc = XC + math.sqrt(R * R - (Y0 - YC) ** 2)
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add(name)
+    start(name)
     geo = gmsh.model.geo
     c = geo.addPoint(XC, YC, 0)
     p1, p2 = geo.addPoint(x_arc, Y0, 0), geo.addPoint(X_TIP, Y0, 0)
@@ -51,21 +66,14 @@ def bar(name, n_long):
     for k, (group, curve) in enumerate((("clamp", clamp), ("bottom", bottom), ("tip", tip), ("top", top)), start=2):
         gmsh.model.addPhysicalGroup(1, [curve], k, name=group)
     gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
-    gmsh.model.mesh.generate(2)
-    gmsh.model.mesh.setOrder(2)
-    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-    gmsh.write(f"{name}.msh")
-    gmsh.finalize()
-    print(name, "written")
+    finish(name)
 
 
 def cfd(name, level):
     """The channel less cylinder and bar, h = 0.04 / 2^level in the channel, h / 4 at the
     obstacle."""
     h = 0.04 / 2**level
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add(name)
+    start(name)
     occ = gmsh.model.occ
     x_arc = XC + math.sqrt(R * R - (Y0 - YC) ** 2)
     channel = occ.addRectangle(0, 0, 0, L, H)
@@ -100,12 +108,7 @@ def cfd(name, level):
     for opt in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
         gmsh.option.setNumber(opt, 0)
     gmsh.option.setNumber("Mesh.Algorithm", 6)
-    gmsh.model.mesh.generate(2)
-    gmsh.model.mesh.setOrder(2)
-    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-    gmsh.write(f"{name}.msh")
-    gmsh.finalize()
-    print(name, "written")
+    finish(name)
 
 
 for name, n in LEVELS.items():

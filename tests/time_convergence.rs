@@ -86,34 +86,7 @@ fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
 /// step left 1.9e-5.
 #[test]
 fn bdf2_takes_a_shorter_last_step_by_its_variable_step_formula() {
-    use fdfsi::discretize::flow::{flow_errors, DirichletBc, ExactFlow, FlowDiscretization, FlowProblem};
-    use fdfsi::fem::generate::{rectangle_triangles, DiagonalPattern};
-    use fdfsi::physics::fluid::{FluidParams, Formulation};
-    use fdfsi::solve::linear::FaerLu;
-    use fdfsi::solve::newton::NewtonOptions;
-    use fdfsi::time::{solve_unsteady, TimeOptions};
-    use std::sync::Arc;
-    let g = |t: f64| (2.0 * t).sin();
-    let dg = |t: f64| 2.0 * (2.0 * t).cos();
-    let exact = move |x: &[f64; 2], t: f64| [g(t) * x[1] * (1.0 - x[1]), 0.0];
-    let error_at = |dt: f64, t_end: f64| {
-        let disc =
-            FlowDiscretization::build(rectangle_triangles(0.0, 1.0, 0.0, 1.0, 3, 3, DiagonalPattern::Alternating), Formulation::Plane).unwrap();
-        let bc = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(exact) };
-        let problem = FlowProblem {
-            formulation: Formulation::Plane,
-            params: FluidParams { viscosity: 1.0, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
-            body_force: Some(Arc::new(move |x: &[f64; 2], t| [dg(t) * x[1] * (1.0 - x[1]) + 2.0 * g(t), 0.0])),
-            dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
-            traction: vec![],
-            pin_pressure: true,
-        };
-        let mut x = vec![0.0; disc.num_dofs()];
-        let options = TimeOptions { dt, t_end, scheme: TimeScheme::Bdf2, max_cuts: 0 };
-        solve_unsteady(&disc, &problem, &mut x, &options, &mut FaerLu::default(), &NewtonOptions::default(), |_, _| Ok(())).unwrap();
-        let (u, gr, p) = (|x: &[f64; 2]| exact(x, t_end), |x: &[f64; 2]| [[0.0, g(t_end) * (1.0 - 2.0 * x[1])], [0.0, 0.0]], |_: &[f64; 2]| 0.0);
-        flow_errors(&disc, Formulation::Plane, &x, &ExactFlow { velocity: &u, gradient: &gr, pressure: &p }, 6).unwrap().velocity_l2
-    };
+    let error_at = |dt: f64, t_end: f64| fdfsi::verify::time_error(TimeScheme::Bdf2, dt, t_end).unwrap();
     let (equal, shorter) = (error_at(0.05, 1.0), error_at(0.05, 0.99));
     println!("velocity L2 error: {equal:.3e} after equal steps, {shorter:.3e} after a last step of 0.8 dt");
     assert!(shorter < 2.0 * equal, "{shorter:.3e} against {equal:.3e}");

@@ -103,35 +103,29 @@ trait SolidStepper<const D: usize> {
     fn restart(&self) -> RestartState;
 }
 
-impl<const D: usize> SolidStepper<D> for QuasiStaticStepper<'_, D> {
-    fn disc(&self) -> &SolidDiscretization<D> {
-        self.disc
-    }
-    fn problem(&self) -> &SolidProblem<D> {
-        self.problem
-    }
-    fn x(&self) -> &[f64] {
-        &self.state.x
-    }
-    fn restart(&self) -> RestartState {
-        RestartState::Solid(self.state.clone())
-    }
+/// [`SolidStepper`] for a stepper with fields `disc`, `problem` and `state.x`, whose state a
+/// checkpoint saves as `RestartState::$variant`.
+macro_rules! solid_stepper {
+    ($stepper:ident, $variant:ident) => {
+        impl<const D: usize> SolidStepper<D> for $stepper<'_, D> {
+            fn disc(&self) -> &SolidDiscretization<D> {
+                self.disc
+            }
+            fn problem(&self) -> &SolidProblem<D> {
+                self.problem
+            }
+            fn x(&self) -> &[f64] {
+                &self.state.x
+            }
+            fn restart(&self) -> RestartState {
+                RestartState::$variant(self.state.clone())
+            }
+        }
+    };
 }
 
-impl<const D: usize> SolidStepper<D> for DynamicStepper<'_, D> {
-    fn disc(&self) -> &SolidDiscretization<D> {
-        self.disc
-    }
-    fn problem(&self) -> &SolidProblem<D> {
-        self.problem
-    }
-    fn x(&self) -> &[f64] {
-        &self.state.x
-    }
-    fn restart(&self) -> RestartState {
-        RestartState::SolidDynamic(self.state.clone())
-    }
-}
+solid_stepper!(QuasiStaticStepper, Solid);
+solid_stepper!(DynamicStepper, SolidDynamic);
 
 /// The outputs of a solid run in `D` dimensions: its displacement probes and the deformed solid.
 struct SolidOutputs<const D: usize> {

@@ -316,38 +316,42 @@ fn exact_mean_pressure(l: f64) -> f64 {
 /// Time convergence of implicit Euler or BDF2 on a manufactured Navier-Stokes solution
 /// (module doc): velocity L2 error at `T = 1` for `dt = 1/10 .. 1/80`.
 pub fn time_convergence(scheme: crate::time::TimeScheme) -> Result<Study, crate::time::TimeError> {
-    use crate::time::{solve_unsteady, TimeOptions, TimeScheme};
-    let g = |t: f64| (2.0 * t).sin();
-    let dg = |t: f64| 2.0 * (2.0 * t).cos();
-    let exact = move |x: &[f64; 2], t: f64| [g(t) * x[1] * (1.0 - x[1]), 0.0];
-    let mut errors = Vec::new();
+    use crate::time::TimeScheme;
     let steps = [10usize, 20, 40, 80];
-    for &n in &steps {
-        let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 3, 3, DiagonalPattern::Alternating);
-        let disc = FlowDiscretization::build(mesh, Formulation::Plane)?;
-        let bc = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(exact) };
-        let problem = FlowProblem {
-            formulation: Formulation::Plane,
-            params: FluidParams { viscosity: 1.0, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
-            body_force: Some(Arc::new(move |x: &[f64; 2], t| [dg(t) * x[1] * (1.0 - x[1]) + 2.0 * g(t), 0.0])),
-            dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
-            traction: vec![],
-            pin_pressure: true,
-        };
-        let mut x = vec![0.0; disc.num_dofs()];
-        let options = TimeOptions { dt: 1.0 / n as f64, t_end: 1.0, scheme, max_cuts: 0 };
-        let mut lu = FaerLu::default();
-        solve_unsteady(&disc, &problem, &mut x, &options, &mut lu, &NewtonOptions::default(), |_, _| Ok(()))?;
-        let (u, gr, p) = (|x: &[f64; 2]| exact(x, 1.0), |x: &[f64; 2]| [[0.0, g(1.0) * (1.0 - 2.0 * x[1])], [0.0, 0.0]], |_: &[f64; 2]| 0.0);
-        let e = flow_errors(&disc, Formulation::Plane, &x, &ExactFlow { velocity: &u, gradient: &gr, pressure: &p }, 6)?;
-        errors.push(e.velocity_l2);
-    }
+    let errors = steps.iter().map(|&n| time_error(scheme, 1.0 / n as f64, 1.0)).collect::<Result<Vec<_>, _>>()?;
     let h: Vec<f64> = steps.iter().map(|&n| 1.0 / n as f64).collect();
     let (name, rate) = match scheme {
         TimeScheme::Euler => ("time-euler", 1.0),
         TimeScheme::Bdf2 => ("time-bdf2", 2.0),
     };
     Ok(Study::new(name, "velocity_l2", rate, &h, errors))
+}
+
+/// The velocity L2 error at `t_end` of the manufactured Navier-Stokes solution of
+/// [`time_convergence`] (module doc) with steps of `dt` (the last one shorter when `t_end` is
+/// not a whole number of them).
+pub fn time_error(scheme: crate::time::TimeScheme, dt: f64, t_end: f64) -> Result<f64, crate::time::TimeError> {
+    use crate::time::{solve_unsteady, TimeOptions};
+    let g = |t: f64| (2.0 * t).sin();
+    let dg = |t: f64| 2.0 * (2.0 * t).cos();
+    let exact = move |x: &[f64; 2], t: f64| [g(t) * x[1] * (1.0 - x[1]), 0.0];
+    let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 3, 3, DiagonalPattern::Alternating);
+    let disc = FlowDiscretization::build(mesh, Formulation::Plane)?;
+    let bc = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(exact) };
+    let problem = FlowProblem {
+        formulation: Formulation::Plane,
+        params: FluidParams { viscosity: 1.0, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+        body_force: Some(Arc::new(move |x: &[f64; 2], t| [dg(t) * x[1] * (1.0 - x[1]) + 2.0 * g(t), 0.0])),
+        dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
+        traction: vec![],
+        pin_pressure: true,
+    };
+    let mut x = vec![0.0; disc.num_dofs()];
+    let options = TimeOptions { dt, t_end, scheme, max_cuts: 0 };
+    let mut lu = FaerLu::default();
+    solve_unsteady(&disc, &problem, &mut x, &options, &mut lu, &NewtonOptions::default(), |_, _| Ok(()))?;
+    let (u, gr, p) = (|x: &[f64; 2]| exact(x, t_end), |x: &[f64; 2]| [[0.0, g(t_end) * (1.0 - 2.0 * x[1])], [0.0, 0.0]], |_: &[f64; 2]| 0.0);
+    Ok(flow_errors(&disc, Formulation::Plane, &x, &ExactFlow { velocity: &u, gradient: &gr, pressure: &p }, 6)?.velocity_l2)
 }
 pub mod womersley;
 
