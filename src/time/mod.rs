@@ -1,18 +1,20 @@
 //! Time integration: the schemes, the steppers of each kind of run and the one time loop,
 //! [`march::march`], that drives them.
 //!
-//! The fluid schemes are written as `rho a0/dt (u^{n+1} - u*)`:
+//! The schemes are written as `u' = a0/dt (u^{n+1} - u*)`:
 //! - implicit Euler: `a0 = 1`, `u* = u^n`;
 //! - BDF2: `(3 u^{n+1} - 4 u^n + u^{n-1}) / (2 dt)`, so `a0 = 3/2`, `u* = (4 u^n - u^{n-1}) / 3`;
 //!
 //! so the fluid kernel's `inv_dt (u - u_old)` term serves both with `inv_dt = a0/dt`,
-//! `u_old = u*`. BDF2 starts with one Euler step (it needs two time levels), and takes Euler
-//! steps again in the sub-steps of a cut step and the step after it; a step of another length
-//! than the last (a run's shorter last step) takes the variable-step BDF2 of [`step_history`]. FSI runs use implicit Euler throughout (the paper's).
+//! `u_old = u*`, and a solid applies the same formula to its displacement and its velocity. BDF2
+//! starts with one Euler step (it needs two time levels), and takes Euler steps again in the
+//! sub-steps of a cut step and the step after it; a step of another length than the last (a
+//! run's shorter last step) takes the variable-step BDF2 of [`step_history`]. FSI runs use
+//! implicit Euler throughout (the paper's).
 //!
 //! The steppers: [`flow::FlowStepper`] (a flow on one mesh), [`fsi::FsiStepper`] (the monolithic
-//! FSI step of [`crate::discretize::fsi`]) and [`solid::QuasiStaticStepper`] (load increments of
-//! a solid; the "time" is the load factor).
+//! FSI step of [`crate::discretize::fsi`]), [`solid::QuasiStaticStepper`] (load increments of
+//! a solid; the "time" is the load factor) and [`solid::DynamicStepper`] (a solid with inertia).
 
 use serde::{Deserialize, Serialize};
 
