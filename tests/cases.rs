@@ -49,6 +49,16 @@ fn q(s: &RunSummary, name: &str) -> f64 {
     *s.quantities.get(name).unwrap_or_else(|| panic!("quantity {name} missing"))
 }
 
+/// Asserts each `(quantity, reference, limit)`: the quantity within `limit` of the reference,
+/// relative to it.
+fn assert_near_references(s: &RunSummary, references: &[(&str, f64, f64)]) {
+    for &(name, value, limit) in references {
+        let e = (q(s, name) - value).abs() / value.abs();
+        println!("{name} = {:.5e} (reference {value:.5e}, {e:.2e})", q(s, name));
+        assert!(e < limit, "{name}: {} against {value}", q(s, name));
+    }
+}
+
 #[test]
 fn every_case_file_is_a_builtin_and_is_tested() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
@@ -348,18 +358,16 @@ fn turek_hron_cfd3_starts_from_rest() {
 #[ignore = "about 70 minutes; run with --ignored"]
 fn turek_hron_cfd3_sheds_at_the_benchmark_forces_and_frequency() {
     let (s, _) = run("turek-hron-cfd3");
-    let limits = [
-        ("drag_mean", 439.45, 3e-2),
-        ("drag_amplitude", 5.6183, 3e-2),
-        ("lift_mean", -11.893, 0.1),
-        ("lift_amplitude", 437.81, 3e-2),
-        ("lift_frequency", 4.3956, 3e-2),
-    ];
-    for (name, value, limit) in limits {
-        let e = (q(&s, name) - value).abs() / value.abs();
-        println!("{name} = {:.5e} (reference {value:.5e}, {e:.2e})", q(&s, name));
-        assert!(e < limit, "{name}: {} against {value}", q(&s, name));
-    }
+    assert_near_references(
+        &s,
+        &[
+            ("drag_mean", 439.45, 3e-2),
+            ("drag_amplitude", 5.6183, 3e-2),
+            ("lift_mean", -11.893, 0.1),
+            ("lift_amplitude", 437.81, 3e-2),
+            ("lift_frequency", 4.3956, 3e-2),
+        ],
+    );
 }
 
 /// Turek-Hron CSM1 and CSM2 (the static bar under gravity): the displacement of A within 1 % of
@@ -421,18 +429,17 @@ fn turek_hron_csm3_bar_falls_from_rest() {
 #[ignore = "about 95 s; run with --ignored"]
 fn turek_hron_csm3_swings_at_the_benchmark_amplitude_and_frequency() {
     let (s, _) = run("turek-hron-csm3");
-    for (name, value) in [
-        ("ux_A_mean", -14.305e-3),
-        ("ux_A_amplitude", 14.305e-3),
-        ("ux_A_frequency", 1.0995),
-        ("uy_A_mean", -63.607e-3),
-        ("uy_A_amplitude", 65.160e-3),
-        ("uy_A_frequency", 1.0995),
-    ] {
-        let e = (q(&s, name) - value).abs() / value.abs();
-        println!("{name} = {:.5e} (reference {value:.5e}, {e:.2e})", q(&s, name));
-        assert!(e < 2e-2, "{name}: {} against {value}", q(&s, name));
-    }
+    assert_near_references(
+        &s,
+        &[
+            ("ux_A_mean", -14.305e-3, 2e-2),
+            ("ux_A_amplitude", 14.305e-3, 2e-2),
+            ("ux_A_frequency", 1.0995, 2e-2),
+            ("uy_A_mean", -63.607e-3, 2e-2),
+            ("uy_A_amplitude", 65.160e-3, 2e-2),
+            ("uy_A_frequency", 1.0995, 2e-2),
+        ],
+    );
 }
 
 #[test]

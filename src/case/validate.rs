@@ -181,10 +181,10 @@ fn boundary_time_functions(c: &Case, p: &mut Problems) {
 
 /// `body_force` (of the fluid) and `solid.body_force`: one expression per dimension.
 fn body_force(c: &Case, p: &mut Problems) {
-    let forces = [("body_force", &c.body_force), ("solid.body_force", &c.solid.as_ref().and_then(|s| s.body_force.clone()))];
+    let d = c.dim();
+    let forces = [("body_force", c.body_force.as_ref()), ("solid.body_force", c.solid.as_ref().and_then(|s| s.body_force.as_ref()))];
     for (key, f) in forces {
         let Some(f) = f else { continue };
-        let d = c.dim();
         if f.len() != d {
             p.push(format!("{key} needs {d} entries, got {}", f.len()));
         }

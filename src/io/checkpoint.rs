@@ -5,19 +5,22 @@
 //! run is interrupted). It holds:
 //! - the case as used (TOML text) and the folder its relative paths are resolved against;
 //! - the step number `k` and time `t_k`;
-//! - the state: for a flow run the solution `x^k` and, for BDF2, `x^{k-1}`; for an FSI run the
-//!   solid displacement, deformation gradients and velocity, the fluid velocity and the solid
-//!   position its (adapted) mesh was built for, the coupling cells of its pattern
-//!   ([`crate::discretize::fsi::CouplingPattern`]); for a solid run the load factor, the solution,
-//!   the deformation gradients (updated Lagrangian) and the predictor;
+//! - the state: for a flow run the solution `x^k` and, for BDF2, `x^{k-1}` and the last step's
+//!   length; for an FSI run the solid displacement, deformation gradients and velocity, the fluid
+//!   velocity and the solid position its (adapted) mesh was built for, the coupling cells of its
+//!   pattern ([`crate::discretize::fsi::CouplingPattern`]); for a quasi-static solid run the load
+//!   factor, the solution, the deformation gradients (updated Lagrangian) and the predictor; for
+//!   a dynamic solid run the solution, the velocity, both one step back, and the last step's
+//!   length;
 //! - the run's running totals (Newton iterations, residuals, phase timings) for `summary.json`;
 //! - the builds of fdfsi that ran it so far (see [`crate::io::provenance`]).
 //!
 //! Floating-point values are written in their shortest round-trip decimal form and read back
 //! exactly (serde_json's `float_roundtrip`), so a resumed run repeats the arithmetic of an
 //! uninterrupted one bit for bit (with the direct solver; the AL solver's held factors and kept
-//! LU ordering are not saved, so its resumed runs agree to the Krylov tolerance). On resume, `history.csv` and `solution.pvd` are cut back to
-//! step `k` (rows and entries written after the checkpoint by the interrupted run are dropped).
+//! LU ordering are not saved, so its resumed runs agree to the Krylov tolerance). On resume,
+//! `history.csv` and `solution.pvd` are cut back to step `k` (rows and entries written after the
+//! checkpoint by the interrupted run are dropped).
 //!
 //! The file is written to a temporary name and renamed, so a run killed while writing leaves the
 //! previous checkpoint intact.

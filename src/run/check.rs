@@ -181,7 +181,8 @@ impl Ctx<'_> {
         let spec = self.solid_spec()?;
         let mesh = self.solid_mesh::<D>(spec)?;
         let cells = mesh.num_cells();
-        let problem = solid_problem::<D>(case, spec, true)?;
+        // As `fdfsi run` builds it: loads ramped without [time], evaluated in time with it.
+        let problem = solid_problem::<D>(case, spec, case.time.is_none())?;
         let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
         disc.check_problem(&problem)?;
         let lagrangian = if case.time.is_some() { crate::discretize::solid::Lagrangian::Total } else { spec.loading.mode };

@@ -24,6 +24,7 @@
 
 pub mod manufactured;
 pub mod solid_exact;
+pub mod womersley;
 
 use crate::discretize::flow::{flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc};
 use crate::physics::fluid::{FluidParams, Formulation};
@@ -353,7 +354,6 @@ pub fn time_error(scheme: crate::time::TimeScheme, dt: f64, t_end: f64) -> Resul
     let (u, gr, p) = (|x: &[f64; 2]| exact(x, t_end), |x: &[f64; 2]| [[0.0, g(t_end) * (1.0 - 2.0 * x[1])], [0.0, 0.0]], |_: &[f64; 2]| 0.0);
     Ok(flow_errors(&disc, Formulation::Plane, &x, &ExactFlow { velocity: &u, gradient: &gr, pressure: &p }, 6)?.velocity_l2)
 }
-pub mod womersley;
 
 /// Time convergence of a solid with inertia, implicit Euler or BDF2, on the affine motion of the
 /// module doc: displacement L2 error at `T = 0.5` for `dt = T/10 .. T/80`.
