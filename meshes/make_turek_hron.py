@@ -14,6 +14,13 @@ channel, h / 4 on the cylinder and the bar. Physical groups: surface "fluid"; cu
 (x = 0), "outlet" (x = 2.5), "walls" (y = 0 and 0.41), "obstacle" (the cylinder's free arc and
 the bar's three sides: the drag and lift act on both).
 
+turek-hron-fsi-N.msh: the FSI benchmarks' fluid mesh, the channel less the cylinder only: it
+covers the bar, to which every step adapts it; the points where the bar's corners meet the
+cylinder are vertices. Size h = 0.04 / 2^N in the channel, h / 4 on the
+cylinder and in the box [0.24, 0.66] x [0.1, 0.3] that the bar sweeps (FSI2: the tip moves up to
+0.09 from y = 0.2). Physical groups: surface "fluid"; curves "inlet", "outlet", "walls",
+"cylinder".
+
 MSH 4.1 ASCII. Run: python make_turek_hron.py   (needs the `gmsh` package from PyPI)
 """
 import math
@@ -25,6 +32,7 @@ X_TIP, Y0, Y1 = 0.6, 0.19, 0.21
 LEVELS = {"turek-hron-bar-40": 40, "turek-hron-bar-80": 80}
 L, H = 2.5, 0.41
 CFD_LEVELS = {"turek-hron-cfd-0": 0, "turek-hron-cfd-1": 1}
+FSI_LEVELS = {"turek-hron-fsi-0": 0, "turek-hron-fsi-1": 1}
 
 
 def start(name):
@@ -111,7 +119,59 @@ def cfd(name, level):
     finish(name)
 
 
+def fsi(name, level):
+    """The channel less the cylinder, h = 0.04 / 2^level in the channel, h / 4 on the cylinder and
+    where the bar moves."""
+    h = 0.04 / 2**level
+    start(name)
+    occ = gmsh.model.occ
+    # The cylinder in two arcs, split where the bar's corners meet it: those points are then
+    # vertices of the fluid mesh, and gamma_s (the bar's free sides) ends on the fluid boundary.
+    a = math.asin((Y1 - YC) / R)
+    arcs = [occ.addCircle(XC, YC, 0, R, angle1=-a, angle2=a), occ.addCircle(XC, YC, 0, R, angle1=a, angle2=2 * math.pi - a)]
+    disk = occ.addPlaneSurface([occ.addCurveLoop(arcs)])
+    occ.cut([(2, occ.addRectangle(0, 0, 0, L, H))], [(2, disk)])
+    occ.synchronize()
+    surfaces = gmsh.model.getEntities(2)
+    gmsh.model.addPhysicalGroup(2, [s[1] for s in surfaces], 1, name="fluid")
+    groups = {"inlet": [], "outlet": [], "walls": [], "cylinder": []}
+    for dim, tag in gmsh.model.getBoundary(surfaces, oriented=False):
+        cx, cy, _ = occ.getCenterOfMass(dim, tag)
+        if abs(cx) < 1e-9:
+            groups["inlet"].append(tag)
+        elif abs(cx - L) < 1e-9:
+            groups["outlet"].append(tag)
+        elif abs(cy) < 1e-9 or abs(cy - H) < 1e-9:
+            groups["walls"].append(tag)
+        else:
+            groups["cylinder"].append(tag)
+    for k, (group, tags) in enumerate(groups.items(), start=2):
+        gmsh.model.addPhysicalGroup(1, tags, k, name=group)
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "CurvesList", groups["cylinder"])
+    field.setNumber(dist, "Sampling", 200)
+    near_cylinder = field.add("Threshold")
+    field.setNumber(near_cylinder, "InField", dist)
+    field.setNumber(near_cylinder, "SizeMin", h / 4)
+    field.setNumber(near_cylinder, "SizeMax", h)
+    field.setNumber(near_cylinder, "DistMin", 0.01)
+    field.setNumber(near_cylinder, "DistMax", 0.3)
+    box = field.add("Box")
+    for key, value in (("VIn", h / 4), ("VOut", h), ("XMin", 0.24), ("XMax", 0.66), ("YMin", 0.1), ("YMax", 0.3), ("Thickness", 0.15)):
+        field.setNumber(box, key, value)
+    size = field.add("Min")
+    field.setNumbers(size, "FieldsList", [near_cylinder, box])
+    field.setAsBackgroundMesh(size)
+    for opt in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+        gmsh.option.setNumber(opt, 0)
+    gmsh.option.setNumber("Mesh.Algorithm", 6)
+    finish(name)
+
+
 for name, n in LEVELS.items():
     bar(name, n)
 for name, level in CFD_LEVELS.items():
     cfd(name, level)
+for name, level in FSI_LEVELS.items():
+    fsi(name, level)

@@ -7,10 +7,43 @@
 //! `gamma_f_plus` are the same facets seen from the fluid cells on either side (for one-sided
 //! quantities such as the wall shear stress on both faces of a thin plate).
 
-use fdfsi_fem::adapt::{adapt_with, AdaptError, AdaptOptions, Adapted, Background, Surface};
+use fdfsi_fem::adapt::{adapt_with, remove_enclosed, AdaptError, AdaptOptions, Adapted, Background, Surface};
 use fdfsi_fem::mesh::Mesh;
 
 pub use fdfsi_fem::adapt::{GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
+
+/// What becomes of the fluid cells the solid covers.
+///
+/// The fluid mesh covers the solid (it is adapted to gamma_s, not cut out). With a slender solid
+/// coupled on one face (the paper's model problems) the covered fluid stays in the fluid system:
+/// it moves with the solid and carries its mass (`kept`, the paper's; default). A thick solid
+/// wetted on its whole boundary encloses its covered cells by gamma_f (with the domain boundary,
+/// where it is fixed to a wall): kept, that fictitious fluid is incompressible and holds the
+/// solid's area (volume) fixed, which a compressible solid must be free to change. `removed`
+/// takes those cells out of each step's adapted mesh ([`remove_enclosed`]):
+/// the fluid then lies on one side of gamma_f only, and the solid's own density carries its
+/// inertia. It needs a gamma_f that encloses the solid.
+///
+/// In case files (`[solid] covered_fluid`): `kept`, `removed`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CoveredFluid {
+    /// The covered fluid stays (the paper's).
+    #[default]
+    Kept,
+    /// The cells gamma_f encloses are removed from the fluid system.
+    Removed,
+}
+
+impl CoveredFluid {
+    /// `adapted` with the enclosed cells removed if so chosen.
+    pub fn apply<const D: usize>(self, adapted: Adapted<D>) -> Result<Adapted<D>, AdaptError> {
+        match self {
+            CoveredFluid::Kept => Ok(adapted),
+            CoveredFluid::Removed => remove_enclosed(adapted),
+        }
+    }
+}
 
 /// A fluid mesh adapted to a solid, with the facets on gamma_s tagged `gamma_f`.
 pub struct AdaptedFluid<const D: usize> {
@@ -22,15 +55,16 @@ pub struct AdaptedFluid<const D: usize> {
 
 impl<const D: usize> AdaptedFluid<D> {
     /// `original` (prepared as `background`) adapted to `surface`, the surface of `solid`, with
-    /// gamma_f tagged on the adapted mesh.
+    /// the covered cells kept or removed and gamma_f tagged on the adapted mesh.
     pub fn new(
         original: Mesh<D>,
         background: &Background<D>,
         solid: Mesh<D>,
         surface: Surface<D>,
         options: &AdaptOptions,
+        covered: CoveredFluid,
     ) -> Result<Self, AdaptError> {
-        let mut adapted = adapt_with(background, &surface, options)?;
+        let mut adapted = covered.apply(adapt_with(background, &surface, options)?)?;
         fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
         Ok(AdaptedFluid { original, solid, surface, adapted })
     }

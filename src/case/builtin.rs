@@ -28,4 +28,5 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("turek-hron-cfd1", include_str!("../../cases/turek-hron-cfd1.toml")),
     ("turek-hron-cfd2", include_str!("../../cases/turek-hron-cfd2.toml")),
     ("turek-hron-cfd3", include_str!("../../cases/turek-hron-cfd3.toml")),
+    ("turek-hron-fsi1", include_str!("../../cases/turek-hron-fsi1.toml")),
 ];

@@ -92,6 +92,35 @@ pub struct Case {
     pub output: OutputSpec,
 }
 
+/// One boundary name, or several that act as one boundary (their union).
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum BoundaryNames {
+    One(String),
+    Several(Vec<String>),
+}
+
+impl BoundaryNames {
+    /// The names given.
+    pub fn names(&self) -> &[String] {
+        match self {
+            BoundaryNames::One(n) => std::slice::from_ref(n),
+            BoundaryNames::Several(v) => v,
+        }
+    }
+
+    /// The name of the union: the names joined by `+` (the name itself for one).
+    pub fn joined(&self) -> String {
+        self.names().join("+")
+    }
+}
+
+impl std::fmt::Display for BoundaryNames {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.joined())
+    }
+}
+
 /// The immersed solid.
 ///
 /// Every run (and `fdfsi adapt`) adapts the fluid mesh to the solid's surface `surface`
@@ -102,9 +131,11 @@ pub struct Case {
 pub struct SolidSpec {
     /// The solid mesh (9-node quadrilaterals / 27-node hexahedra).
     pub mesh: SolidMeshSpec,
-    /// The solid boundary coupled to the fluid (gamma_s); required when there is a fluid.
+    /// The solid boundary coupled to the fluid (gamma_s): one name, or several (`["bottom",
+    /// "tip", "top"]`: their union, e.g. the wetted sides of a thick solid); required when there
+    /// is a fluid.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub surface: Option<String>,
+    pub surface: Option<BoundaryNames>,
     /// `fixed`: the solid does not move, and the fluid sees it only through the conditions given
     /// on the boundary `gamma_f` (e.g. no-slip: the paper's pure-fluid twin of model problem 2).
     /// The material laws are solved in solid-only cases (no fluid mesh).
@@ -149,6 +180,12 @@ pub struct SolidSpec {
     /// gamma_f equals the solid's at every node; see [`crate::discretize::fsi::MultiplierSpace`]).
     #[serde(default, skip_serializing_if = "is_default")]
     pub multiplier: crate::discretize::fsi::MultiplierSpace,
+    /// The fluid cells the solid covers (FSI runs): `kept` (the paper's; default: a slender solid
+    /// coupled on one face) or `removed` (a thick solid coupled on its whole wetted boundary,
+    /// which gamma_f then encloses; a compressible solid is free to change its area; see
+    /// [`crate::adapt::CoveredFluid`]).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub covered_fluid: crate::adapt::CoveredFluid,
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,

@@ -290,6 +290,15 @@ fn solid(c: &Case, p: &mut Problems) {
     if c.mesh.is_some() && solid.surface.is_none() {
         p.push("solid.surface (the solid boundary coupled to the fluid) is required with a fluid");
     }
+    if let Some(names) = &solid.surface {
+        let list = names.names();
+        if list.is_empty() || list.iter().any(|n| n.is_empty()) {
+            p.push("solid.surface: give one boundary name or a non-empty list of names");
+        }
+        if (1..list.len()).any(|i| list[..i].contains(&list[i])) {
+            p.push(format!("solid.surface = {:?}: a boundary is named twice", names.names()));
+        }
+    }
     if solid.model != SolidModel::Fixed {
         solid_material(c, solid, p);
     }

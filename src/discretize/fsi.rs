@@ -5,13 +5,15 @@
 //!
 //! 1. the solid at `t_n` (positions `X + u_n`) gives gamma_s ([`FsiModel::gamma_s`]);
 //! 2. the ORIGINAL fluid mesh (prepared once as a [`Background`]) is adapted to it
-//!    ([`adapt_with`]); the facets on gamma_s (gamma_f) are tagged as the boundary `gamma_f`;
+//!    ([`adapt_with`]; in 2D its corners first made fluid vertices); with
+//!    [`CoveredFluid::Removed`] the fluid cells gamma_f encloses are removed; the facets on
+//!    gamma_s (gamma_f) are tagged as the boundary `gamma_f`;
 //! 3. [`FsiDiscretization::build`]: the fluid discretisation of the adapted mesh, the coupling
 //!    elements (one per gamma_f facet, with their quadrature points located in a fluid cell and on
 //!    the solid), the global numbering `[fluid (u, p) | solid (Delta u, p) | multiplier]` and one
 //!    sparse [`Pattern`] with the coupling blocks;
 //! 4. the previous fluid velocity is transferred to the new velocity nodes
-//!    ([`transfer_p2plus`]);
+//!    ([`transfer_p2plus_extrapolating`]: nodes the solid uncovered take the nearest old cell's);
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
 //!    discretisations ([`FlowDiscretization::assemble_system`],
 //!    [`SolidDiscretization::assemble_system`], updated Lagrangian) into block matrices and
@@ -31,6 +33,7 @@
 //! fluid on the body.
 
 use super::layout::{Block, SystemLayout};
+pub use crate::adapt::CoveredFluid;
 use crate::discretize::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
 use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
@@ -39,7 +42,7 @@ use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit}
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::adapt::{
-    adapt_with, transfer_p2plus, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, Surface, GAMMA_F_REL_TOL,
+    adapt_with, transfer_p2plus_extrapolating, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, Surface, GAMMA_F_REL_TOL,
 };
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
@@ -151,6 +154,8 @@ pub struct FsiModel<const D: usize> {
     pub solid: SolidDiscretization<D>,
     /// The multiplier space on gamma_f (default: the paper's P1 discontinuous).
     pub multiplier: MultiplierSpace,
+    /// The fluid cells under the solid (default: kept, the paper's).
+    pub covered_fluid: CoveredFluid,
 }
 
 impl<const D: usize> FsiModel<D> {
@@ -160,13 +165,19 @@ impl<const D: usize> FsiModel<D> {
         self
     }
 
+    /// The model with the covered fluid kept or removed.
+    pub fn with_covered_fluid(mut self, covered_fluid: CoveredFluid) -> Self {
+        self.covered_fluid = covered_fluid;
+        self
+    }
+
     /// Prepares the original fluid mesh and discretises the solid mesh (reference configuration).
     pub fn new(problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
         let background = Background::new(fluid_mesh)?;
         let solid = SolidDiscretization::build(solid_mesh, problem.solid.formulation, problem.solid.material.as_ref())?;
         solid.check_problem(&problem.solid)?;
         solid.mesh.boundary_tag(&problem.surface)?;
-        Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default() })
+        Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default(), covered_fluid: CoveredFluid::default() })
     }
 
     /// The solid mesh at the total displacement in `solid_x` (solid numbering): every geometry
@@ -517,7 +528,7 @@ impl<const D: usize> FsiDiscretization<D> {
     pub fn build(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern) -> Result<Self, FsiError> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
-        let adapted = adapt_with(&model.background, &surface, &model.problem.adapt)?;
+        let adapted = model.covered_fluid.apply(adapt_with(&model.background, &surface, &model.problem.adapt)?)?;
         let adapt_seconds = clock.elapsed().as_secs_f64();
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
@@ -1206,7 +1217,11 @@ impl<const D: usize> StepStart<D> {
         let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
         let mut u_old = vec![0.0; disc.fluid_dofs()];
         if let Some(prev) = &state.fluid {
-            let v = transfer_p2plus(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes)?;
+            // With the covered fluid removed, the nodes the solid uncovered since lie in the old
+            // mesh's hole: the nearest old cell's velocity is extended to them (they are within a
+            // step's motion of gamma_f, where the fluid moves with the solid).
+            let outside = if model.covered_fluid == CoveredFluid::Removed { 1.0 } else { 0.0 };
+            let v = transfer_p2plus_extrapolating(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes, outside)?;
             u_old[disc.flow.velocity_field().range()].copy_from_slice(&v);
         }
         seconds.transfer = clock.elapsed().as_secs_f64();

@@ -4,15 +4,16 @@
 //! `fdfsi adapt CASE --out DIR` writes `original.vtu` and `adapted.vtu` (the fluid mesh before and
 //! after, as linear cells), `gamma_s.vtu`, `gamma_f.vtu` and `summary.json` (the counts of
 //! [`AdaptStats`] and the measures of gamma_s and gamma_f). With `--at RUN_DIR`, the mesh of the
-//! next step of an FSI run from its checkpoint.
+//! next step of an FSI run from its checkpoint. Where the covered fluid is to be removed and
+//! gamma_f does not enclose it, the files show the adaptation with it kept, and the command fails.
 
 use super::{RunError, RunOptions};
-use crate::adapt::AdaptedFluid;
+use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{Case, CaseError, RunKind};
 use crate::discretize::fsi::FsiError;
 use crate::io::checkpoint::Checkpoint;
 use crate::io::{write_atomic, OutputError};
-use crate::setup::{adapt_fluid, build_mesh, fsi_model};
+use crate::setup::{adapt_fluid_with, build_mesh, fsi_model};
 use fdfsi_fem::adapt::AdaptStats;
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
@@ -23,10 +24,30 @@ use std::path::Path;
 /// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the mesh files and
 /// counts into `out_dir` (see [`crate::adapt`]).
 pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, RunError> {
-    Ok(match build_mesh(case, case_dir)? {
-        AnyMesh::D2(m) => write_adapt_report(&adapt_fluid(case, m, case_dir)?, out_dir)?,
-        AnyMesh::D3(m) => write_adapt_report(&adapt_fluid(case, m, case_dir)?, out_dir)?,
-    })
+    let covered = case.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default();
+    match build_mesh(case, case_dir)? {
+        AnyMesh::D2(m) => report_or_leak(|c| Ok(adapt_fluid_with(case, m.clone(), case_dir, c)?), covered, out_dir),
+        AnyMesh::D3(m) => report_or_leak(|c| Ok(adapt_fluid_with(case, m.clone(), case_dir, c)?), covered, out_dir),
+    }
+}
+
+/// Writes the report of `adapt(covered)`. Where removing the covered cells fails (gamma_f does
+/// not enclose them), the adaptation with them kept is written, to show where gamma_f is open,
+/// and the error returned.
+fn report_or_leak<const D: usize>(
+    adapt: impl Fn(CoveredFluid) -> Result<AdaptedFluid<D>, RunError>,
+    covered: CoveredFluid,
+    out_dir: &Path,
+) -> Result<AdaptSummary, RunError> {
+    match adapt(covered) {
+        Err(e) if covered == CoveredFluid::Removed => {
+            if let Ok(kept) = adapt(CoveredFluid::Kept) {
+                write_adapt_report(&kept, out_dir)?;
+            }
+            Err(e)
+        }
+        adapted => write_adapt_report(&adapted?, out_dir),
+    }
 }
 
 /// `fdfsi adapt --at RUN_DIR`: the fluid mesh of an FSI run adapted to the solid of its
@@ -42,10 +63,11 @@ pub fn adapt_checkpoint(run_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, 
             message: "`fdfsi adapt --at` needs the checkpoint of an FSI run (a case with a fluid mesh and a solid surface)".into(),
         }));
     }
-    Ok(match build_mesh(&case, &options.case_dir)? {
-        AnyMesh::D2(m) => write_adapt_report(&adapted_at(&case, m, &options.case_dir, checkpoint, run_dir)?, out_dir)?,
-        AnyMesh::D3(m) => write_adapt_report(&adapted_at(&case, m, &options.case_dir, checkpoint, run_dir)?, out_dir)?,
-    })
+    let covered = case.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default();
+    match build_mesh(&case, &options.case_dir)? {
+        AnyMesh::D2(m) => report_or_leak(|c| adapted_at(&case, m.clone(), &options.case_dir, checkpoint, run_dir, c), covered, out_dir),
+        AnyMesh::D3(m) => report_or_leak(|c| adapted_at(&case, m.clone(), &options.case_dir, checkpoint, run_dir, c), covered, out_dir),
+    }
 }
 
 /// The original fluid mesh adapted to the solid of a checkpoint written in `run_dir` (what the
@@ -56,12 +78,13 @@ fn adapted_at<const D: usize>(
     case_dir: &std::path::Path,
     checkpoint: &Checkpoint,
     run_dir: &std::path::Path,
+    covered: CoveredFluid,
 ) -> Result<AdaptedFluid<D>, RunError> {
     let model = fsi_model(case, &fluid_mesh, case_dir)?;
     let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
     let solid = model.current_solid_mesh(&restart.solid_x);
     let surface = model.gamma_s(&restart.solid_x)?;
-    let adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt);
+    let adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt, covered);
     Ok(adapted.map_err(FsiError::from)?)
 }
 

@@ -15,7 +15,7 @@
 //! [`CheckSummary`]: unknowns per field, the number of steps and an estimate of the output size.
 
 use super::RunError;
-use crate::case::{name_of, Case, CaseError, ProbeField, RunKind, SolidSpec, TimeFn, TimeFunction};
+use crate::case::{name_of, BoundaryNames, Case, CaseError, ProbeField, RunKind, SolidSpec, TimeFn, TimeFunction};
 use crate::discretize::flow::FlowDiscretization;
 use crate::discretize::fsi::FsiDiscretization;
 use crate::discretize::solid::SolidDiscretization;
@@ -162,11 +162,18 @@ impl Ctx<'_> {
     /// The placed solid mesh; `solid.surface` and the `[[solid.boundary]]` names must be its
     /// boundaries.
     fn solid_mesh<const D: usize>(&self, spec: &SolidSpec) -> Result<Mesh<D>, RunError> {
-        let mesh = crate::setup::solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
+        let mut mesh = crate::setup::placed_solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
         let names: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
-        if let Some(s) = &spec.surface {
-            self.known_name(&names, s, &format!("solid.surface = \"{s}\""), "the solid mesh")?;
+        match &spec.surface {
+            Some(BoundaryNames::One(s)) => self.known_name(&names, s, &format!("solid.surface = \"{s}\""), "the solid mesh")?,
+            Some(BoundaryNames::Several(list)) => {
+                for s in list {
+                    self.known_name(&names, s, &format!("solid.surface = {list:?}: \"{s}\""), "the solid mesh")?;
+                }
+            }
+            None => {}
         }
+        crate::setup::merge_surface(&mut mesh, spec)?;
         if spec.model != crate::case::SolidModel::Fixed {
             for b in &spec.boundary {
                 self.known_name(&names, &b.name, &format!("[[solid.boundary]] name = \"{}\"", b.name), "the solid mesh")?;
@@ -239,7 +246,7 @@ impl Ctx<'_> {
         let cells = mesh.num_cells();
         let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.domain.len() + case.output.combination.len();
         if let (true, Some((spec, _))) = (fsi, solid) {
-            let surface = spec.surface.clone().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
+            let surface = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
             // The model `fdfsi run` builds, at t = 0: the same unknowns as its first step.
             let model = fsi_model(case, &mesh, self.dir)?;
             let material = model.problem.solid.material.name();
@@ -282,7 +289,10 @@ impl Ctx<'_> {
         let disc = FlowDiscretization::build(adapted, case.physics.formulation)?;
         let dofs = with_total(super::flow::flow_dofs(&disc));
         let solid_text = match &case.solid {
-            Some(s) => format!("; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells", s.surface.as_deref().unwrap_or("?")),
+            Some(s) => format!(
+                "; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells",
+                s.surface.as_ref().map(|s| s.joined()).unwrap_or_else(|| "?".into())
+            ),
             None => String::new(),
         };
         let description = format!(

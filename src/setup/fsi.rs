@@ -15,10 +15,10 @@ pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &s
     if ts.scheme != crate::time::TimeScheme::Euler {
         return Err(invalid("FSI runs use implicit Euler (the paper's scheme): set time.scheme = \"euler\"".into()));
     }
-    let surface = spec.surface.clone().ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
+    let surface = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
     let fluid = flow_problem(case, fluid_mesh, case_dir)?;
     let solid_mesh = super::solid_mesh::<D>(spec, case_dir)?;
     let solid = super::solid_problem::<D>(case, spec, false)?;
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
-    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(spec.multiplier))
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(spec.multiplier).with_covered_fluid(spec.covered_fluid))
 }

@@ -1,7 +1,7 @@
 //! From a case to the objects of the numerical layers: meshes, flow and solid problems, the FSI
 //! model and the probes. `fdfsi check`, `fdfsi run` and `fdfsi adapt` build them here alike.
 
-use crate::adapt::AdaptedFluid;
+use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, TimeFn};
 use crate::discretize::flow::{DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn};
 use crate::discretize::fsi::FsiError;
@@ -19,7 +19,7 @@ mod fsi;
 mod solid;
 
 pub use fsi::fsi_model;
-pub use solid::{displacement_probes, material, solid_mesh, solid_problem};
+pub use solid::{displacement_probes, material, merge_surface, placed_solid_mesh, solid_mesh, solid_problem};
 
 /// A case that cannot be built: what is wrong, and where.
 #[derive(Debug, Error)]
@@ -187,10 +187,16 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
 /// Adapts `fluid` to the case's solid and tags gamma_f on the adapted mesh (which then replaces
 /// `adapted.mesh`'s boundary list with the parent's tags plus `gamma_f`).
 pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path) -> Result<AdaptedFluid<D>, SetupError> {
+    let covered = case.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default();
+    adapt_fluid_with(case, fluid, case_dir, covered)
+}
+
+/// As [`adapt_fluid`], with the covered cells kept or removed as `covered` says.
+pub fn adapt_fluid_with<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path, covered: CoveredFluid) -> Result<AdaptedFluid<D>, SetupError> {
     let spec = case.solid.as_ref().ok_or_else(|| SetupError::SolidMesh("the case has no [solid] table".into()))?;
     let solid = solid_mesh::<D>(spec, case_dir)?;
-    let name = spec.surface.as_deref().ok_or_else(|| SetupError::SolidMesh("solid.surface is not set".into()))?;
-    let surface = Surface::from_mesh_boundary(&solid, name)?;
+    let name = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| SetupError::SolidMesh("solid.surface is not set".into()))?;
+    let surface = Surface::from_mesh_boundary(&solid, &name)?;
     let background = Background::new(&fluid)?;
-    Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat))?)
+    Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat), covered)?)
 }

@@ -11,8 +11,27 @@ use fdfsi_fem::mesh::{GeometryOrder, Mesh};
 use std::path::Path;
 use std::sync::Arc;
 
-/// Builds the solid mesh of a case at its placed position.
+/// Builds the solid mesh of a case at its placed position, with the union of the boundaries of a
+/// `surface` of several names added under their joined name ([`crate::case::BoundaryNames`]).
 pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<Mesh<D>, SetupError> {
+    let mut mesh = placed_solid_mesh(solid, case_dir)?;
+    merge_surface(&mut mesh, solid)?;
+    Ok(mesh)
+}
+
+/// Adds the union of the boundaries `solid.surface` names, if it names several, under their
+/// joined name.
+pub fn merge_surface<const D: usize>(mesh: &mut Mesh<D>, solid: &SolidSpec) -> Result<(), SetupError> {
+    match &solid.surface {
+        Some(surface) if surface.names().len() > 1 => mesh
+            .merge_boundaries(surface.names(), &surface.joined())
+            .map_err(|e| SetupError::SolidMesh(format!("solid.surface = {:?}: {e}", surface.names()))),
+        _ => Ok(()),
+    }
+}
+
+/// The solid mesh of a case at its placed position, as its file or generator gives it.
+pub fn placed_solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<Mesh<D>, SetupError> {
     let any = match &solid.mesh {
         SolidMeshSpec::Rectangle { x, y, n } => AnyMesh::D2(generate::rectangle_quads(x[0], x[1], y[0], y[1], n[0], n[1], GeometryOrder::Quadratic)),
         SolidMeshSpec::Quadrilateral { corners: c, n } => {

@@ -102,26 +102,28 @@ impl<const D: usize> Background<D> {
                 (mesh.cell_nodes[b.cell * (D + 1) + mesh.cell_type.facet(b.facet)[k]], i)
             }),
         );
-        let boxes = topology
-            .edges
-            .iter()
-            .enumerate()
-            .map(|(e, &[a, b])| {
-                let (pa, pb) = (mesh.points[a], mesh.points[b]);
-                EdgeBox { edge: e, lo: std::array::from_fn(|d| pa[d].min(pb[d])), hi: std::array::from_fn(|d| pa[d].max(pb[d])) }
-            })
-            .collect();
         let measure = (0..nc).map(|c| mesh.signed_vertex_measure(c)).sum();
         Ok(Background {
             was_quadratic: original.order == GeometryOrder::Quadratic,
             measure,
-            edge_tree: RTree::bulk_load(boxes),
+            edge_tree: edge_tree(&mesh, &topology),
             edge_cells,
             vertex_cells,
             vertex_boundary,
             topology,
             mesh,
         })
+    }
+
+    /// The same mesh with the vertices `moves` at new positions (same topology; the edge index is
+    /// rebuilt).
+    pub(crate) fn with_moved_vertices(&self, moves: &[(usize, [f64; D])]) -> Self {
+        let mut moved = self.clone();
+        for &(v, x) in moves {
+            moved.mesh.points[v] = x;
+        }
+        moved.edge_tree = edge_tree(&moved.mesh, &moved.topology);
+        moved
     }
 
     /// Number of cells.
@@ -174,4 +176,18 @@ fn vertex_mesh<const D: usize>(m: &Mesh<D>) -> Mesh<D> {
         boundary: m.boundary.clone(),
         boundary_names: m.boundary_names.clone(),
     }
+}
+
+/// The R-tree of the bounding boxes of the edges of `mesh`.
+fn edge_tree<const D: usize>(mesh: &Mesh<D>, topology: &Topology) -> RTree<EdgeBox<D>> {
+    let boxes = topology
+        .edges
+        .iter()
+        .enumerate()
+        .map(|(e, &[a, b])| {
+            let (pa, pb) = (mesh.points[a], mesh.points[b]);
+            EdgeBox { edge: e, lo: std::array::from_fn(|d| pa[d].min(pb[d])), hi: std::array::from_fn(|d| pa[d].max(pb[d])) }
+        })
+        .collect();
+    RTree::bulk_load(boxes)
 }

@@ -4,6 +4,8 @@
 //! Every step starts from the ORIGINAL fluid mesh (prepared once as a [`Background`]) and the
 //! CURRENT gamma_s (a [`Surface`] of flat pieces):
 //!
+//! 0. **Corners** ([`corners`], 2D): where gamma_s turns sharply, the nearest fluid vertex that
+//!    can is moved onto the corner first, so that the adapted mesh has a node there.
 //! 1. **Cut edges** ([`intersect`]): the edges crossed by gamma_s, one point per edge (the one
 //!    closest to the edge's first vertex `n1`, its smaller vertex number, if there are several).
 //! 2. **Move or add** ([`adapt_with`]): `eps = |x_i - x_n1| / |x_n2 - x_n1|`;
@@ -53,6 +55,8 @@
 //!   exterior boundary is).
 
 pub mod background;
+pub mod corners;
+pub mod enclosed;
 mod geom;
 pub mod intersect;
 pub mod subdivide;
@@ -61,8 +65,9 @@ pub mod transfer;
 pub mod verify;
 
 pub use background::Background;
+pub use enclosed::remove_enclosed;
 pub use surface::{Surface, SurfacePoint};
-pub use transfer::{transfer_p2plus, CellLocator};
+pub use transfer::{transfer_p2plus, transfer_p2plus_extrapolating, CellLocator};
 pub use verify::verify_adapted;
 
 use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
@@ -118,6 +123,8 @@ pub enum AdaptError {
     Surface(String),
     #[error("transfer: {0}")]
     Transfer(String),
+    #[error("covered fluid: gamma_f does not enclose the solid: the fluid cells on its solid side connect to its fluid side (at the cell with centroid {0:?}); couple the solid on its whole wetted boundary, closed by the fluid domain's boundary, or keep the covered fluid")]
+    NotEnclosed(Vec<f64>),
 }
 
 /// Knobs of the adaptation.
@@ -158,6 +165,12 @@ pub struct AdaptStats {
     /// Sum of the degenerate-configuration counters below (all but `skipped_cuts`, which is the
     /// paper's own rule, and `passes`).
     pub degenerate_cases: usize,
+    /// Fluid vertices moved onto corners of gamma_s (step 0).
+    pub corner_nodes: usize,
+    /// Corners of gamma_s no fluid vertex could move to (their neighbourhood is cut as elsewhere).
+    pub unplaced_corners: usize,
+    /// Cells enclosed by gamma_f and removed ([`remove_enclosed`]).
+    pub removed_cells: usize,
     /// Smallest quality (1 = equilateral) of the cells that were split or touch a moved node
     /// (1 when there are none).
     pub min_quality: f64,
@@ -236,15 +249,25 @@ fn check_eps_hat(eps_hat: f64) -> Result<(), AdaptError> {
 /// Adapts the prepared original mesh `bg` to `surface`.
 pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts: &AdaptOptions) -> Result<Adapted<D>, AdaptError> {
     check_eps_hat(opts.eps_hat)?;
+    let (moves, unplaced_corners) = corners::corner_moves(bg, &corners::corners(surface), opts.min_move_quality);
+    let cornered;
+    let bg = if moves.is_empty() {
+        bg
+    } else {
+        cornered = bg.with_moved_vertices(&moves);
+        &cornered
+    };
     let cuts = find_cuts(bg, surface);
+    let mut corner_vertices: Vec<usize> = moves.iter().map(|m| m.0).collect();
+    corner_vertices.sort_unstable();
     let mut pinned: HashSet<usize> = HashSet::new();
     let mut dropped: HashSet<usize> = HashSet::new();
     let mut passes = 0;
     let (plan, split) = loop {
         passes += 1;
         let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
-        let split = subdivide_cells(bg, &plan, &cuts);
-        let bad = refused_by_cells(bg, &plan, &cuts, &split, opts.min_move_quality);
+        let split = subdivide_cells(bg, &plan, &cuts, &corner_vertices);
+        let bad = refused_by_cells(bg, &plan, &cuts, &split, opts.min_move_quality, &corner_vertices);
         let (np, nd) = (pinned.len(), dropped.len());
         pinned.extend(bad.pin);
         dropped.extend(bad.drop);
@@ -273,6 +296,8 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.rejected_facets = rejected;
     stats.min_quality = split.min_quality;
     stats.passes = passes;
+    stats.corner_nodes = moves.len();
+    stats.unplaced_corners = unplaced_corners;
     stats.degenerate_cases =
         stats.touched_vertices + stats.snapped_cuts + stats.edges_in_surface + stats.multi_cut_edges + stats.flat_cells + stats.rejected_facets;
     Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, stats: out.stats })
@@ -357,7 +382,7 @@ fn add_node<const D: usize>(plan: &mut Plan<D>, edge: usize, x: [f64; D]) {
 
 /// May boundary vertex `v` move to `x`? Only if `x` stays in the line / plane of every boundary
 /// facet of `v` (distance at most `1e-12` times the facet's size). Interior vertices always may.
-fn boundary_move_ok<const D: usize>(bg: &Background<D>, v: usize, x: &[f64; D]) -> bool {
+pub(crate) fn boundary_move_ok<const D: usize>(bg: &Background<D>, v: usize, x: &[f64; D]) -> bool {
     bg.vertex_boundary.row(v).iter().all(|&i| {
         let b = bg.mesh.boundary[i];
         let fv = bg.mesh.cell_type.facet(b.facet);
@@ -383,7 +408,7 @@ struct Split {
 }
 
 /// Step 3: subdivides the affected cells.
-fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>) -> Split {
+fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>, corners: &[usize]) -> Split {
     let mut affected: Vec<usize> = plan.new_node.keys().flat_map(|&e| bg.edge_cells.row(e).iter().copied()).collect();
     affected.extend(plan.moved.keys().flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
     affected.sort_unstable();
@@ -408,7 +433,7 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
         for kid in &ids {
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
             split.min_quality = split.min_quality.min(simplex_quality(&v));
-            split.flat_cells += kid[..=D].iter().all(|&g| on_surface(g)) as usize;
+            split.flat_cells += is_flat(kid, &on_surface, corners) as usize;
         }
         split.cells.push((c, ids, labels));
     }
@@ -453,6 +478,13 @@ fn split_order<const D: usize>(bg: &Background<D>, plan: &Plan<D>, c: usize, spl
     best.1
 }
 
+/// Is the cell with vertices `kid` flat: all its vertices on gamma_s? A cell with a vertex at a
+/// corner of gamma_s (step 0) is not: it fills the corner, two of its facets on the two sides.
+fn is_flat(kid: &[usize; 4], on_surface: &dyn Fn(usize) -> bool, corners: &[usize]) -> bool {
+    let vertices = &kid[..kid.iter().position(|&g| g == usize::MAX).unwrap_or(4)];
+    vertices.iter().all(|&g| on_surface(g)) && !vertices.iter().any(|g| corners.binary_search(g).is_ok())
+}
+
 /// What the next pass of steps 2-3 changes (see [`refused_by_cells`]).
 #[derive(Debug, Default)]
 struct Refusals {
@@ -466,7 +498,14 @@ struct Refusals {
 /// vertices on gamma_s) and touch a moved node: where such a child has a new node on an edge with
 /// a moved end, that edge's cut is dropped (the edge touches gamma_s at the moved end);
 /// otherwise the moves of the child's nodes are undone.
-fn refused_by_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>, split: &Split, min_quality: f64) -> Refusals {
+fn refused_by_cells<const D: usize>(
+    bg: &Background<D>,
+    plan: &Plan<D>,
+    cuts: &CutSet<D>,
+    split: &Split,
+    min_quality: f64,
+    corners: &[usize],
+) -> Refusals {
     let nv = bg.mesh.points.len();
     let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
     let mut edge_of_new_node = vec![0; plan.new_points.len()];
@@ -481,7 +520,7 @@ fn refused_by_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
                 continue;
             }
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
-            let flat = kid[..=D].iter().all(|&g| on_surface(g));
+            let flat = is_flat(kid, &on_surface, corners);
             if simplex_measure(&v) > 0.0 && simplex_quality(&v) >= min_quality && !flat {
                 continue;
             }

@@ -9,6 +9,10 @@
 //! continuous, both give the same value. A point outside every box, or outside every candidate
 //! by round-off, takes the best of the 16 cells with the nearest boxes; farther than `1e-8` (in
 //! barycentric terms) outside the mesh is an error.
+//!
+//! Where the old mesh had a hole that the new one fills (fluid cells under a solid removed, see
+//! [`super::remove_enclosed`], and uncovered as the solid moves), [`transfer_p2plus_extrapolating`]
+//! extends the velocity of the nearest old cell to new nodes up to a given distance outside it.
 
 use super::AdaptError;
 use crate::dofs::NodeMap;
@@ -68,6 +72,12 @@ impl<const D: usize> CellLocator<D> {
     /// The cell of `mesh` containing `x` and the reference coordinates of `x` in it (see the
     /// module documentation), or `None` when `x` is outside the mesh.
     pub fn locate(&self, mesh: &Mesh<D>, x: &[f64; D]) -> Option<(usize, [f64; D])> {
+        self.locate_within(mesh, x, OUTSIDE_TOL)
+    }
+
+    /// As [`Self::locate`], but a point up to `outside` (in barycentric terms: 1 is a cell's height)
+    /// outside the mesh takes the best of the cells near it.
+    pub fn locate_within(&self, mesh: &Mesh<D>, x: &[f64; D], outside: f64) -> Option<(usize, [f64; D])> {
         let score = |c: usize| -> Option<(f64, usize, [f64; D])> {
             let v: Vec<[f64; D]> = mesh.cell_vertices(c).iter().map(|&n| mesh.points[n]).collect();
             let xi = simplex_reference_coords(&v, x)?;
@@ -81,7 +91,7 @@ impl<const D: usize> CellLocator<D> {
         if best.is_none_or(|b| b.0 < 0.0) {
             best = self.tree.nearest_neighbor_iter(*x).take(16).fold(best, |acc, cb| better(acc, score(cb.cell)));
         }
-        best.filter(|b| b.0 >= -OUTSIDE_TOL).map(|b| (b.1, b.2))
+        best.filter(|b| b.0 >= -outside.max(OUTSIDE_TOL)).map(|b| (b.1, b.2))
     }
 }
 
@@ -99,6 +109,19 @@ pub fn transfer_p2plus<const D: usize>(
     old_nodes: &NodeMap,
     old_values: &[f64],
     new_points: &[[f64; D]],
+) -> Result<Vec<f64>, AdaptError> {
+    transfer_p2plus_extrapolating(old_mesh, old_nodes, old_values, new_points, OUTSIDE_TOL)
+}
+
+/// As [`transfer_p2plus`], but a new point up to `outside` (barycentric: 1 is a cell's height)
+/// outside the old mesh takes the value of the nearest old cell's polynomial there (see the
+/// module documentation).
+pub fn transfer_p2plus_extrapolating<const D: usize>(
+    old_mesh: &Mesh<D>,
+    old_nodes: &NodeMap,
+    old_values: &[f64],
+    new_points: &[[f64; D]],
+    outside: f64,
 ) -> Result<Vec<f64>, AdaptError> {
     let element = p2plus::<D>().ok_or_else(|| AdaptError::Transfer(format!("no P2+ element in {D}D")))?;
     let want = if D == 2 { ReferenceCell::Triangle } else { ReferenceCell::Tetrahedron };
@@ -123,7 +146,9 @@ pub fn transfer_p2plus<const D: usize>(
     let mut grad = [[0.0; D]; MAX_DOFS];
     let mut out = Vec::with_capacity(new_points.len() * D);
     for (i, x) in new_points.iter().enumerate() {
-        let (c, xi) = locator.locate(old_mesh, x).ok_or_else(|| AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh")))?;
+        let (c, xi) = locator
+            .locate_within(old_mesh, x, outside)
+            .ok_or_else(|| AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh")))?;
         element.eval_into(&xi, &mut phi[..n], &mut grad[..n]);
         let nodes = old_nodes.cell(c);
         for k in 0..D {
