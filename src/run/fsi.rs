@@ -58,7 +58,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         None => FsiState::at_rest(&model),
         Some(c) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
     };
-    let mut stepper = FsiStepper::new(&model, lu.as_mut(), case.solver.newton.clone(), state);
+    let mut stepper = FsiStepper::new(&model, lu.as_mut(), case.solver.newton.clone(), ts.scheme, state);
     let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
     let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, false)?;
     let symbolic = lu.symbolic_factorizations();
