@@ -52,6 +52,30 @@ def finish(name):
     print(name, "written")
 
 
+def channel_groups(obstacle):
+    """Synchronises the OCC model and names its surfaces "fluid" and its boundary curves
+    "inlet" (x = 0), "outlet" (x = L), "walls" (y = 0 and H) and `obstacle` (the rest); returns
+    the curve tags of each group."""
+    occ = gmsh.model.occ
+    occ.synchronize()
+    surfaces = gmsh.model.getEntities(2)
+    gmsh.model.addPhysicalGroup(2, [s[1] for s in surfaces], 1, name="fluid")
+    groups = {"inlet": [], "outlet": [], "walls": [], obstacle: []}
+    for dim, tag in gmsh.model.getBoundary(surfaces, oriented=False):
+        cx, cy, _ = occ.getCenterOfMass(dim, tag)
+        if abs(cx) < 1e-9:
+            groups["inlet"].append(tag)
+        elif abs(cx - L) < 1e-9:
+            groups["outlet"].append(tag)
+        elif abs(cy) < 1e-9 or abs(cy - H) < 1e-9:
+            groups["walls"].append(tag)
+        else:
+            groups[obstacle].append(tag)
+    for k, (group, tags) in enumerate(groups.items(), start=2):
+        gmsh.model.addPhysicalGroup(1, tags, k, name=group)
+    return groups
+
+
 def bar(name, n_long):
     """The bar in n_long x n_long / 10 quadrilaterals (n_long a multiple of 20, so that A is a
     vertex)."""
@@ -87,22 +111,7 @@ def cfd(name, level):
     channel = occ.addRectangle(0, 0, 0, L, H)
     obstacle, _ = occ.fuse([(2, occ.addDisk(XC, YC, 0, R, R))], [(2, occ.addRectangle(x_arc - 0.001, Y0, 0, X_TIP - x_arc + 0.001, Y1 - Y0))])
     occ.cut([(2, channel)], obstacle)
-    occ.synchronize()
-    surfaces = gmsh.model.getEntities(2)
-    gmsh.model.addPhysicalGroup(2, [s[1] for s in surfaces], 1, name="fluid")
-    groups = {"inlet": [], "outlet": [], "walls": [], "obstacle": []}
-    for dim, tag in gmsh.model.getBoundary(surfaces, oriented=False):
-        cx, cy, _ = occ.getCenterOfMass(dim, tag)
-        if abs(cx) < 1e-9:
-            groups["inlet"].append(tag)
-        elif abs(cx - L) < 1e-9:
-            groups["outlet"].append(tag)
-        elif abs(cy) < 1e-9 or abs(cy - H) < 1e-9:
-            groups["walls"].append(tag)
-        else:
-            groups["obstacle"].append(tag)
-    for k, (group, tags) in enumerate(groups.items(), start=2):
-        gmsh.model.addPhysicalGroup(1, tags, k, name=group)
+    groups = channel_groups("obstacle")
     dist = gmsh.model.mesh.field.add("Distance")
     gmsh.model.mesh.field.setNumbers(dist, "CurvesList", groups["obstacle"])
     gmsh.model.mesh.field.setNumber(dist, "Sampling", 200)
@@ -131,22 +140,7 @@ def fsi(name, level):
     arcs = [occ.addCircle(XC, YC, 0, R, angle1=-a, angle2=a), occ.addCircle(XC, YC, 0, R, angle1=a, angle2=2 * math.pi - a)]
     disk = occ.addPlaneSurface([occ.addCurveLoop(arcs)])
     occ.cut([(2, occ.addRectangle(0, 0, 0, L, H))], [(2, disk)])
-    occ.synchronize()
-    surfaces = gmsh.model.getEntities(2)
-    gmsh.model.addPhysicalGroup(2, [s[1] for s in surfaces], 1, name="fluid")
-    groups = {"inlet": [], "outlet": [], "walls": [], "cylinder": []}
-    for dim, tag in gmsh.model.getBoundary(surfaces, oriented=False):
-        cx, cy, _ = occ.getCenterOfMass(dim, tag)
-        if abs(cx) < 1e-9:
-            groups["inlet"].append(tag)
-        elif abs(cx - L) < 1e-9:
-            groups["outlet"].append(tag)
-        elif abs(cy) < 1e-9 or abs(cy - H) < 1e-9:
-            groups["walls"].append(tag)
-        else:
-            groups["cylinder"].append(tag)
-    for k, (group, tags) in enumerate(groups.items(), start=2):
-        gmsh.model.addPhysicalGroup(1, tags, k, name=group)
+    groups = channel_groups("cylinder")
     field = gmsh.model.mesh.field
     dist = field.add("Distance")
     field.setNumbers(dist, "CurvesList", groups["cylinder"])

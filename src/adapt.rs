@@ -5,7 +5,9 @@
 //! ([`fdfsi_fem::adapt::adapt`]); the fluid facets on gamma_s become the boundary `gamma_f` of
 //! the adapted mesh, so boundary conditions and quantities can name it; `gamma_f_minus` and
 //! `gamma_f_plus` are the same facets seen from the fluid cells on either side (for one-sided
-//! quantities such as the wall shear stress on both faces of a thin plate).
+//! quantities such as the wall shear stress on both faces of a thin plate). In 2D the corners
+//! of gamma_s are made fluid vertices first; the fluid cells a closed gamma_f encloses are kept
+//! or removed as [`CoveredFluid`] says.
 
 use fdfsi_fem::adapt::{adapt_with, remove_enclosed, AdaptError, AdaptOptions, Adapted, Background, Surface};
 use fdfsi_fem::mesh::Mesh;

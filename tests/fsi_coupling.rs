@@ -53,7 +53,8 @@ fn coupling_operator_reproduces_constants() {
     fluid.params.inv_dt = 1.0 / dt;
     let f = model.solid.deformation_gradients(&base).unwrap();
     let u_old = vec![0.0; disc.fluid_dofs()];
-    let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_target: None };
+    let input =
+        StepInput { fluid: &fluid, time: dt, a: 1.0 / dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_shift: None, solid_target: None };
     let (os, ol) = (disc.solid_offset(), disc.multiplier_offset());
     let c = [0.8, -1.3];
     let vel = disc.flow.velocity_field().clone();
@@ -100,7 +101,8 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
     let dt = 0.1;
     fluid.params.inv_dt = 1.0 / dt;
     let u_old: Vec<f64> = (0..disc.fluid_dofs()).map(|_| rng.next()).collect();
-    let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_target: None };
+    let input =
+        StepInput { fluid: &fluid, time: dt, a: 1.0 / dt, u_old: &u_old, solid_base: &base, solid_f: &f, solid_shift: None, solid_target: None };
     let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
     let mut x: Vec<f64> = (0..n).map(|_| rng.next()).collect();
     for v in x[os..os + nus].iter_mut() {

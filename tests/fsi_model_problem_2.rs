@@ -382,7 +382,8 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
     let dt = 0.1;
     fluid.params.inv_dt = 1.0 / dt;
     let zero_old = vec![0.0; disc.fluid_dofs()];
-    let input = StepInput { fluid: &fluid, time: dt, dt, u_old: &zero_old, solid_base: &base, solid_f: &f, solid_target: None };
+    let input =
+        StepInput { fluid: &fluid, time: dt, a: 1.0 / dt, u_old: &zero_old, solid_base: &base, solid_f: &f, solid_shift: None, solid_target: None };
     let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
     let vel = disc.flow.velocity_field().clone();
     let sf = model.solid.displacement_field().clone();

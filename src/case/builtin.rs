@@ -29,4 +29,6 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("turek-hron-cfd2", include_str!("../../cases/turek-hron-cfd2.toml")),
     ("turek-hron-cfd3", include_str!("../../cases/turek-hron-cfd3.toml")),
     ("turek-hron-fsi1", include_str!("../../cases/turek-hron-fsi1.toml")),
+    ("turek-hron-fsi2", include_str!("../../cases/turek-hron-fsi2.toml")),
+    ("turek-hron-fsi3", include_str!("../../cases/turek-hron-fsi3.toml")),
 ];

@@ -7,7 +7,6 @@ use super::{
 };
 use crate::discretize::fsi::MultiplierSpace;
 use crate::physics::fluid::Formulation;
-use crate::time::TimeScheme;
 use std::collections::HashSet;
 
 impl Case {
@@ -235,16 +234,13 @@ fn probes(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `[time]` of an FSI run: required, with implicit Euler.
+/// `[time]` of an FSI run: required.
 fn fsi_time(c: &Case, p: &mut Problems) {
     if c.kind() != RunKind::Fsi {
         return;
     }
     if c.time.is_none() {
         p.push("an FSI run (fluid mesh and a solid material model) needs a [time] table");
-    }
-    if c.time.as_ref().is_some_and(|t| t.scheme != TimeScheme::Euler) {
-        p.push("an FSI run uses implicit Euler (the paper's scheme): set time.scheme = \"euler\"");
     }
 }
 

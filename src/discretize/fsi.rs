@@ -21,10 +21,17 @@
 //!    coupling kernel ([`crate::physics::coupling`]) is assembled directly;
 //! 6. the solid is updated: `x_{n+1} = x_n + Delta u`, `F_{n+1} = (I + grad_n Delta u) F_n`.
 //!
-//! Implicit Euler throughout: the fluid inertia `rho/dt (u - u_old)`, the solid velocity
-//! `u_s = Delta u / dt` in the coupling constraint, optional solid inertia
-//! `rho_0/dt^2 (Delta u - dt v_n)` ([`SolidProblem::density`]). The geometry of a step (gamma_s,
-//! the adapted mesh, gamma_f) is that of `t_n`, as in the paper (adapt, then solve).
+//! Time scheme: implicit Euler (the paper's) or BDF2, one formula for fluid and solid
+//! ([`crate::time::step_history`]: `u' = a (u - u*)`, `a = a0 / dt`): the fluid inertia
+//! `rho a (u - u*)` with the velocities of `t_n` (and `t_{n-1}`) transferred to the new mesh,
+//! the solid velocity `u_s = a (Delta u - d)` in the coupling constraint, with
+//! `d = u*_s - u_n` (0 for Euler), and the optional solid inertia
+//! `rho_0 a^2 (Delta u - d - v* / a)` ([`SolidProblem::density`]). Implicit Euler: `a = 1/dt`,
+//! `d = 0`, `v* = v_n`. The geometry of a step (gamma_s, the adapted mesh, gamma_f) is that of
+//! `t_n` for implicit Euler, as in the paper (adapt, then solve), and for BDF2 the solid
+//! extrapolated to `t_{n+1}`, `u_n + omega (u_n - u_{n-1})` ([`StepStart::geometry`]), so that
+//! gamma_f lags the solid by `O(dt^2)`, not `O(dt)`. The first step of a run, and a step cut into
+//! sub-steps, are implicit-Euler steps.
 //!
 //! The solid's boundary-condition functions receive the time `t_{n+1}` as their "load" argument.
 //!
@@ -36,6 +43,7 @@ use super::layout::{Block, SystemLayout};
 pub use crate::adapt::CoveredFluid;
 use crate::discretize::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
 use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
+use crate::discretize::time_scheme::{step_history, step_ratio, TimeScheme};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
 use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit};
@@ -246,6 +254,20 @@ pub struct FsiRestart {
     /// earlier builds: the next step then starts its pattern afresh).
     #[serde(default)]
     pub coupling_pattern: CouplingPattern,
+    /// The state one step back, for BDF2 (`None`: the next step is an Euler step).
+    #[serde(default)]
+    pub previous: Option<PreviousRestart>,
+    /// The length of the last step (0: unknown).
+    #[serde(default)]
+    pub dt: f64,
+}
+
+/// The state one step back, as saved in a checkpoint.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PreviousRestart {
+    pub solid_x: Vec<f64>,
+    pub solid_v: Vec<f64>,
+    pub fluid: Option<FluidRestart>,
 }
 
 /// The fluid velocity of an FSI step on the mesh adapted to `solid_base`.
@@ -290,6 +312,21 @@ pub struct FsiState<const D: usize> {
     pub fluid: Option<FluidSnapshot<D>>,
     /// The coupling elements' solid cells of the last step's pattern.
     pub coupling_pattern: CouplingPattern,
+    /// The state at `t_{n-1}`, kept by BDF2 steps for the next one (`None` at the start, after an
+    /// Euler step and after a cut step: the next step is then an Euler step).
+    pub previous: Option<Box<FsiPrevious<D>>>,
+    /// The length of the last step (0 at the start).
+    pub dt: f64,
+}
+
+/// What BDF2 needs of `t_{n-1}`: the solid's total state and velocity and the fluid velocity on
+/// its adapted mesh.
+#[derive(Clone, Debug)]
+pub struct FsiPrevious<const D: usize> {
+    pub solid_x: Vec<f64>,
+    pub solid_v: Vec<f64>,
+    /// `None`: fluid at rest.
+    pub fluid: Option<FluidSnapshot<D>>,
 }
 
 impl<const D: usize> FsiState<D> {
@@ -303,6 +340,8 @@ impl<const D: usize> FsiState<D> {
             solid_v: vec![0.0; n],
             fluid: None,
             coupling_pattern: CouplingPattern::default(),
+            previous: None,
+            dt: 0.0,
         }
     }
 }
@@ -314,33 +353,28 @@ impl<const D: usize> FsiState<D> {
             solid_x: self.solid_x.clone(),
             solid_f: self.solid_f.clone(),
             solid_v: self.solid_v.clone(),
-            fluid: self.fluid.as_ref().map(|f| FluidRestart { solid_base: f.solid_base.clone(), velocity: f.velocity.clone() }),
+            fluid: self.fluid.as_ref().map(FluidSnapshot::to_restart),
             coupling_pattern: self.coupling_pattern.clone(),
+            previous: self.previous.as_ref().map(|p| PreviousRestart {
+                solid_x: p.solid_x.clone(),
+                solid_v: p.solid_v.clone(),
+                fluid: p.fluid.as_ref().map(FluidSnapshot::to_restart),
+            }),
+            dt: self.dt,
         }
     }
 
     /// The state at `time` from a checkpoint; the fluid's adapted mesh is rebuilt from the solid
     /// position it was made for, which reproduces it exactly (the adaptation is deterministic).
     pub fn from_restart(model: &FsiModel<D>, time: f64, r: &FsiRestart) -> Result<Self, FsiError> {
-        let fluid = match &r.fluid {
+        let fluid = r.fluid.as_ref().map(|f| FluidSnapshot::from_restart(model, f)).transpose()?;
+        let previous = match &r.previous {
             None => None,
-            Some(f) => {
-                let disc = FsiDiscretization::build(model, &f.solid_base, &CouplingPattern::default())?;
-                let vel = &disc.flow.velocity_field();
-                if vel.num_dofs() != f.velocity.len() {
-                    return Err(FsiError::Restart(format!(
-                        "the checkpoint's fluid velocity has {} values but the rebuilt mesh has {}",
-                        f.velocity.len(),
-                        vel.num_dofs()
-                    )));
-                }
-                Some(FluidSnapshot {
-                    solid_base: f.solid_base.clone(),
-                    mesh: disc.flow.mesh.clone(),
-                    nodes: vel.nodes.clone(),
-                    velocity: f.velocity.clone(),
-                })
-            }
+            Some(p) => Some(Box::new(FsiPrevious {
+                solid_x: p.solid_x.clone(),
+                solid_v: p.solid_v.clone(),
+                fluid: p.fluid.as_ref().map(|f| FluidSnapshot::from_restart(model, f)).transpose()?,
+            })),
         };
         Ok(FsiState {
             time,
@@ -349,7 +383,39 @@ impl<const D: usize> FsiState<D> {
             solid_v: r.solid_v.clone(),
             fluid,
             coupling_pattern: r.coupling_pattern.clone(),
+            previous,
+            dt: r.dt,
         })
+    }
+}
+
+impl<const D: usize> FluidSnapshot<D> {
+    fn to_restart(&self) -> FluidRestart {
+        FluidRestart { solid_base: self.solid_base.clone(), velocity: self.velocity.clone() }
+    }
+
+    /// The snapshot of a checkpoint: its adapted mesh rebuilt from the solid position it was
+    /// made for, which reproduces it exactly (the adaptation is deterministic).
+    fn from_restart(model: &FsiModel<D>, f: &FluidRestart) -> Result<Self, FsiError> {
+        let disc = FsiDiscretization::build(model, &f.solid_base, &CouplingPattern::default())?;
+        let vel = &disc.flow.velocity_field();
+        if vel.num_dofs() != f.velocity.len() {
+            return Err(FsiError::Restart(format!(
+                "the checkpoint's fluid velocity has {} values but the rebuilt mesh has {}",
+                f.velocity.len(),
+                vel.num_dofs()
+            )));
+        }
+        Ok(FluidSnapshot { solid_base: f.solid_base.clone(), mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: f.velocity.clone() })
+    }
+
+    /// The velocity transferred to the velocity nodes of `disc` (fluid numbering, zero pressure),
+    /// extended to nodes up to `outside` (in cell heights) outside the old mesh.
+    fn transferred_to(&self, disc: &FsiDiscretization<D>, outside: f64) -> Result<Vec<f64>, FsiError> {
+        let mut u = vec![0.0; disc.fluid_dofs()];
+        let v = transfer_p2plus_extrapolating(&self.mesh, &self.nodes, &self.velocity, &disc.flow.velocity_nodes, outside)?;
+        u[disc.flow.velocity_field().range()].copy_from_slice(&v);
+        Ok(u)
     }
 }
 
@@ -419,13 +485,17 @@ pub struct StepInput<'a, const D: usize> {
     pub fluid: &'a FlowProblem<D>,
     /// `t_{n+1}`.
     pub time: f64,
-    pub dt: f64,
-    /// The transferred fluid velocity (fluid numbering).
+    /// `a = a0 / dt` of the step's scheme (implicit Euler: `1/dt`; see the module doc).
+    pub a: f64,
+    /// The fluid history `u*` on the new velocity nodes (fluid numbering; implicit Euler: the
+    /// transferred velocity of `t_n`).
     pub u_old: &'a [f64],
     /// Solid total state at `t_n` (solid numbering) and `F_n` per quadrature point.
     pub solid_base: &'a [f64],
     pub solid_f: &'a [Mat3],
-    /// `dt v_n` (solid numbering) when the solid has inertia.
+    /// `d = u* - u_n` of the solid (solid numbering); `None`: 0 (implicit Euler).
+    pub solid_shift: Option<&'a [f64]>,
+    /// `d + v* / a` (solid numbering) when the solid has inertia (implicit Euler: `dt v_n`).
     pub solid_target: Option<&'a [f64]>,
 }
 
@@ -650,8 +720,9 @@ impl<const D: usize> FsiDiscretization<D> {
         (c.chain, c.num_chains) = connected_pieces(gamma_f);
     }
 
-    /// Locates the quadrature points of every gamma_f facet in its fluid cell (the minus side,
-    /// or the plus side where gamma_f lies on the domain boundary) and on the solid.
+    /// Locates the quadrature points of every gamma_f facet in its fluid cell (the minus side, or
+    /// the plus side where gamma_f lies on the domain boundary or the minus side's cells were
+    /// removed) and on the solid.
     fn coupling_elements(
         model: &FsiModel<D>,
         surface: &Surface<D>,
@@ -788,8 +859,7 @@ impl<const D: usize> FsiDiscretization<D> {
             self.flow.assemble_system(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], kb, &mut rhs[..os])
         })?;
         // Solid block (updated Lagrangian: increment from X + u_n, F_n per point).
-        let inertia =
-            input.solid_target.filter(|_| model.problem.solid.density > 0.0).map(|t| (model.problem.solid.density / (input.dt * input.dt), t));
+        let inertia = input.solid_target.filter(|_| model.problem.solid.density > 0.0).map(|t| (model.problem.solid.density * input.a * input.a, t));
         add_block(&self.block_values[1], &model.solid.pattern, &self.solid_map, k, |kb| {
             let (base, f) = (Some(input.solid_base), Some(input.solid_f));
             model.solid.assemble_system(&model.problem.solid, input.time, base, f, inertia, &x[os..ol], &constrained[os..ol], kb, &mut rhs[os..ol])
@@ -806,7 +876,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let mut loc = vec![0.0; nloc];
         let vel = &self.flow.velocity_field();
         let sf = model.solid.displacement_field();
-        let inv_dt = 1.0 / input.dt;
+        let inv_dt = input.a;
         for e in 0..c.num_elements() {
             for kk in 0..D {
                 for a in 0..D {
@@ -831,6 +901,12 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
                 for i in 0..nloc {
                     loc[i] = x[dofs[i]];
+                }
+                // The solid velocity a (Delta u - d): the coupling kernel sees Delta u - d.
+                if let Some(d) = input.solid_shift {
+                    for i in (nm + nf) * D..nloc {
+                        loc[i] -= d[dofs[i] - os];
+                    }
                 }
                 ke.iter_mut().for_each(|v| *v = 0.0);
                 re.iter_mut().for_each(|v| *v = 0.0);
@@ -1180,12 +1256,21 @@ pub struct FsiStep<const D: usize> {
 /// system.
 pub struct StepStart<const D: usize> {
     pub disc: FsiDiscretization<D>,
+    /// The solid position (total, solid numbering) the step's mesh is adapted to: `u_n` for
+    /// implicit Euler (the paper's: adapt, then solve), the extrapolation
+    /// `u_n + omega (u_n - u_{n-1})` for BDF2, so that gamma_f lags the solid by `O(dt^2)`.
+    pub geometry: Vec<f64>,
     /// The fluid problem of the step (`inv_dt = 1/dt`).
     pub fluid: FlowProblem<D>,
     /// `t_{n+1}`.
     pub time: f64,
     pub dt: f64,
-    /// The previous velocity transferred to the new velocity nodes (fluid numbering).
+    /// The step's scheme: BDF2 when asked for and the state holds `t_{n-1}`.
+    pub scheme: TimeScheme,
+    /// `a = a0 / dt` of the scheme (see the module doc).
+    pub a: f64,
+    /// The fluid history `u*` on the new velocity nodes (fluid numbering): the velocity of `t_n`
+    /// (and `t_{n-1}`) transferred.
     pub u_old: Vec<f64>,
     /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`.
     pub x: Vec<f64>,
@@ -1197,37 +1282,58 @@ pub struct StepStart<const D: usize> {
     fixed: Vec<(usize, f64)>,
     /// The solid's Dirichlet values at `t_{n+1}` (solid numbering, total displacement).
     solid_fixed: Vec<(usize, f64)>,
-    /// `dt v_n` (solid numbering) when the solid has inertia.
+    /// `d = u* - u_n` of the solid (BDF2 only).
+    solid_shift: Option<Vec<f64>>,
+    /// `d + v* / a` (solid numbering) when the solid has inertia.
     solid_target: Option<Vec<f64>>,
     seconds: StepTimings,
 }
 
+/// The solid extrapolated from `t_{n-1}` and `t_n` to `t_{n+1}`: `x_n + omega (x_n - x_{n-1})`,
+/// `omega = dt_{n+1} / dt_n`.
+fn extrapolated(x_n: &[f64], x_prev: &[f64], omega: f64) -> Vec<f64> {
+    x_n.iter().zip(x_prev).map(|(a, b)| a + omega * (a - b)).collect()
+}
+
 impl<const D: usize> StepStart<D> {
-    /// Adapts, discretises and transfers for the step from `state` (at `t_n`) to `t_n + dt`.
+    /// Adapts, discretises and transfers for the implicit-Euler step from `state` (at `t_n`) to
+    /// `t_n + dt`.
     pub fn new(model: &FsiModel<D>, state: &FsiState<D>, dt: f64) -> Result<Self, FsiError> {
+        Self::with_scheme(model, state, dt, TimeScheme::Euler)
+    }
+
+    /// [`Self::new`] with the time scheme `scheme` (BDF2 when the state holds `t_{n-1}`, else
+    /// implicit Euler).
+    pub fn with_scheme(model: &FsiModel<D>, state: &FsiState<D>, dt: f64, scheme: TimeScheme) -> Result<Self, FsiError> {
+        let previous = state.previous.as_deref().filter(|_| scheme == TimeScheme::Bdf2);
+        let scheme = if previous.is_some() { TimeScheme::Bdf2 } else { TimeScheme::Euler };
+        let omega = step_ratio(dt, state.dt);
+        let geometry = match previous {
+            Some(p) => extrapolated(&state.solid_x, &p.solid_x, omega),
+            None => state.solid_x.clone(),
+        };
         let clock = Instant::now();
-        let disc = FsiDiscretization::build(model, &state.solid_x, &state.coupling_pattern)?;
+        let disc = FsiDiscretization::build(model, &geometry, &state.coupling_pattern)?;
         let build = clock.elapsed().as_secs_f64();
         let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
         let time = state.time + dt;
-        let mut fluid = model.problem.fluid.clone();
-        fluid.params.inv_dt = 1.0 / dt;
-        // Transfer the previous velocity to the new velocity nodes.
+        // Transfer the velocities of t_n (and t_{n-1}) to the new velocity nodes.
         let clock = Instant::now();
         let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
-        let mut u_old = vec![0.0; disc.fluid_dofs()];
-        if let Some(prev) = &state.fluid {
-            // With the covered fluid removed, the nodes the solid uncovered since lie in the old
-            // mesh's hole: the nearest old cell's velocity is extended to them (they are within a
-            // step's motion of gamma_f, where the fluid moves with the solid).
-            let outside = if model.covered_fluid == CoveredFluid::Removed { 1.0 } else { 0.0 };
-            let v = transfer_p2plus_extrapolating(&prev.mesh, &prev.nodes, &prev.velocity, &disc.flow.velocity_nodes, outside)?;
-            u_old[disc.flow.velocity_field().range()].copy_from_slice(&v);
-        }
+        // With the covered fluid removed, the nodes the solid uncovered since lie in the old
+        // mesh's hole: the nearest old cell's velocity is extended to them (they are within a
+        // step's motion of gamma_f, where the fluid moves with the solid).
+        let outside = if model.covered_fluid == CoveredFluid::Removed { 1.0 } else { 0.0 };
+        let transferred = |f: Option<&FluidSnapshot<D>>| f.map_or_else(|| Ok(vec![0.0; disc.fluid_dofs()]), |f| f.transferred_to(&disc, outside));
+        let u_n = transferred(state.fluid.as_ref())?;
+        let u_prev = previous.map(|p| transferred(p.fluid.as_ref())).transpose()?;
+        let (a, u_old) = step_history(scheme, dt, omega, &u_n, u_prev.as_deref());
         seconds.transfer = clock.elapsed().as_secs_f64();
+        let mut fluid = model.problem.fluid.clone();
+        fluid.params.inv_dt = a;
         // Initial iterate and constraints.
         let mut x = vec![0.0; n];
-        x[..disc.fluid_dofs()].copy_from_slice(&u_old);
+        x[..disc.fluid_dofs()].copy_from_slice(&u_n);
         let mut constrained = vec![false; n];
         let mut fixed: Vec<(usize, f64)> = Vec::new();
         for (d, v) in disc.flow.dirichlet_dofs(&fluid, time)? {
@@ -1246,8 +1352,13 @@ impl<const D: usize> StepStart<D> {
             x[os + d] = if d < nus { v - state.solid_x[d] } else { v };
             fixed.push((os + d, x[os + d]));
         }
-        let solid_target = (model.problem.solid.density > 0.0).then(|| state.solid_v.iter().map(|v| v * dt).collect());
-        Ok(StepStart { disc, fluid, time, dt, u_old, x, constrained, fixed, solid_fixed, solid_target, seconds })
+        // The solid's history: u* = u_n + d, v*.
+        let (_, u_star) = step_history(scheme, dt, omega, &state.solid_x, previous.map(|p| p.solid_x.as_slice()));
+        let (_, v_star) = step_history(scheme, dt, omega, &state.solid_v, previous.map(|p| p.solid_v.as_slice()));
+        let shift: Vec<f64> = (0..u_star.len()).map(|i| if i < nus { u_star[i] - state.solid_x[i] } else { 0.0 }).collect();
+        let solid_target = (model.problem.solid.density > 0.0).then(|| (0..shift.len()).map(|i| shift[i] + v_star[i] / a).collect());
+        let solid_shift = (scheme == TimeScheme::Bdf2).then_some(shift);
+        Ok(StepStart { disc, geometry, fluid, time, dt, scheme, a, u_old, x, constrained, fixed, solid_fixed, solid_shift, solid_target, seconds })
     }
 
     /// What the assembly needs besides the unknowns, `state` being the one given to [`Self::new`].
@@ -1255,10 +1366,11 @@ impl<const D: usize> StepStart<D> {
         StepInput {
             fluid: &self.fluid,
             time: self.time,
-            dt: self.dt,
+            a: self.a,
             u_old: &self.u_old,
             solid_base: &state.solid_x,
             solid_f: &state.solid_f,
+            solid_shift: self.solid_shift.as_deref(),
             solid_target: self.solid_target.as_deref(),
         }
     }
@@ -1273,7 +1385,20 @@ pub fn step<const D: usize>(
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
 ) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
-    let mut start = StepStart::new(model, state, dt)?;
+    step_with(model, state, dt, TimeScheme::Euler, solver, options)
+}
+
+/// [`step`] with the time scheme `scheme`: BDF2 when `state` holds `t_{n-1}` (else implicit
+/// Euler). A BDF2 run's new state keeps `state` as its `t_{n-1}`.
+pub fn step_with<const D: usize>(
+    model: &FsiModel<D>,
+    state: &FsiState<D>,
+    dt: f64,
+    scheme: TimeScheme,
+    solver: &mut dyn LinearSolver,
+    options: &NewtonOptions,
+) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
+    let mut start = StepStart::with_scheme(model, state, dt, scheme)?;
     let mut x = std::mem::take(&mut start.x);
     let clock = Instant::now();
     let solved = {
@@ -1287,7 +1412,7 @@ pub fn step<const D: usize>(
         }
         other => FsiError::Newton(other),
     })?;
-    let StepStart { disc, fluid, time: t_new, u_old, fixed, solid_fixed, mut seconds, .. } = start;
+    let StepStart { disc, geometry, fluid, time: t_new, a, u_old, fixed, solid_fixed, solid_shift, mut seconds, .. } = start;
     for &(d, v) in &fixed {
         x[d] = v;
     }
@@ -1307,15 +1432,12 @@ pub fn step<const D: usize>(
     for &(d, v) in solid_fixed.iter().filter(|(d, _)| *d < nus) {
         solid_x[d] = v; // exactly the prescribed displacement (u_n + (v - u_n) may round)
     }
-    let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { inc[i] / dt } else { 0.0 }).collect();
+    // v_{n+1} = a (Delta u - d).
+    let shift = |i: usize| solid_shift.as_ref().map_or(0.0, |d| d[i]);
+    let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { a * (inc[i] - shift(i)) } else { 0.0 }).collect();
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.velocity_field();
-    let snapshot = FluidSnapshot {
-        solid_base: state.solid_x.clone(),
-        mesh: disc.flow.mesh.clone(),
-        nodes: vel.nodes.clone(),
-        velocity: x[vel.range()].to_vec(),
-    };
+    let snapshot = FluidSnapshot { solid_base: geometry, mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec() };
     seconds.update = clock.elapsed().as_secs_f64();
     let report = FsiStepReport {
         time: t_new,
@@ -1334,7 +1456,9 @@ pub fn step<const D: usize>(
         seconds,
     };
     let coupling_pattern = disc.coupling_pattern.clone();
-    let new_state = FsiState { time: t_new, solid_x, solid_f, solid_v, fluid: Some(snapshot), coupling_pattern };
+    let previous = (scheme == TimeScheme::Bdf2)
+        .then(|| Box::new(FsiPrevious { solid_x: state.solid_x.clone(), solid_v: state.solid_v.clone(), fluid: state.fluid.clone() }));
+    let new_state = FsiState { time: t_new, solid_x, solid_f, solid_v, fluid: Some(snapshot), coupling_pattern, previous, dt };
     Ok((new_state, FsiStep { disc, x, u_old, fluid_problem: fluid, report }))
 }
 

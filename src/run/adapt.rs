@@ -14,7 +14,7 @@ use crate::discretize::fsi::FsiError;
 use crate::io::checkpoint::Checkpoint;
 use crate::io::{write_atomic, OutputError};
 use crate::setup::{adapt_fluid_with, build_mesh, fsi_model};
-use fdfsi_fem::adapt::AdaptStats;
+use fdfsi_fem::adapt::{AdaptError, AdaptStats};
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
 use fdfsi_fem::vtk::{write_vtu, UnstructuredGrid, VtkCellType, VtkError};
@@ -31,6 +31,18 @@ pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<AdaptS
     }
 }
 
+/// Is `e` (through its sources) the adaptation's "gamma_f does not enclose the solid"?
+fn is_not_enclosed(e: &RunError) -> bool {
+    let mut source: Option<&dyn std::error::Error> = Some(e);
+    while let Some(err) = source {
+        if matches!(err.downcast_ref::<AdaptError>(), Some(AdaptError::NotEnclosed(_))) {
+            return true;
+        }
+        source = err.source();
+    }
+    false
+}
+
 /// Writes the report of `adapt(covered)`. Where removing the covered cells fails (gamma_f does
 /// not enclose them), the adaptation with them kept is written, to show where gamma_f is open,
 /// and the error returned.
@@ -40,7 +52,7 @@ fn report_or_leak<const D: usize>(
     out_dir: &Path,
 ) -> Result<AdaptSummary, RunError> {
     match adapt(covered) {
-        Err(e) if covered == CoveredFluid::Removed => {
+        Err(e) if covered == CoveredFluid::Removed && is_not_enclosed(&e) => {
             if let Ok(kept) = adapt(CoveredFluid::Kept) {
                 write_adapt_report(&kept, out_dir)?;
             }

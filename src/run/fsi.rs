@@ -58,7 +58,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         None => FsiState::at_rest(&model),
         Some(c) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
     };
-    let mut stepper = FsiStepper::new(&model, lu.as_mut(), case.solver.newton.clone(), state);
+    let mut stepper = FsiStepper::new(&model, lu.as_mut(), case.solver.newton.clone(), ts.scheme, state);
     let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
     let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, false)?;
     let symbolic = lu.symbolic_factorizations();
@@ -112,13 +112,19 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         s.last.as_ref().map(|st| st.disc.layout.dofs_per_part()).unwrap_or_default()
     }
 
-    fn describe_step(&self, s: &FsiStepper<'_, D>, _done: &StepDone, obs: &mut dyn RunObserver) -> String {
+    fn describe_step(&self, s: &FsiStepper<'_, D>, done: &StepDone, obs: &mut dyn RunObserver) -> String {
         let r = &last_step(s).report;
         let (a, sec) = (&r.adapt, &r.seconds);
         obs.detail(&format!(
-            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells; {} coupling points, max distance to gamma_s {:.2e}",
-            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, r.coupling_points, r.max_coupling_distance
+            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} corner nodes, {} covered cells removed; {} coupling points, max distance to gamma_s {:.2e}",
+            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, a.corner_nodes, a.removed_cells, r.coupling_points, r.max_coupling_distance
         ));
+        if a.unplaced_corners > 0 {
+            obs.log(&format!(
+                "step {}: {} corners of gamma_s could not be made fluid vertices (no vertex near them can move there): gamma_f cuts them off; refine the fluid mesh there",
+                done.step, a.unplaced_corners
+            ));
+        }
         obs.detail(&format!(
             "  phases: adapt {:.3} s, build {:.3} s, transfer {:.3} s, newton {:.3} s, update {:.3} s",
             sec.adapt, sec.build, sec.transfer, sec.newton, sec.update

@@ -11,10 +11,7 @@ use fdfsi_fem::mesh::Mesh;
 /// against `case_dir`.
 pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::path::Path) -> Result<FsiModel<D>, SetupError> {
     let spec = case.solid.as_ref().ok_or_else(|| invalid("no [solid] table".into()))?;
-    let ts = case.time.as_ref().ok_or_else(|| invalid("FSI runs need a [time] table".into()))?;
-    if ts.scheme != crate::time::TimeScheme::Euler {
-        return Err(invalid("FSI runs use implicit Euler (the paper's scheme): set time.scheme = \"euler\"".into()));
-    }
+    case.time.as_ref().ok_or_else(|| invalid("FSI runs need a [time] table".into()))?;
     let surface = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
     let fluid = flow_problem(case, fluid_mesh, case_dir)?;
     let solid_mesh = super::solid_mesh::<D>(spec, case_dir)?;

@@ -1,10 +1,11 @@
-//! FSI runs stepped in time: [`FsiStepper`] takes the monolithic implicit-Euler step of
-//! [`crate::discretize::fsi::step`] (adapt, discretise, transfer, Newton, move the solid) per
-//! (sub)step.
+//! FSI runs stepped in time: [`FsiStepper`] takes the monolithic step of
+//! [`crate::discretize::fsi::step_with`] (adapt, discretise, transfer, Newton, move the solid) per
+//! (sub)step, by implicit Euler or BDF2 (Euler at the start, in the sub-steps of a cut step and
+//! the step after it).
 
 use super::march::{Advance, Stepper};
-use super::Timings;
-use crate::discretize::fsi::{step, FsiError, FsiModel, FsiState, FsiStep};
+use super::{TimeScheme, Timings};
+use crate::discretize::fsi::{step_with, FsiError, FsiModel, FsiState, FsiStep};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::NewtonOptions;
 
@@ -13,6 +14,7 @@ pub struct FsiStepper<'a, const D: usize> {
     pub model: &'a FsiModel<D>,
     pub solver: &'a mut dyn LinearSolver,
     pub newton: NewtonOptions,
+    pub scheme: TimeScheme,
     /// The state at the end of the last (sub)step.
     pub state: FsiState<D>,
     /// The last (sub)step: its discretisation, solution and report (`None` before the first).
@@ -21,18 +23,20 @@ pub struct FsiStepper<'a, const D: usize> {
 }
 
 impl<'a, const D: usize> FsiStepper<'a, D> {
-    pub fn new(model: &'a FsiModel<D>, solver: &'a mut dyn LinearSolver, newton: NewtonOptions, state: FsiState<D>) -> Self {
-        FsiStepper { model, solver, newton, state, last: None, marked: None }
+    pub fn new(model: &'a FsiModel<D>, solver: &'a mut dyn LinearSolver, newton: NewtonOptions, scheme: TimeScheme, state: FsiState<D>) -> Self {
+        FsiStepper { model, solver, newton, scheme, state, last: None, marked: None }
     }
 }
 
 impl<const D: usize> Stepper for FsiStepper<'_, D> {
     type Error = FsiError;
 
-    fn advance(&mut self, t0: f64, t1: f64, _cut: bool) -> Result<Advance, FsiError> {
+    fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, FsiError> {
         self.state.time = t0;
         self.last = None; // the last step's discretisation is not kept beside the new one
-        let (mut next, st) = step(self.model, &self.state, t1 - t0, self.solver, &self.newton)?;
+                          // A cut step's sub-steps are Euler steps, and keep no t_{n-1}: the step after is Euler too.
+        let scheme = if cut { TimeScheme::Euler } else { self.scheme };
+        let (mut next, st) = step_with(self.model, &self.state, t1 - t0, scheme, self.solver, &self.newton)?;
         next.time = t1;
         let s = &st.report.seconds;
         let phases = Timings { adapt: s.adapt, discretize: s.build, transfer: s.transfer, ..Default::default() };

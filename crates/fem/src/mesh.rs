@@ -192,11 +192,15 @@ impl<const D: usize> Mesh<D> {
         self.boundary_names.push((name.to_string(), tag));
     }
     /// Adds the boundary `merged`, the union of the boundaries `names` (which keep their own
-    /// tags): every facet of theirs again, under a new tag.
+    /// tags): every facet of theirs again (once), under a new tag. An existing boundary named
+    /// `merged` is replaced.
     pub fn merge_boundaries(&mut self, names: &[String], merged: &str) -> Result<(), MeshError> {
         let tags = names.iter().map(|n| self.boundary_tag(n)).collect::<Result<Vec<u32>, _>>()?;
         let tag = self.boundary_names.iter().map(|(_, t)| *t).chain(self.boundary.iter().map(|b| b.tag)).max().unwrap_or(0) + 1;
-        let union: Vec<BoundaryFacet> = self.boundary.iter().filter(|b| tags.contains(&b.tag)).map(|b| BoundaryFacet { tag, ..*b }).collect();
+        let mut union: Vec<BoundaryFacet> = self.boundary.iter().filter(|b| tags.contains(&b.tag)).map(|b| BoundaryFacet { tag, ..*b }).collect();
+        // A facet in two of the boundaries (overlapping groups) once.
+        union.sort_by_key(|b| (b.cell, b.facet));
+        union.dedup_by_key(|b| (b.cell, b.facet));
         self.boundary.extend(union);
         self.add_boundary_name(merged, tag);
         Ok(())

@@ -16,7 +16,9 @@ use std::collections::{HashMap, HashSet};
 
 /// The adapted mesh without the cells gamma_f encloses (see the module documentation): cells,
 /// vertices and boundary facets renumbered in their old order, gamma_f seen from the fluid side
-/// only (its solid side [`NO_CELL`]), [`super::AdaptStats::removed_cells`] set.
+/// only (its solid side [`NO_CELL`]; facets with fluid on neither side, where the solid lies on
+/// the domain boundary, dropped), [`super::AdaptStats::removed_cells`] set. The mesh no longer
+/// fills the original domain, so [`super::verify_adapted`]'s measure check does not apply.
 pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>) -> Result<Adapted<D>, AdaptError> {
     let enclosed = enclosed_cells(&adapted)?;
     if enclosed.is_empty() {
@@ -33,27 +35,34 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>) -> Result<Adapted<D>
             kept += 1;
         }
     }
+    // Points of kept cells, numbered in their old order.
     let mut new_point = vec![usize::MAX; mesh.points.len()];
+    for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
+        for &p in mesh.cell(c) {
+            new_point[p] = 0;
+        }
+    }
     let mut out = mesh.clone();
     out.points.clear();
+    for (p, slot) in new_point.iter_mut().enumerate().filter(|(_, s)| **s == 0) {
+        *slot = out.points.len();
+        out.points.push(mesh.points[p]);
+    }
     out.cell_nodes.clear();
     out.cell_tags.clear();
     for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
-        for &p in mesh.cell(c) {
-            if new_point[p] == usize::MAX {
-                new_point[p] = out.points.len();
-                out.points.push(mesh.points[p]);
-            }
-            out.cell_nodes.push(new_point[p]);
-        }
+        out.cell_nodes.extend(mesh.cell(c).iter().map(|&p| new_point[p]));
         out.cell_tags.push(mesh.cell_tags[c]);
     }
     debug_assert_eq!(out.cell_nodes.len(), kept * npc);
     out.boundary = mesh.boundary.iter().filter(|b| new_cell[b.cell] != usize::MAX).map(|b| BoundaryFacet { cell: new_cell[b.cell], ..*b }).collect();
     let renumber_side = |(c, f): (usize, usize)| if c == usize::MAX || new_cell[c] == usize::MAX { NO_CELL } else { (new_cell[c], f) };
+    // A gamma_f facet with no fluid left on either side (a side of the solid on the domain
+    // boundary) is not wetted: it is dropped.
     let gamma_f = gamma_f
         .into_iter()
         .map(|g| GammaFacet { vertices: g.vertices.map(|v| new_point[v]), sides: g.sides.map(renumber_side), location: g.location })
+        .filter(|g| g.sides.iter().any(|&s| s != NO_CELL))
         .collect();
     let on_surface = (0..mesh.points.len()).filter(|&p| new_point[p] != usize::MAX).map(|p| on_surface[p]).collect();
     let new_to_old_cell = (0..nc).filter(|&c| new_cell[c] != usize::MAX).map(|c| new_to_old_cell[c]).collect();
@@ -143,10 +152,24 @@ mod tests {
         let mut used = vec![false; r.mesh.points.len()];
         r.mesh.cell_nodes.iter().for_each(|&p| used[p] = true);
         assert!(used.iter().all(|&u| u));
+        assert!(r.gamma_f.iter().all(|g| g.vertices.iter().all(|&v| r.on_surface[v])), "gamma_f's vertices are on gamma_s");
+        assert_eq!(r.on_surface.iter().filter(|&&f| f).count(), r.gamma_f.len(), "a closed chain: as many vertices as facets");
     }
 
     #[test]
-    fn an_open_surface_encloses_nothing() {
+    fn a_side_on_the_domain_boundary_is_not_wetted() {
+        // A block standing on the floor, gamma_s all four sides (its bottom on the floor).
+        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
+        let block = vec![[0.33, 0.0], [0.71, 0.0], [0.71, 0.69], [0.33, 0.69]];
+        let a = adapt(&m, &Surface::from_pieces(block, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap(), 0.2).unwrap();
+        let r = remove_enclosed(a).unwrap();
+        r.mesh.check().unwrap();
+        assert!((r.gamma_f_measure() - (0.38 + 2.0 * 0.69)).abs() < 1e-14, "{}", r.gamma_f_measure());
+        assert!((area(&r.mesh) - (1.0 - 0.38 * 0.69)).abs() < 1e-14);
+    }
+
+    #[test]
+    fn an_open_surface_is_not_enclosed() {
         let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
         let open = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69]];
         let a = adapt(&m, &Surface::from_polyline(open).unwrap(), 0.2).unwrap();

@@ -174,7 +174,8 @@ pub struct AdaptStats {
     /// Smallest quality (1 = equilateral) of the cells that were split or touch a moved node
     /// (1 when there are none).
     pub min_quality: f64,
-    /// Original vertices lying on gamma_s (through a vertex, along an edge, in a face, snapped).
+    /// Original vertices lying on gamma_s (through a vertex, along an edge, in a face, snapped),
+    /// not counting the corner nodes of step 0.
     pub touched_vertices: usize,
     /// Cuts snapped to an end point.
     pub snapped_cuts: usize,
@@ -202,7 +203,8 @@ pub struct GammaFacet<const D: usize> {
     /// points like the normal of the gamma_s piece nearest the facet's centroid.
     pub vertices: [usize; D],
     /// `(cell, local facet)` on the minus side (the normal points out of it) and on the plus
-    /// side; [`NO_CELL`] where gamma_f lies on the domain boundary.
+    /// side; [`NO_CELL`] where gamma_f lies on the domain boundary or the cells on that side were
+    /// removed ([`remove_enclosed`]).
     pub sides: [(usize, usize); 2],
     /// Where each vertex lies on gamma_s.
     pub location: [SurfacePoint<D>; D],
@@ -212,9 +214,11 @@ pub struct GammaFacet<const D: usize> {
 #[derive(Clone, Debug)]
 pub struct Adapted<const D: usize> {
     /// Linear simplices; the first `nv` points are the original vertices (moved ones at their new
-    /// position), new nodes follow; boundary tags and regions inherited from the parents.
+    /// position), new nodes follow; boundary tags and regions inherited from the parents. After
+    /// [`remove_enclosed`], the points and cells of the kept cells only, in the same order.
     pub mesh: Mesh<D>,
-    /// Parent (original) cell of each adapted cell. Cells of untouched parents keep their index;
+    /// Parent (original) cell of each adapted cell. Cells of untouched parents keep their index
+    /// (unless cells were removed);
     /// a split parent's first child takes its index, the other children are appended.
     pub new_to_old_cell: Vec<usize>,
     /// Whether each adapted-mesh vertex lies on gamma_s.
@@ -286,7 +290,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.refused_boundary = plan.refused_boundary;
     stats.new_cells = out.mesh.num_cells() - bg.num_cells();
     stats.coupling_facets = gamma_f.len();
-    stats.touched_vertices = cuts.touched.len();
+    stats.touched_vertices = cuts.touched.len().saturating_sub(moves.len()); // corner nodes touch by design
     stats.snapped_cuts = cuts.snapped;
     stats.edges_in_surface = cuts.edges_in_surface;
     stats.multi_cut_edges = cuts.multi_cut_edges;

@@ -12,7 +12,8 @@
 //!
 //! Where the old mesh had a hole that the new one fills (fluid cells under a solid removed, see
 //! [`super::remove_enclosed`], and uncovered as the solid moves), [`transfer_p2plus_extrapolating`]
-//! extends the velocity of the nearest old cell to new nodes up to a given distance outside it.
+//! extends the velocity of an old cell near a new node (the one it is least outside of, among
+//! the 16 with the nearest boxes) to it, up to a given distance outside.
 
 use super::AdaptError;
 use crate::dofs::NodeMap;
@@ -114,7 +115,8 @@ pub fn transfer_p2plus<const D: usize>(
 }
 
 /// As [`transfer_p2plus`], but a new point up to `outside` (barycentric: 1 is a cell's height)
-/// outside the old mesh takes the value of the nearest old cell's polynomial there (see the
+/// outside the old mesh takes the value there of the polynomial of the old cell it is least
+/// outside of (see the
 /// module documentation).
 pub fn transfer_p2plus_extrapolating<const D: usize>(
     old_mesh: &Mesh<D>,
@@ -148,7 +150,13 @@ pub fn transfer_p2plus_extrapolating<const D: usize>(
     for (i, x) in new_points.iter().enumerate() {
         let (c, xi) = locator
             .locate_within(old_mesh, x, outside)
-            .ok_or_else(|| AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh")))?;
+            .ok_or_else(|| {
+                AdaptError::Transfer(if outside > OUTSIDE_TOL {
+                    format!("new node {i} at {x:?} lies more than {outside} cell heights outside the old mesh: the solid uncovered it in one step; reduce the time step")
+                } else {
+                    format!("new node {i} at {x:?} lies outside the old mesh")
+                })
+            })?;
         element.eval_into(&xi, &mut phi[..n], &mut grad[..n]);
         let nodes = old_nodes.cell(c);
         for k in 0..D {

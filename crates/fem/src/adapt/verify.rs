@@ -13,6 +13,8 @@ const MEASURE_TOL: f64 = 1e-12;
 /// nodes); total measure equal to the original's (`1e-12` relative); children of a parent
 /// without moved vertices add up to the parent's measure; every gamma_f vertex within
 /// `1e-12` times the mesh size of gamma_s, and each gamma_f facet is a facet of its side cells.
+/// (An adaptation whose enclosed cells were removed, [`super::remove_enclosed`], no longer fills
+/// the original's measure: it is checked before the removal.)
 pub fn verify_adapted<const D: usize>(original: &Mesh<D>, adapted: &Adapted<D>, surface: &Surface<D>) -> Result<(), String> {
     let mesh = &adapted.mesh;
     mesh.check().map_err(|e| format!("adapted mesh: {e}"))?;
