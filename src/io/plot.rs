@@ -2,7 +2,8 @@
 //! `fdfsi run`. Into `DIR/plots/`:
 //! - `NAME.png`: every column of `history.csv` (other than `step` and `time`) against time;
 //! - `trajectory_STEM.png`: for every pair of columns `STEM_x`, `STEM_y` (for example the probes
-//!   `tip_displacement_x` / `tip_displacement_y`), the path `(STEM_x, STEM_y)` over the run;
+//!   `tip_displacement_x` / `tip_displacement_y`) or `ux_STEM`, `uy_STEM` (the Turek-Hron cases'
+//!   `ux_A` / `uy_A`), the path of the pair over the run;
 //! - `profile_NAME.png`: every `profiles/NAME.csv`, its value against the arc length `s`.
 //!
 //! A history of one row (a steady run) gives no plots against time.
@@ -164,13 +165,17 @@ fn ranges(series: &[Series]) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
     (range(0), range(1))
 }
 
-/// The pairs `(STEM, STEM_x, STEM_y)` among `columns`.
+/// The pairs `(STEM, STEM_x, STEM_y)` and `(STEM, ux_STEM, uy_STEM)` (Turek and Hron's names of
+/// the displacement of a point) among `columns`.
 fn trajectory_pairs(columns: &[String]) -> Vec<(String, String, String)> {
     columns
         .iter()
         .filter_map(|c| {
-            let stem = c.strip_suffix("_x")?;
-            let y = format!("{stem}_y");
+            let (stem, y) = match (c.strip_suffix("_x"), c.strip_prefix("ux_")) {
+                (Some(stem), _) => (stem, format!("{stem}_y")),
+                (None, Some(stem)) => (stem, format!("uy_{stem}")),
+                (None, None) => return None,
+            };
             columns.contains(&y).then(|| (stem.to_string(), c.clone(), y))
         })
         .collect()
@@ -296,6 +301,13 @@ mod tests {
             assert_eq!(&bytes[1..4], b"PNG", "{}", p.display());
         }
         assert!(!dir.path().join("plots/tip_x.tmp.png").exists());
+    }
+
+    #[test]
+    fn pairs_tip_x_tip_y_and_ux_a_uy_a() {
+        let columns: Vec<String> = ["time", "tip_x", "tip_y", "ux_A", "uy_A", "ux_B", "drag_x"].iter().map(|s| s.to_string()).collect();
+        let stems: Vec<String> = trajectory_pairs(&columns).into_iter().map(|p| p.0).collect();
+        assert_eq!(stems, ["tip", "A"]);
     }
 
     #[test]
