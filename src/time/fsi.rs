@@ -33,8 +33,9 @@ impl<const D: usize> Stepper for FsiStepper<'_, D> {
 
     fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, FsiError> {
         self.state.time = t0;
-        self.last = None; // the last step's discretisation is not kept beside the new one
-                          // A cut step's sub-steps are Euler steps, and keep no t_{n-1}: the step after is Euler too.
+        // The last step's discretisation is not kept beside the new one.
+        self.last = None;
+        // A cut step's sub-steps are Euler steps, and keep no t_{n-1}: the step after is Euler too.
         let scheme = if cut { TimeScheme::Euler } else { self.scheme };
         let (mut next, st) = step_with(self.model, &self.state, t1 - t0, scheme, self.solver, &self.newton)?;
         next.time = t1;
