@@ -873,6 +873,11 @@ impl Case {
         names
     }
 
+    /// What becomes of the fluid the solid covers (`kept` without a solid).
+    pub fn covered_fluid(&self) -> crate::adapt::CoveredFluid {
+        self.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default()
+    }
+
     /// Spatial dimension implied by the formulation.
     pub fn dim(&self) -> usize {
         if self.physics.formulation == Formulation::ThreeD {

@@ -24,7 +24,7 @@ use std::path::Path;
 /// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the mesh files and
 /// counts into `out_dir` (see [`crate::adapt`]).
 pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, RunError> {
-    let covered = case.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default();
+    let covered = case.covered_fluid();
     match build_mesh(case, case_dir)? {
         AnyMesh::D2(m) => report_or_leak(|c| Ok(adapt_fluid_with(case, m.clone(), case_dir, c)?), covered, out_dir),
         AnyMesh::D3(m) => report_or_leak(|c| Ok(adapt_fluid_with(case, m.clone(), case_dir, c)?), covered, out_dir),
@@ -75,7 +75,7 @@ pub fn adapt_checkpoint(run_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, 
             message: "`fdfsi adapt --at` needs the checkpoint of an FSI run (a case with a fluid mesh and a solid surface)".into(),
         }));
     }
-    let covered = case.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default();
+    let covered = case.covered_fluid();
     match build_mesh(&case, &options.case_dir)? {
         AnyMesh::D2(m) => report_or_leak(|c| adapted_at(&case, m.clone(), &options.case_dir, checkpoint, run_dir, c), covered, out_dir),
         AnyMesh::D3(m) => report_or_leak(|c| adapted_at(&case, m.clone(), &options.case_dir, checkpoint, run_dir, c), covered, out_dir),

@@ -362,7 +362,7 @@ impl Ctx<'_> {
             if locator.locate(fluid, &x).is_none() {
                 let (lo, hi) = bounding_box(&fluid.points);
                 let span: Vec<String> = (0..D).map(|d| format!("[{}, {}]", lo[d], hi[d])).collect();
-                let removed = self.case.solid.as_ref().is_some_and(|s| s.covered_fluid == crate::adapt::CoveredFluid::Removed);
+                let removed = self.case.covered_fluid() == crate::adapt::CoveredFluid::Removed;
                 let inside_box = (0..D).all(|d| lo[d] <= x[d] && x[d] <= hi[d]);
                 let hint = if removed && inside_box { " or in the fluid the solid covers (covered_fluid = \"removed\")" } else { "" };
                 return Err(self.invalid(format!(

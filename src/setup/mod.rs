@@ -187,7 +187,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
 /// Adapts `fluid` to the case's solid and tags gamma_f on the adapted mesh (which then replaces
 /// `adapted.mesh`'s boundary list with the parent's tags plus `gamma_f`).
 pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path) -> Result<AdaptedFluid<D>, SetupError> {
-    let covered = case.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default();
+    let covered = case.covered_fluid();
     adapt_fluid_with(case, fluid, case_dir, covered)
 }
 
