@@ -26,9 +26,10 @@
 //! * **Cuts at moved ends** (`cuts_at_moved_ends`): all moves are decided before any node is
 //!   added. Where a new node on an edge with a moved end makes a bad cell (inverted, flat or of
 //!   poor quality, as below), the next pass drops that cut instead of undoing the move: the edge
-//!   touches gamma_s at its moved end. This happens where gamma_s runs nearly parallel to a plane
-//!   of nodes: the nodes move a little onto gamma_s while the edges between them are cut far from
-//!   their ends. Undoing the moves instead put new nodes next to the pinned nodes and refused
+//!   touches gamma_s at its moved end, if the chord from the cut to the moved end runs along
+//!   gamma_s (not across a corner: there the move is undone). This happens where gamma_s runs
+//!   nearly parallel to a plane of nodes: the nodes move a little onto gamma_s while the edges
+//!   between them are cut far from their ends. Undoing the moves instead put new nodes next to the pinned nodes and refused
 //!   their neighbours' moves in turn (model problem 4 with nodes at z = 2: 452 refused moves,
 //!   cells of quality 3.6e-6, a singular system; now 133 moves, 24 dropped cuts, 3 new nodes,
 //!   worst quality 0.018, and the step converges).
@@ -271,7 +272,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         passes += 1;
         let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
         let split = subdivide_cells(bg, &plan, &cuts, &corner_vertices);
-        let bad = refused_by_cells(bg, &plan, &cuts, &split, opts.min_move_quality, &corner_vertices);
+        let bad = refused_by_cells(bg, surface, &plan, &cuts, &split, opts.min_move_quality, &corner_vertices);
         let (np, nd) = (pinned.len(), dropped.len());
         pinned.extend(bad.pin);
         dropped.extend(bad.drop);
@@ -500,10 +501,15 @@ struct Refusals {
 
 /// The remedies for the children that are inverted, of quality below `min_quality`, or flat (all
 /// vertices on gamma_s) and touch a moved node: where such a child has a new node on an edge with
-/// a moved end, that edge's cut is dropped (the edge touches gamma_s at the moved end);
-/// otherwise the moves of the child's nodes are undone.
+/// a moved end, and the chord from the new node to the moved end runs along gamma_s
+/// ([`chord_along_surface`]), that edge's cut is dropped (the edge touches gamma_s at the moved
+/// end); otherwise the moves of the child's nodes are undone. The chord test keeps a cut whose
+/// moved end went to another side of a corner: near the Turek-Hron bar's tip, an edge cut by the
+/// bottom face had its other end moved onto the tip face; dropping the cut left the bottom face
+/// between that cut and the corner without a facet, and gamma_f open (FSI3 at t = 3.786).
 fn refused_by_cells<const D: usize>(
     bg: &Background<D>,
+    surface: &Surface<D>,
     plan: &Plan<D>,
     cuts: &CutSet<D>,
     split: &Split,
@@ -531,7 +537,8 @@ fn refused_by_cells<const D: usize>(
             let len = r.drop.len();
             for &g in kid[..=D].iter().filter(|&&g| g >= nv) {
                 let e = edge_of_new_node[g - nv];
-                if bg.topology.edges[e].iter().any(|v| plan.moved.contains_key(v)) {
+                let cut = &plan.new_points[g - nv];
+                if bg.topology.edges[e].iter().any(|v| plan.moved.get(v).is_some_and(|m| chord_along_surface(surface, cut, m))) {
                     r.drop.push(e);
                 }
             }
@@ -545,6 +552,14 @@ fn refused_by_cells<const D: usize>(
         list.dedup();
     }
     r
+}
+
+/// Does the chord between two points of gamma_s run along it: its midpoint within
+/// [`GAMMA_F_REL_TOL`] times its length of gamma_s (the gamma_f rule for a facet)? Not across a
+/// corner or a fold.
+fn chord_along_surface<const D: usize>(surface: &Surface<D>, a: &[f64; D], b: &[f64; D]) -> bool {
+    let mid: [f64; D] = std::array::from_fn(|d| 0.5 * (a[d] + b[d]));
+    surface.project(&mid).is_some_and(|sp| sp.distance * sp.distance <= GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * dist2(a, b))
 }
 
 /// The adapted mesh without gamma_f.
