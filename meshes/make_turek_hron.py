@@ -21,6 +21,11 @@ cylinder and in the box [0.24, 0.66] x [0.1, 0.3] that the bar sweeps (FSI2: the
 0.09 from y = 0.2). Physical groups: surface "fluid"; curves "inlet", "outlet", "walls",
 "cylinder".
 
+turek-hron-fsi-fitted-N.msh: the same, with the bar's outline at rest as lines of the mesh (the
+fluid mesh still covers the bar: surfaces "fluid" on both sides of the outline). Where the bar
+deflects little (FSI1) the adaptation then moves vertices instead of cutting cells; on the cut
+meshes the bar's load depends on how the cells are cut (BENCHMARKS.md "Turek-Hron FSI1").
+
 MSH 4.1 ASCII. Run: python make_turek_hron.py   (needs the `gmsh` package from PyPI)
 """
 import math
@@ -33,6 +38,7 @@ LEVELS = {"turek-hron-bar-40": 40, "turek-hron-bar-80": 80}
 L, H = 2.5, 0.41
 CFD_LEVELS = {"turek-hron-cfd-0": 0, "turek-hron-cfd-1": 1}
 FSI_LEVELS = {"turek-hron-fsi-0": 0, "turek-hron-fsi-1": 1}
+FITTED_LEVELS = {"turek-hron-fsi-fitted-0": 0, "turek-hron-fsi-fitted-1": 1}
 
 
 def start(name):
@@ -128,9 +134,9 @@ def cfd(name, level):
     finish(name)
 
 
-def fsi(name, level):
+def fsi(name, level, fitted=False):
     """The channel less the cylinder, h = 0.04 / 2^level in the channel, h / 4 on the cylinder and
-    where the bar moves."""
+    where the bar moves; `fitted`: with the bar's outline at rest as mesh lines."""
     h = 0.04 / 2**level
     start(name)
     occ = gmsh.model.occ
@@ -139,7 +145,18 @@ def fsi(name, level):
     a = math.asin((Y1 - YC) / R)
     arcs = [occ.addCircle(XC, YC, 0, R, angle1=-a, angle2=a), occ.addCircle(XC, YC, 0, R, angle1=a, angle2=2 * math.pi - a)]
     disk = occ.addPlaneSurface([occ.addCurveLoop(arcs)])
-    occ.cut([(2, occ.addRectangle(0, 0, 0, L, H))], [(2, disk)])
+    channel, _ = occ.cut([(2, occ.addRectangle(0, 0, 0, L, H))], [(2, disk)])
+    if fitted:
+        # The bar's rectangle, started inside the cylinder, splits the channel; the piece inside
+        # the cylinder is dropped.
+        x_arc = XC + math.sqrt(R * R - (Y0 - YC) ** 2)
+        bar = occ.addRectangle(x_arc - 0.002, Y0, 0, X_TIP - x_arc + 0.002, Y1 - Y0)
+        pieces, _ = occ.fragment(channel, [(2, bar)])
+        occ.synchronize()
+        for dim, tag in pieces:
+            cx, cy, _ = occ.getCenterOfMass(dim, tag)
+            if (cx - XC) ** 2 + (cy - YC) ** 2 < R * R:
+                occ.remove([(dim, tag)], recursive=True)
     groups = channel_groups("cylinder")
     field = gmsh.model.mesh.field
     dist = field.add("Distance")
@@ -169,3 +186,5 @@ for name, level in CFD_LEVELS.items():
     cfd(name, level)
 for name, level in FSI_LEVELS.items():
     fsi(name, level)
+for name, level in FITTED_LEVELS.items():
+    fsi(name, level, fitted=True)
