@@ -73,7 +73,7 @@ pub use verify::verify_adapted;
 
 use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
 use geom::{dist2, min_angle2, simplex_measure, simplex_quality, sub};
-use intersect::{find_cuts, CutSet};
+use intersect::{find_cuts, CutSet, T_SNAP};
 use std::collections::{HashMap, HashSet};
 use thiserror::Error;
 
@@ -555,11 +555,13 @@ fn refused_by_cells<const D: usize>(
 }
 
 /// Does the chord between two points of gamma_s run along it: its midpoint within
-/// [`GAMMA_F_REL_TOL`] times its length of gamma_s (the gamma_f rule for a facet)? Not across a
-/// corner or a fold.
+/// [`GAMMA_F_REL_TOL`] times its length of gamma_s (the gamma_f rule for a facet), or within
+/// round-off (`T_SNAP` of the coordinates) where the points coincide? Not across a corner or a
+/// fold.
 fn chord_along_surface<const D: usize>(surface: &Surface<D>, a: &[f64; D], b: &[f64; D]) -> bool {
     let mid: [f64; D] = std::array::from_fn(|d| 0.5 * (a[d] + b[d]));
-    surface.project(&mid).is_some_and(|sp| sp.distance * sp.distance <= GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * dist2(a, b))
+    let round_off = T_SNAP * (1.0 + a.iter().fold(0.0f64, |m, v| m.max(v.abs())));
+    surface.project(&mid).is_some_and(|sp| sp.distance <= GAMMA_F_REL_TOL * dist2(a, b).sqrt() + round_off)
 }
 
 /// The adapted mesh without gamma_f.
