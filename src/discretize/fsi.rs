@@ -1295,6 +1295,24 @@ fn extrapolated(x_n: &[f64], x_prev: &[f64], omega: f64) -> Vec<f64> {
     x_n.iter().zip(x_prev).map(|(a, b)| a + omega * (a - b)).collect()
 }
 
+/// The solid displacement a step adapts the fluid mesh to ([`StepStart::geometry`]): `x_n`,
+/// or with `x_{n-1}` (BDF2) the solid extrapolated to the step's end.
+fn step_geometry(x_n: &[f64], x_prev: Option<&[f64]>, omega: f64) -> Vec<f64> {
+    match x_prev {
+        Some(p) => extrapolated(x_n, p, omega),
+        None => x_n.to_vec(),
+    }
+}
+
+impl FsiRestart {
+    /// The solid displacement the step of size `dt` from this state adapts the fluid mesh to
+    /// (as [`StepStart::with_scheme`] does; `fdfsi adapt --at`).
+    pub fn next_geometry(&self, dt: f64, scheme: TimeScheme) -> Vec<f64> {
+        let previous = self.previous.as_ref().filter(|_| scheme == TimeScheme::Bdf2);
+        step_geometry(&self.solid_x, previous.map(|p| p.solid_x.as_slice()), step_ratio(dt, self.dt))
+    }
+}
+
 impl<const D: usize> StepStart<D> {
     /// Adapts, discretises and transfers for the implicit-Euler step from `state` (at `t_n`) to
     /// `t_n + dt`.
@@ -1308,10 +1326,7 @@ impl<const D: usize> StepStart<D> {
         let previous = state.previous.as_deref().filter(|_| scheme == TimeScheme::Bdf2);
         let scheme = if previous.is_some() { TimeScheme::Bdf2 } else { TimeScheme::Euler };
         let omega = step_ratio(dt, state.dt);
-        let geometry = match previous {
-            Some(p) => extrapolated(&state.solid_x, &p.solid_x, omega),
-            None => state.solid_x.clone(),
-        };
+        let geometry = step_geometry(&state.solid_x, previous.map(|p| p.solid_x.as_slice()), omega);
         let clock = Instant::now();
         let disc = FsiDiscretization::build(model, &geometry, &state.coupling_pattern)?;
         let build = clock.elapsed().as_secs_f64();

@@ -63,7 +63,8 @@ fn report_or_leak<const D: usize>(
 }
 
 /// `fdfsi adapt --at RUN_DIR`: the fluid mesh of an FSI run adapted to the solid of its
-/// checkpoint (the mesh the run's next step starts from), written like [`adapt_case`]. To look
+/// checkpoint (the mesh the run's next step starts from: with BDF2, to the solid extrapolated to
+/// that step's end), written like [`adapt_case`]. To look
 /// at the adaptation of a step that failed: the files show the cut cells, gamma_s and gamma_f,
 /// and `stats.min_quality` the worst cell.
 pub fn adapt_checkpoint(run_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, RunError> {
@@ -94,8 +95,11 @@ fn adapted_at<const D: usize>(
 ) -> Result<AdaptedFluid<D>, RunError> {
     let model = fsi_model(case, &fluid_mesh, case_dir)?;
     let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
-    let solid = model.current_solid_mesh(&restart.solid_x);
-    let surface = model.gamma_s(&restart.solid_x)?;
+    // The solid the next step adapts to: extrapolated to its end when the run steps by BDF2.
+    let time = case.time.as_ref().expect("an FSI case has [time]");
+    let geometry = restart.next_geometry(time.dt, time.scheme);
+    let solid = model.current_solid_mesh(&geometry);
+    let surface = model.gamma_s(&geometry)?;
     let adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt, covered);
     Ok(adapted.map_err(FsiError::from)?)
 }

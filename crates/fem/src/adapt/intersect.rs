@@ -18,7 +18,12 @@
 //!   end points inside the piece are on gamma_s, the edge is not cut (counted).
 //!
 //! An edge cut by several pieces at different points (a folded surface, or two sheets) keeps the
-//! point closest to its first vertex `n1` (its smaller vertex number) and is counted.
+//! point farthest from its ends (ties: the one closest to its first vertex `n1`, its smaller
+//! vertex number) and is counted. A point near an end is likely to be taken by moving that end
+//! (step 2), which the end's other edges across the same sheet can request too; a point inside
+//! the edge has no other way onto the mesh. Near the Turek-Hron bar's tip swung up (FSI2 at t =
+//! 7.642), an edge from a vertex next to the bottom face crossed the tip face; keeping the
+//! bottom face's point left the tip face without a facet between that edge and the corner.
 
 use super::background::Background;
 use super::geom::{collinear_point_in_segment, coplanar_point_in_triangle, dist2, lerp, orient, pad3};
@@ -103,11 +108,17 @@ pub(crate) fn find_cuts<const D: usize>(bg: &Background<D>, surface: &Surface<D>
     let mut multi_cut_edges = 0;
     let mut i = 0;
     while i < raw.len() {
-        let (edge, t, _) = raw[i];
+        let (edge, mut t, _) = raw[i];
+        let first = t;
         let mut j = i + 1;
         let mut multi = false;
         while j < raw.len() && raw[j].0 == edge {
-            multi |= raw[j].1 - t > 1e-12;
+            let tj = raw[j].1;
+            multi |= tj - first > 1e-12;
+            // Sorted by t: a later point wins only if it is strictly farther from the ends.
+            if tj.min(1.0 - tj) > t.min(1.0 - t) + 1e-12 {
+                t = tj;
+            }
             j += 1;
         }
         multi_cut_edges += multi as usize;
