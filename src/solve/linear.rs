@@ -33,8 +33,9 @@ pub enum LinearSolveError {
     #[error("numeric LU factorisation failed (singular or ill-posed system: check boundary conditions): {0}")]
     Numeric(String),
     /// The static LU met a pivot below `1e-2 eps` times the largest entry at `unknown` (the
-    /// caller's numbering), `step`-th in the elimination order.
-    #[error("numeric LU factorisation failed (singular or ill-posed system: check boundary conditions): zero pivot {pivot:.3e} (largest entry {largest:.3e}) in the static LU at unknown {unknown} (elimination step {step})")]
+    /// caller's numbering), `step`-th in the elimination order; pivot and entry are those of the
+    /// equilibrated matrix `R A C` (rows and columns scaled to largest entries near 1).
+    #[error("numeric LU factorisation failed (singular or ill-posed system: check boundary conditions): zero pivot {pivot:.3e} (largest entry {largest:.3e}, equilibrated) in the static LU at unknown {unknown} (elimination step {step})")]
     ZeroPivot { pivot: f64, largest: f64, unknown: usize, step: usize },
     #[error("linear solve is inaccurate: relative residual {residual:.3e} after {refinements} refinement steps (tolerance {tolerance:.1e})")]
     Inaccurate { residual: f64, refinements: usize, tolerance: f64 },

@@ -29,10 +29,10 @@
 //!   touches gamma_s at its moved end, if the chord from the cut to the moved end runs along
 //!   gamma_s (not across a corner: there the move is undone). This happens where gamma_s runs
 //!   nearly parallel to a plane of nodes: the nodes move a little onto gamma_s while the edges
-//!   between them are cut far from their ends. Undoing the moves instead put new nodes next to the pinned nodes and refused
-//!   their neighbours' moves in turn (model problem 4 with nodes at z = 2: 452 refused moves,
-//!   cells of quality 3.6e-6, a singular system; now 133 moves, 24 dropped cuts, 3 new nodes,
-//!   worst quality 0.018, and the step converges).
+//!   between them are cut far from their ends. Undoing the moves instead put new nodes next to
+//!   the pinned nodes and refused their neighbours' moves in turn (model problem 4 with nodes at
+//!   z = 2: 452 refused moves, cells of quality 3.6e-6, a singular system; now 133 moves, 24
+//!   dropped cuts, 3 new nodes, worst quality 0.018, and the step converges).
 //! * **Refused moves** (`refused_moves`) become a new node at `x_i` instead: a boundary vertex may
 //!   only move within the planes (lines) of all its boundary facets (tolerance `1e-12` relative),
 //!   so the domain never changes; and a move is undone when a cell touching the moved node (or one
