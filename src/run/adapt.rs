@@ -97,7 +97,9 @@ fn adapted_at<const D: usize>(
     let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
     // The solid the next step adapts to: extrapolated to its end when the run steps by BDF2.
     let time = case.time.as_ref().expect("an FSI case has [time]");
-    let geometry = restart.next_geometry(time.dt, time.scheme);
+    // The next step's length: the schedule's last step ends at `end` (`min(k dt, end)`).
+    let dt = if checkpoint.time < time.end { time.dt.min(time.end - checkpoint.time) } else { time.dt };
+    let geometry = restart.next_geometry(dt, time.scheme);
     let solid = model.current_solid_mesh(&geometry);
     let surface = model.gamma_s(&geometry)?;
     let adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt, covered);

@@ -7,7 +7,7 @@
 //! 0. **Corners** ([`corners`], 2D): where gamma_s turns sharply, the nearest fluid vertex that
 //!    can is moved onto the corner first, so that the adapted mesh has a node there.
 //! 1. **Cut edges** ([`intersect`]): the edges crossed by gamma_s, one point per edge (the one
-//!    closest to the edge's first vertex `n1`, its smaller vertex number, if there are several).
+//!    farthest from the edge's ends if there are several).
 //! 2. **Move or add** ([`adapt_with`]): `eps = |x_i - x_n1| / |x_n2 - x_n1|`;
 //!    `eps < eps_hat` moves `n1` onto `x_i`, `eps > 1 - eps_hat` moves `n2`, otherwise a new node
 //!    is added at `x_i`. Rules for what the paper leaves open are listed below.
@@ -44,8 +44,8 @@
 //!   is on gamma_s as it is; the edges touching it there are not cut (`touched_vertices`,
 //!   `edges_in_surface`). A cut within `T_SNAP = 1e-12` (relative) of an end point snaps to it
 //!   (`snapped_cuts`).
-//! * **Several points on one edge** (folded surface, two sheets): the one closest to `n1` is kept
-//!   (`multi_cut_edges`).
+//! * **Several points on one edge** (folded surface, two sheets): the one farthest from the
+//!   edge's ends is kept, ties to the one closest to `n1` (`multi_cut_edges`; see [`intersect`]).
 //! * **gamma_f rule**: a facet is on gamma_f when all its vertices are on gamma_s (touched, moved
 //!   or new nodes) and its centroid is within `GAMMA_F_REL_TOL = 0.1` times the facet's diameter
 //!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold);
