@@ -14,6 +14,7 @@ use crate::discretize::fsi::FsiError;
 use crate::io::checkpoint::Checkpoint;
 use crate::io::{write_atomic, OutputError};
 use crate::setup::{adapt_fluid_with, build_mesh, fsi_model};
+use crate::time::Schedule;
 use fdfsi_fem::adapt::{AdaptError, AdaptStats};
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
@@ -95,10 +96,11 @@ fn adapted_at<const D: usize>(
 ) -> Result<AdaptedFluid<D>, RunError> {
     let model = fsi_model(case, &fluid_mesh, case_dir)?;
     let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
-    // The solid the next step adapts to: extrapolated to its end when the run steps by BDF2.
+    // The solid the next step (of the run's schedule) adapts to: extrapolated to its end when
+    // the run steps by BDF2.
     let time = case.time.as_ref().expect("an FSI case has [time]");
-    // The next step's length: the schedule's last step ends at `end` (`min(k dt, end)`).
-    let dt = if checkpoint.time < time.end { time.dt.min(time.end - checkpoint.time) } else { time.dt };
+    let schedule = Schedule { dt: time.dt, end: time.end, max_cuts: time.max_cuts };
+    let dt = schedule.time(checkpoint.step + 1) - schedule.time(checkpoint.step);
     let geometry = restart.next_geometry(dt, time.scheme);
     let solid = model.current_solid_mesh(&geometry);
     let surface = model.gamma_s(&geometry)?;
