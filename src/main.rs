@@ -42,6 +42,11 @@ enum Command {
         /// Continue the run whose output and checkpoint are in DIR (with the case stored there).
         #[arg(long, value_name = "DIR")]
         resume: Option<PathBuf>,
+        /// Start from the state of the run whose checkpoint is in DIR (FSI cases) instead of
+        /// from rest: at its time, on this case's fluid mesh, with this case's time step (which
+        /// must divide that time) and outputs; the solid mesh must be the same.
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["resume", "export_system"])]
+        start_from: Option<PathBuf>,
         /// Write the first Newton system (DIR/jacobian.mtx, rhs.mtx, blocks.json; augmented.mtx
         /// with the augmented-Lagrangian solver) instead of running (flow and FSI cases).
         #[arg(long, value_name = "DIR", conflicts_with = "resume")]
@@ -171,7 +176,7 @@ fn main() -> Result<()> {
             let (case, case_dir, _) = load_case(case.as_deref())?;
             fdfsi::run::export::export_system(&case, &case_dir, &dir, &mut |line: &str| log(line))?;
         }
-        Command::Run { case, out, checkpoint_every, resume, export_system: None } => {
+        Command::Run { case, out, checkpoint_every, resume, start_from, export_system: None } => {
             let (case, mut options, label) = match resume {
                 Some(dir) => {
                     let (case, options) = RunOptions::resume(&dir)?;
@@ -184,6 +189,7 @@ fn main() -> Result<()> {
                 }
             };
             options.checkpoint_every = checkpoint_every.map(|n| n as usize);
+            options.start_from = start_from.map(fdfsi::run::StartFrom::read).transpose()?;
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             ctrlc::set_handler(move || {

@@ -5,7 +5,7 @@
 use fdfsi::case::builtin::BUILTIN_CASES;
 use fdfsi::case::Case;
 use fdfsi::io::checkpoint::Checkpoint;
-use fdfsi::run::{run_case, RunError, RunObserver, RunOptions};
+use fdfsi::run::{run_case, RunError, RunObserver, RunOptions, StartFrom};
 use fdfsi_fem::vtk::{read_pvd, read_vtu};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -85,6 +85,12 @@ method = "{method}"
 fn history(dir: &Path) -> Vec<Vec<f64>> {
     let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
     text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect()).collect()
+}
+
+/// The index of column `name` in `dir`'s history.csv.
+fn history_column(dir: &Path, name: &str) -> usize {
+    let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    text.lines().next().unwrap().split(',').position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"))
 }
 
 /// Asserts two histories agree to `tol` (relative to the column's scale), row by row; `tol = 0`:
@@ -245,12 +251,9 @@ fn fsi_run_stopped_and_resumed_repeats_the_history() {
     assert_eq!(read_pvd(&dir.join("solution.pvd")).unwrap().len(), 12);
 }
 
-/// A BDF2 FSI run (the checkpoint holds t_{n-1}: solid state and velocity, the fluid on its
-/// adapted mesh, the last step's length) stopped after its second step and resumed repeats the
-/// uninterrupted run's history exactly: a compressible block with inertia settling in fluid,
-/// coupled on three sides with its covered fluid removed.
-#[test]
-fn bdf2_fsi_run_stopped_and_resumed_repeats_the_history() {
+/// The compressible block of `tests/fsi_thick_solid.rs` with inertia settling in fluid, coupled on
+/// three sides with its covered fluid removed: BDF2, dt = 0.1 to t = 0.5, the direct solver.
+fn bdf2_block() -> String {
     let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fsi_thick_solid.rs")).unwrap();
     let block = &text[text.find("r#\"").unwrap() + 3..text.find("\"#;").unwrap()];
     let text = direct(
@@ -260,10 +263,67 @@ fn bdf2_fsi_run_stopped_and_resumed_repeats_the_history() {
             .replace("scheme = \"euler\"", "scheme = \"bdf2\"")
             .replace("body_force = [0.0, -0.3]", "body_force = [0.0, -0.3]\ndensity = 1.0"),
     );
-    assert!(text.contains("bdf2") && text.contains("density = 1.0"));
-    let (full, parts, _) = interrupted_and_resumed(&text, Path::new("."), 2);
+    assert!(text.contains("bdf2") && text.contains("density = 1.0") && text.contains("end = 0.5"));
+    text
+}
+
+/// A BDF2 FSI run (the checkpoint holds t_{n-1}: solid state and velocity, the fluid on its
+/// adapted mesh, the last step's length) stopped after its second step and resumed repeats the
+/// uninterrupted run's history exactly.
+#[test]
+fn bdf2_fsi_run_stopped_and_resumed_repeats_the_history() {
+    let (full, parts, _) = interrupted_and_resumed(&bdf2_block(), Path::new("."), 2);
     assert_eq!(full.len(), 5);
     assert_same_history(&full, &parts, 0.0);
+}
+
+/// `--start-from DIR` ([`StartFrom`]): a run started from another run's checkpoint at t = 0.2
+/// with the same case repeats that run's later steps exactly; on a finer fluid mesh with half the
+/// time step (BDF2's first step then of the variable-step formula) it starts after t = 0.2 and
+/// its summary names the run it started from. A time step that does not divide 0.2, another
+/// solid mesh, a flow case and a resumed run are refused with the reason.
+#[test]
+fn fsi_run_started_from_another_runs_checkpoint() {
+    let text = bdf2_block();
+    let run = |text: &str, out: &Path, start_from: Option<&Path>| {
+        let case = Case::from_toml_str(text, "test").unwrap();
+        let start_from = start_from.map(|d| StartFrom::read(d).unwrap());
+        let options = RunOptions { checkpoint_every: Some(1), start_from, ..RunOptions::new(out, ".") };
+        run_case(&case, &options, &mut |_: &str| {})
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let [full, first, same, finer] = ["full", "first", "same", "finer"].map(|d| tmp.path().join(d));
+    run(&text, &full, None).unwrap();
+    run(&text.replace("end = 0.5", "end = 0.2"), &first, None).unwrap();
+    run(&text, &same, Some(&first)).unwrap();
+    assert_same_history(&history(&full)[2..], &history(&same), 0.0);
+
+    let finer_text = text.replace("n = [10, 10]", "n = [20, 20]").replace("dt = 0.1", "dt = 0.05");
+    let summary = run(&finer_text, &finer, Some(&first)).unwrap();
+    let rows = history(&finer);
+    assert_eq!(rows.iter().map(|r| r[0] as usize).collect::<Vec<_>>(), vec![5, 6, 7, 8, 9, 10]);
+    assert!((rows[0][1] - 0.25).abs() < 1e-12 && (rows[5][1] - 0.5).abs() < 1e-12);
+    let initial = summary.provenance.as_ref().and_then(|p| p.initial_state.clone()).expect("the summary names the initial state");
+    assert_eq!((initial.step, initial.time), (2, history(&first)[1][1]));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(finer.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["provenance"]["initial_state"]["step"], 2, "{json}");
+    // Its checkpoints carry the origin on, for the summary of a resumed part.
+    assert_eq!(Checkpoint::read(&finer).unwrap().initial_state, Some(initial));
+    // The block's settling at t = 0.5 on either mesh and step: the same to the discretisation
+    // error.
+    let uy = |rows: &[Vec<f64>]| rows.last().unwrap()[history_column(&full, "uy_top")];
+    let (a, b) = (uy(&history(&full)), uy(&rows));
+    println!("uy_top at t = 0.5: {a:.6e} (from rest), {b:.6e} (finer, from t = 0.2)");
+    assert!((a - b).abs() <= 0.05 * a.abs(), "{a} vs {b}");
+
+    let refused = |text: &str, expected: &str| {
+        let e = run(text, &tmp.path().join("refused"), Some(&first)).unwrap_err().to_string();
+        assert!(e.contains(expected), "{e}");
+    };
+    refused(&text.replace("dt = 0.1", "dt = 0.15"), "is not a whole number of steps dt = 0.15");
+    refused(&text.replace("n = [2, 2]", "n = [2, 3]"), "its solid mesh (25 nodes, 4 cells) is not this case's (35 nodes, 6 cells)");
+    refused(&text.replace("end = 0.5", "end = 0.2"), "is not before the case's end");
+    refused(&channel_case(4), "--start-from is not for this case");
 }
 
 /// A run stopped after its last step (its checkpoint is at the end) resumes with no step left to

@@ -127,6 +127,10 @@ pub struct Checkpoint {
     /// that a run resumed from it is not taken for one made by known code.
     #[serde(default = "crate::io::provenance::Build::unknown_parts")]
     pub builds: Vec<crate::io::provenance::Build>,
+    /// For a run started from another run's checkpoint (`fdfsi run --start-from DIR`), where its
+    /// initial state came from; carried to the summary of every later part.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_state: Option<crate::io::provenance::InitialState>,
 }
 
 impl Checkpoint {
@@ -256,6 +260,7 @@ mod tests {
             },
             progress: Progress { newton_iterations: 7, krylov_iterations: 0, residual_norms: vec![1e-11], timings: Timings::default() },
             builds: vec![crate::io::provenance::Build::current()],
+            initial_state: None,
         };
         c.write(dir.path()).unwrap();
         let back = Checkpoint::read(dir.path()).unwrap();

@@ -64,7 +64,7 @@ impl Build {
 }
 
 /// What `summary.json` records of the code and the case behind a run.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Provenance {
     /// The build that finished the run.
     #[serde(flatten)]
@@ -75,13 +75,33 @@ pub struct Provenance {
     /// build ran the whole run.
     #[serde(default)]
     pub earlier_parts: Vec<Build>,
+    /// The other run whose checkpoint this run started from (`fdfsi run --start-from DIR`);
+    /// absent for a run that started from rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_state: Option<InitialState>,
+}
+
+/// The origin of a run's initial state when it was another run's checkpoint (`fdfsi run
+/// --start-from DIR`): that run's folder, the step and time of the checkpoint, its case and the
+/// builds that ran it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InitialState {
+    /// The other run's output folder, as given.
+    pub run: String,
+    /// The checkpoint's step (of the other run's schedule) and time.
+    pub step: usize,
+    pub time: f64,
+    /// SHA-256 (hex) of the other run's case.
+    pub case_sha256: String,
+    /// The builds that ran the other run up to the checkpoint, oldest first.
+    pub builds: Vec<Build>,
 }
 
 impl Provenance {
     /// The provenance of a run of the case `case_toml` finished by this binary, after earlier
     /// parts run by `earlier` (the builds a checkpoint lists; this build among them is not
     /// repeated).
-    pub fn of_run(case_toml: &str, earlier: &[Build]) -> Provenance {
+    pub fn of_run(case_toml: &str, earlier: &[Build], initial_state: Option<InitialState>) -> Provenance {
         let build = Build::current();
         let mut earlier_parts: Vec<Build> = Vec::new();
         for b in earlier.iter().filter(|b| **b != build) {
@@ -89,7 +109,7 @@ impl Provenance {
                 earlier_parts.push(b.clone());
             }
         }
-        Provenance { build, case_sha256: sha256_hex(case_toml.as_bytes()), earlier_parts }
+        Provenance { build, case_sha256: sha256_hex(case_toml.as_bytes()), earlier_parts, initial_state }
     }
 
     /// Every build that contributed to the run: the earlier parts' and the last one.
@@ -138,9 +158,9 @@ mod tests {
         assert_eq!(builds_so_far(&[]), vec![Build::current()]);
         assert_eq!(builds_so_far(std::slice::from_ref(&older)), vec![older.clone(), Build::current()]);
         assert_eq!(builds_so_far(&[older.clone(), Build::current()]), vec![older.clone(), Build::current()]);
-        let p = Provenance::of_run("title = \"t\"\n", &[]);
+        let p = Provenance::of_run("title = \"t\"\n", &[], None);
         assert_eq!(p.builds().count(), 1);
-        let resumed = Provenance::of_run("", &[older.clone(), Build::current(), older.clone()]);
+        let resumed = Provenance::of_run("", &[older.clone(), Build::current(), older.clone()], None);
         assert_eq!(resumed.earlier_parts, vec![older.clone()]);
         assert!(!Build::unknown().is_reproducible());
         let json = serde_json::to_value(&p).unwrap();

@@ -17,10 +17,10 @@
 
 use super::flow::write_profiles;
 use super::record::{march_and_record, RunOutputs, Start};
-use super::{RunError, RunObserver, RunOptions, RunSummary};
-use crate::case::Case;
+use super::{RunError, RunObserver, RunOptions, RunSummary, StartFrom};
+use crate::case::{Case, RunKind};
 use crate::discretize::fsi::{FsiModel, FsiState, FsiStep};
-use crate::io::checkpoint::RestartState;
+use crate::io::checkpoint::{Checkpoint, RestartState};
 use crate::io::fields::{fluid_grid, gamma_f_grid, solid_grid};
 use crate::io::OutputError;
 use crate::post::quantities::{evaluate_all, StepState};
@@ -54,15 +54,55 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let mut start = Start::of(options, obs, t);
     start.timings.mesh = mesh_seconds;
-    let state = match &options.resume {
-        None => FsiState::at_rest(&model),
-        Some(c) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
+    let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
+    let state = match (&options.resume, &options.start_from) {
+        (Some(c), _) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
+        (None, Some(from)) => {
+            let steps_done = from.steps_done(&schedule)?;
+            let state = state_started_from(from, &model)?;
+            obs.log(&format!(
+                "starting after step {steps_done} (t = {:.6e}) from the state of {} (its step {})",
+                state.time,
+                Checkpoint::path(&from.dir).display(),
+                from.checkpoint.step
+            ));
+            start.first = steps_done + 1;
+            state
+        }
+        (None, None) => FsiState::at_rest(&model),
     };
     let mut stepper = FsiStepper::new(&model, lu.as_mut(), case.solver.newton.clone(), ts.scheme, state);
-    let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
     let recorded = march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, false)?;
     let symbolic = lu.symbolic_factorizations();
     Ok(recorded.summary(case, D, fluid_mesh.num_cells(), symbolic))
+}
+
+/// The state of another run's checkpoint as the initial state of a run of `model` (see
+/// [`StartFrom`]): the solid's state as saved (the same solid mesh is required), the fluid's
+/// velocity on the other run's adapted mesh, rebuilt from that run's own fluid mesh (the first
+/// step transfers it to this run's adapted mesh, as every step does from the last one).
+fn state_started_from<const D: usize>(from: &StartFrom, model: &FsiModel<D>) -> Result<FsiState<D>, RunError> {
+    let bad = |message: String| RunError::StartFrom { dir: from.dir.display().to_string(), message };
+    let case = from.case()?;
+    if case.kind() != RunKind::Fsi {
+        return Err(bad("its checkpoint is not of an FSI run".into()));
+    }
+    let c = &from.checkpoint;
+    let fluid_mesh = build_mesh(&case, &c.case_dir)?.into_dim::<D>().ok_or_else(|| bad(format!("its fluid mesh is not {D}D")))?;
+    let other = fsi_model(&case, &fluid_mesh, &c.case_dir)?;
+    let (a, b) = (&other.solid.mesh, &model.solid.mesh);
+    if a.points != b.points || a.cell_nodes != b.cell_nodes || a.cell_type != b.cell_type {
+        return Err(bad(format!(
+            "its solid mesh ({} nodes, {} cells) is not this case's ({} nodes, {} cells): only the fluid mesh, the time step and the outputs may differ",
+            a.points.len(),
+            a.num_cells(),
+            b.points.len(),
+            b.num_cells()
+        )));
+    }
+    // The coupling pattern goes with the state: a first step on another fluid mesh (another
+    // topology) starts its pattern afresh.
+    Ok(FsiState::from_restart(&other, c.time, c.fsi_state(&from.dir, model.solid.num_dofs())?)?)
 }
 
 /// The outputs of an FSI run: the fluid's quantities on the step's adapted mesh, the solid's

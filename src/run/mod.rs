@@ -13,6 +13,7 @@ use crate::discretize::flow::FlowError;
 use crate::discretize::fsi::FsiError;
 use crate::discretize::solid::SolidError;
 use crate::io::checkpoint::{Checkpoint, CheckpointError};
+use crate::io::provenance::InitialState;
 use crate::io::{write_atomic, OutputError};
 use crate::post::quantities::QuantityError;
 use crate::setup::SetupError;
@@ -66,6 +67,8 @@ pub enum RunError {
     DiskFull { out_dir: String, needed: String, available: String },
     #[error("{0}")]
     Unsupported(String),
+    #[error("--start-from {dir}: {message}")]
+    StartFrom { dir: String, message: String },
     #[error("interrupted after step {step} (t = {time:.6e}); a checkpoint is in {out_dir}: continue with `fdfsi run --resume {out_dir}`")]
     Interrupted { step: usize, time: f64, out_dir: String },
 }
@@ -149,6 +152,8 @@ pub struct RunOptions {
     pub checkpoint_every: Option<usize>,
     /// Continue from this checkpoint (read from `out_dir`) instead of starting at `t = 0`.
     pub resume: Option<Checkpoint>,
+    /// Start a new run from another run's checkpoint instead of from rest (FSI runs).
+    pub start_from: Option<StartFrom>,
     /// When set (e.g. by a Ctrl-C handler), the run stops after the current step, writes a
     /// checkpoint and returns [`RunError::Interrupted`].
     pub stop: Option<Arc<AtomicBool>>,
@@ -170,6 +175,72 @@ impl RunOptions {
         let case = Case::from_toml_str(&checkpoint.case, &file)?;
         let options = RunOptions { out_dir, case_dir: checkpoint.case_dir.clone(), resume: Some(checkpoint), ..Default::default() };
         Ok((case, options))
+    }
+
+    /// Where the run's initial state came from: the run started from (see [`StartFrom`]), or, for
+    /// a resumed run, what its checkpoint recorded.
+    pub fn initial_state(&self) -> Option<InitialState> {
+        match (&self.start_from, &self.resume) {
+            (Some(s), _) => Some(s.origin()),
+            (None, Some(c)) => c.initial_state.clone(),
+            (None, None) => None,
+        }
+    }
+}
+
+/// Another run's checkpoint as a new run's initial state (`fdfsi run CASE --start-from DIR`):
+/// the new run begins at the checkpoint's time `t_k` from its state, with its own case. The case
+/// may differ in its fluid mesh (the fluid velocity is transferred to the new mesh, as from step
+/// to step), its time step (which must divide `t_k`; BDF2 takes the first step with the
+/// variable-step formula from the checkpoint's two levels), its end, outputs and solver; the solid
+/// mesh must be the same. It serves mesh and time-step studies of periodic flows, whose
+/// finer runs need not repeat the transient from rest. The new run's history starts after
+/// `t_k`; `summary.json`'s provenance names the run it started from.
+#[derive(Clone, Debug)]
+pub struct StartFrom {
+    /// The other run's output folder.
+    pub dir: PathBuf,
+    pub checkpoint: Checkpoint,
+}
+
+impl StartFrom {
+    /// The checkpoint of the run in `dir`.
+    pub fn read(dir: impl Into<PathBuf>) -> Result<Self, RunError> {
+        let dir = dir.into();
+        let checkpoint = Checkpoint::read(&dir)?;
+        Ok(StartFrom { dir, checkpoint })
+    }
+
+    /// The checkpoint's case (as the other run used it).
+    pub fn case(&self) -> Result<Case, RunError> {
+        Ok(Case::from_toml_str(&self.checkpoint.case, &Checkpoint::path(&self.dir).display().to_string())?)
+    }
+
+    /// What the new run's provenance records of it.
+    pub fn origin(&self) -> InitialState {
+        let c = &self.checkpoint;
+        InitialState {
+            run: self.dir.display().to_string(),
+            step: c.step,
+            time: c.time,
+            case_sha256: crate::io::provenance::sha256_hex(c.case.as_bytes()),
+            builds: c.builds.clone(),
+        }
+    }
+
+    /// The number of steps of `schedule` that reach the checkpoint's time: it must be a whole
+    /// number (to 1e-6 of a step) and leave a step to take.
+    pub fn steps_done(&self, schedule: &crate::time::Schedule) -> Result<usize, RunError> {
+        let t = self.checkpoint.time;
+        let k = (t / schedule.dt).round();
+        let bad = |message: String| RunError::StartFrom { dir: self.dir.display().to_string(), message };
+        if (t / schedule.dt - k).abs() > 1e-6 {
+            return Err(bad(format!("its time t = {t} is not a whole number of steps dt = {}: choose a dt that divides it", schedule.dt)));
+        }
+        if t >= schedule.end * (1.0 - 1e-12) {
+            return Err(bad(format!("its time t = {t} is not before the case's end = {}", schedule.end)));
+        }
+        Ok(k as usize)
     }
 }
 
@@ -224,6 +295,10 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     // The checks of `fdfsi check` (names, ranges, meshes, solid placement, probes), before
     // anything is written.
     let expected = check::check(case, "case", &options.case_dir)?;
+    if options.start_from.is_some() && (options.resume.is_some() || case.kind() != RunKind::Fsi) {
+        let what = if options.resume.is_some() { "a resumed run" } else { "this case: only FSI runs start from another run's state" };
+        return Err(RunError::Unsupported(format!("--start-from is not for {what}")));
+    }
     if let Some(c) = &options.resume {
         if c.case != case.to_toml() {
             return Err(RunError::Case(CaseError::Invalid {
@@ -250,7 +325,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     }
     summary.peak_memory_mib = peak_resident_mib();
     let earlier = options.resume.as_ref().map_or(&[][..], |c| &c.builds);
-    summary.provenance = Some(crate::io::provenance::Provenance::of_run(&case.to_toml(), earlier));
+    summary.provenance = Some(crate::io::provenance::Provenance::of_run(&case.to_toml(), earlier, options.initial_state()));
     let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
     write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
     // The results are written: a failing plot is reported, not an error of the run.

@@ -184,6 +184,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
             state,
             progress,
             builds,
+            initial_state: options.initial_state(),
         };
         Ok(c.write(&options.out_dir)?)
     }
