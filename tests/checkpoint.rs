@@ -280,8 +280,9 @@ fn bdf2_fsi_run_stopped_and_resumed_repeats_the_history() {
 /// `--start-from DIR` ([`StartFrom`]): a run started from another run's checkpoint at t = 0.2
 /// with the same case repeats that run's later steps exactly; on a finer fluid mesh with half the
 /// time step (BDF2's first step then of the variable-step formula) it starts after t = 0.2 and
-/// its summary names the run it started from. A time step that does not divide 0.2, another
-/// solid mesh, a flow case and a resumed run are refused with the reason.
+/// its summary names the run it started from and counts the steps it took. A time step that does
+/// not divide 0.2, another solid mesh, no step left, the folder it starts from as output, a
+/// folder without a checkpoint and a flow case are refused with the reason, before a step.
 #[test]
 fn fsi_run_started_from_another_runs_checkpoint() {
     let text = bdf2_block();
@@ -300,6 +301,9 @@ fn fsi_run_started_from_another_runs_checkpoint() {
 
     let finer_text = text.replace("n = [10, 10]", "n = [20, 20]").replace("dt = 0.1", "dt = 0.05");
     let summary = run(&finer_text, &finer, Some(&first)).unwrap();
+    assert_eq!(summary.steps, 6, "the steps taken");
+    let same_summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(same.join("summary.json")).unwrap()).unwrap();
+    assert!(summary.cells > same_summary["cells"].as_u64().unwrap() as usize, "the finer fluid mesh was used");
     let rows = history(&finer);
     assert_eq!(rows.iter().map(|r| r[0] as usize).collect::<Vec<_>>(), vec![5, 6, 7, 8, 9, 10]);
     assert!((rows[0][1] - 0.25).abs() < 1e-12 && (rows[5][1] - 0.5).abs() < 1e-12);
@@ -317,13 +321,20 @@ fn fsi_run_started_from_another_runs_checkpoint() {
     assert!((a - b).abs() <= 0.05 * a.abs(), "{a} vs {b}");
 
     let refused = |text: &str, expected: &str| {
-        let e = run(text, &tmp.path().join("refused"), Some(&first)).unwrap_err().to_string();
+        let out = tmp.path().join("refused");
+        let e = run(text, &out, Some(&first)).unwrap_err().to_string();
         assert!(e.contains(expected), "{e}");
+        assert!(!out.join("history.csv").exists(), "a refused run wrote its history");
     };
     refused(&text.replace("dt = 0.1", "dt = 0.15"), "is not a whole number of steps dt = 0.15");
     refused(&text.replace("n = [2, 2]", "n = [2, 3]"), "its solid mesh (25 nodes, 4 cells) is not this case's (35 nodes, 6 cells)");
-    refused(&text.replace("end = 0.5", "end = 0.2"), "is not before the case's end");
+    refused(&text.replace("end = 0.5", "end = 0.2"), "leaves no step of dt = 0.1 before the case's end = 0.2");
     refused(&channel_case(4), "--start-from is not for this case");
+    let e = run(&text, &first, Some(&first)).unwrap_err().to_string();
+    assert!(e.contains("would write into the folder it starts from"), "{e}");
+    let e = StartFrom::read(tmp.path().join("nothing-here")).unwrap_err().to_string();
+    assert!(e.starts_with("--start-from ") && e.contains("no checkpoint"), "{e}");
+    assert_eq!(StartFrom::read(first.join("checkpoint.json")).unwrap().dir, StartFrom::read(&first).unwrap().dir);
 }
 
 /// A run stopped after its last step (its checkpoint is at the end) resumes with no step left to

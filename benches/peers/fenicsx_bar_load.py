@@ -16,7 +16,8 @@ by the residual method, and the bar's by the residual method with the test funct
 `(x - x0)^2 (3 L - (x - x0)) / 6` (`res_tipw_bar`, times 1e3) on the bar's facets: the tip
 deflection a beam of length L clamped at x0 gets from the load, times EI.
 
-    bash ../shared/peers/setup.sh      # FEniCSx 0.11 in /tmp/venv-fenicsx (once)
+    python3.12 -m venv /tmp/venv-fenicsx         # once: FEniCSx 0.11 with PETSc + MUMPS (the
+    /tmp/venv-fenicsx/bin/pip install dolfinx-solver-real meshio   # PyPI wheel provides dolfinx_solver)
     LD_LIBRARY_PATH=/tmp/venv-fenicsx/lib OMP_NUM_THREADS=1 /tmp/venv-fenicsx/bin/python \
         benches/peers/fenicsx_bar_load.py RUN/solution_fluid_000001.vtu --element cr --rho 1000
 

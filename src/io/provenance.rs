@@ -86,11 +86,15 @@ pub struct Provenance {
 /// builds that ran it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct InitialState {
-    /// The other run's output folder, as given.
+    /// The other run's output folder (absolute).
     pub run: String,
     /// The checkpoint's step (of the other run's schedule) and time.
     pub step: usize,
     pub time: f64,
+    /// The steps of this run's schedule before its first: `time / dt` (its history and
+    /// `summary.json`'s `steps` count from there).
+    #[serde(default)]
+    pub steps_before: usize,
     /// SHA-256 (hex) of the other run's case.
     pub case_sha256: String,
     /// The builds that ran the other run up to the checkpoint, oldest first.

@@ -10,7 +10,9 @@
 //! mid-value does not make crossings (an FSI run's forces jitter from step to step by up to a
 //! fifth of their half range as the adapted mesh changes: Turek-Hron FSI3's drag with dt =
 //! 0.0005), and a signal whose range is below 1e-9 of its size does not oscillate. Such jitter
-//! enters the extrema, hence the amplitude, by its own size.
+//! enters the extrema, hence the amplitude, by its own size. The mid-value and range are the whole
+//! window's: the window (`from` on) should hold a settled oscillation, since one whose amplitude
+//! falls below about half its largest in the window no longer arms the crossings.
 
 /// The statistics of the last period of a signal.
 #[derive(Clone, Copy, Debug, PartialEq)]

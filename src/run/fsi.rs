@@ -1,5 +1,6 @@
 //! FSI runs: a case with a fluid `[mesh]`, a `[solid]` with a material `model` and a `[time]`
-//! table is run by the monolithic FSI step of [`crate::discretize::fsi`] (implicit Euler, the paper's).
+//! table is run by the monolithic FSI step of [`crate::discretize::fsi`] (implicit Euler, the
+//! paper's, or BDF2: `[time] scheme`), from rest or from another run's checkpoint ([`StartFrom`]).
 //!
 //! Each step adapts the ORIGINAL fluid mesh to the solid surface at `t_n`, transfers the fluid
 //! velocity, solves fluid, solid and multiplier in one Newton solve and moves the solid. Results:
@@ -58,7 +59,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let state = match (&options.resume, &options.start_from) {
         (Some(c), _) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
         (None, Some(from)) => {
-            let steps_done = from.steps_done(&schedule)?;
+            let steps_done = from.check(&schedule, &options.out_dir)?;
             let state = state_started_from(from, &model)?;
             obs.log(&format!(
                 "starting after step {steps_done} (t = {:.6e}) from the state of {} (its step {})",
@@ -82,27 +83,31 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
 /// velocity on the other run's adapted mesh, rebuilt from that run's own fluid mesh (the first
 /// step transfers it to this run's adapted mesh, as every step does from the last one).
 fn state_started_from<const D: usize>(from: &StartFrom, model: &FsiModel<D>) -> Result<FsiState<D>, RunError> {
-    let bad = |message: String| RunError::StartFrom { dir: from.dir.display().to_string(), message };
     let case = from.case()?;
     if case.kind() != RunKind::Fsi {
-        return Err(bad("its checkpoint is not of an FSI run".into()));
+        return Err(from.error("its checkpoint is not of an FSI run".into()));
     }
     let c = &from.checkpoint;
-    let fluid_mesh = build_mesh(&case, &c.case_dir)?.into_dim::<D>().ok_or_else(|| bad(format!("its fluid mesh is not {D}D")))?;
-    let other = fsi_model(&case, &fluid_mesh, &c.case_dir)?;
+    let rebuilt = |e: RunError| from.error(format!("its fluid mesh could not be rebuilt: {e}"));
+    let fluid_mesh = build_mesh(&case, &c.case_dir)
+        .map_err(|e| rebuilt(e.into()))?
+        .into_dim::<D>()
+        .ok_or_else(|| from.error(format!("its fluid mesh is not {D}D")))?;
+    let other = fsi_model(&case, &fluid_mesh, &c.case_dir).map_err(|e| rebuilt(e.into()))?;
     let (a, b) = (&other.solid.mesh, &model.solid.mesh);
     if a.points != b.points || a.cell_nodes != b.cell_nodes || a.cell_type != b.cell_type {
-        return Err(bad(format!(
-            "its solid mesh ({} nodes, {} cells) is not this case's ({} nodes, {} cells): only the fluid mesh, the time step and the outputs may differ",
+        return Err(from.error(format!(
+            "its solid mesh ({} nodes, {} cells) is not this case's ({} nodes, {} cells): the solid mesh must be the same",
             a.points.len(),
             a.num_cells(),
             b.points.len(),
             b.num_cells()
         )));
     }
+    let restart = c.fsi_state(&from.dir, model.solid.num_dofs()).map_err(|e| from.error(e.to_string()))?;
     // The coupling pattern goes with the state: a first step on another fluid mesh (another
     // topology) starts its pattern afresh.
-    Ok(FsiState::from_restart(&other, c.time, c.fsi_state(&from.dir, model.solid.num_dofs())?)?)
+    FsiState::from_restart(&other, c.time, restart).map_err(|e| rebuilt(e.into()))
 }
 
 /// The outputs of an FSI run: the fluid's quantities on the step's adapted mesh, the solid's

@@ -177,25 +177,34 @@ impl RunOptions {
         Ok((case, options))
     }
 
-    /// Where the run's initial state came from: the run started from (see [`StartFrom`]), or, for
-    /// a resumed run, what its checkpoint recorded.
-    pub fn initial_state(&self) -> Option<InitialState> {
+    /// Where the run's initial state came from, for a run whose steps are `dt` long: the run
+    /// started from (see [`StartFrom`]), or, for a resumed run, what its checkpoint recorded.
+    pub fn initial_state(&self, dt: f64) -> Option<InitialState> {
         match (&self.start_from, &self.resume) {
-            (Some(s), _) => Some(s.origin()),
+            (Some(s), _) => Some(s.origin(dt)),
             (None, Some(c)) => c.initial_state.clone(),
             (None, None) => None,
         }
+    }
+
+    /// The steps of a schedule with steps `dt` long that come before this run's first: 0 but for
+    /// a run started from another's checkpoint.
+    pub fn steps_before(&self, dt: f64) -> usize {
+        self.initial_state(dt).map_or(0, |i| i.steps_before)
     }
 }
 
 /// Another run's checkpoint as a new run's initial state (`fdfsi run CASE --start-from DIR`):
 /// the new run begins at the checkpoint's time `t_k` from its state, with its own case. The case
 /// may differ in its fluid mesh (the fluid velocity is transferred to the new mesh, as from step
-/// to step), its time step (which must divide `t_k`; BDF2 takes the first step with the
-/// variable-step formula from the checkpoint's two levels), its end, outputs and solver; the solid
-/// mesh must be the same. It serves mesh and time-step studies of periodic flows, whose
-/// finer runs need not repeat the transient from rest. The new run's history starts after
-/// `t_k`; `summary.json`'s provenance names the run it started from.
+/// to step), its time step (which must divide `t_k`; with BDF2 the first step uses the
+/// variable-step formula where the checkpoint holds the level before, an Euler step where not),
+/// its end, outputs and solver; the solid mesh must be the same. The rest of the case (physics,
+/// materials, boundary values) is not compared: a run that changes it starts from a state of
+/// another problem, on purpose. It serves mesh and time-step studies of periodic flows, whose
+/// finer runs need not repeat the transient from rest. The new run's history starts after `t_k`
+/// and it writes into another folder than the one it starts from; `summary.json`'s provenance
+/// names the run it started from.
 #[derive(Clone, Debug)]
 pub struct StartFrom {
     /// The other run's output folder.
@@ -204,41 +213,63 @@ pub struct StartFrom {
 }
 
 impl StartFrom {
-    /// The checkpoint of the run in `dir`.
+    /// The checkpoint of the run in `dir` (or of the file `dir/checkpoint.json` named itself).
     pub fn read(dir: impl Into<PathBuf>) -> Result<Self, RunError> {
-        let dir = dir.into();
-        let checkpoint = Checkpoint::read(&dir)?;
+        let mut dir: PathBuf = dir.into();
+        if dir.file_name().is_some_and(|n| n == crate::io::checkpoint::CHECKPOINT_FILE) && dir.is_file() {
+            dir = dir.parent().map(Path::to_path_buf).unwrap_or_default();
+        }
+        let dir = std::path::absolute(&dir).unwrap_or(dir);
+        let checkpoint = Checkpoint::read(&dir).map_err(|e| StartFrom::error_in(&dir, e.to_string()))?;
         Ok(StartFrom { dir, checkpoint })
+    }
+
+    /// The error `message` about the run started from `dir`.
+    fn error_in(dir: &Path, message: String) -> RunError {
+        RunError::StartFrom { dir: dir.display().to_string(), message }
+    }
+
+    /// The error `message` about this run.
+    pub fn error(&self, message: String) -> RunError {
+        StartFrom::error_in(&self.dir, message)
     }
 
     /// The checkpoint's case (as the other run used it).
     pub fn case(&self) -> Result<Case, RunError> {
-        Ok(Case::from_toml_str(&self.checkpoint.case, &Checkpoint::path(&self.dir).display().to_string())?)
+        Case::from_toml_str(&self.checkpoint.case, &Checkpoint::path(&self.dir).display().to_string()).map_err(|e| self.error(e.to_string()))
     }
 
-    /// What the new run's provenance records of it.
-    pub fn origin(&self) -> InitialState {
+    /// What the provenance of a new run with steps `dt` long records of it.
+    pub fn origin(&self, dt: f64) -> InitialState {
         let c = &self.checkpoint;
         InitialState {
             run: self.dir.display().to_string(),
             step: c.step,
             time: c.time,
+            steps_before: (c.time / dt).round() as usize,
             case_sha256: crate::io::provenance::sha256_hex(c.case.as_bytes()),
             builds: c.builds.clone(),
         }
     }
 
-    /// The number of steps of `schedule` that reach the checkpoint's time: it must be a whole
-    /// number (to 1e-6 of a step) and leave a step to take.
-    pub fn steps_done(&self, schedule: &crate::time::Schedule) -> Result<usize, RunError> {
+    /// Checks that a run with `schedule` writing into `out_dir` can start from it: another
+    /// folder, a whole number of steps (to 1e-6 of a step) to the checkpoint's time, and a step
+    /// left to take. Returns the number of steps before the run's first.
+    pub fn check(&self, schedule: &crate::time::Schedule, out_dir: &Path) -> Result<usize, RunError> {
+        let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        if same(&self.dir, out_dir) {
+            return Err(self.error(format!("the run would write into the folder it starts from ({}); choose another --out", out_dir.display())));
+        }
         let t = self.checkpoint.time;
         let k = (t / schedule.dt).round();
-        let bad = |message: String| RunError::StartFrom { dir: self.dir.display().to_string(), message };
         if (t / schedule.dt - k).abs() > 1e-6 {
-            return Err(bad(format!("its time t = {t} is not a whole number of steps dt = {}: choose a dt that divides it", schedule.dt)));
+            return Err(self.error(format!("its time t = {t} is not a whole number of steps dt = {}: choose a dt that divides it", schedule.dt)));
         }
-        if t >= schedule.end * (1.0 - 1e-12) {
-            return Err(bad(format!("its time t = {t} is not before the case's end = {}", schedule.end)));
+        if k as usize >= schedule.num_steps() {
+            return Err(self.error(format!("its time t = {t} leaves no step of dt = {} before the case's end = {}", schedule.dt, schedule.end)));
         }
         Ok(k as usize)
     }
@@ -295,9 +326,14 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     // The checks of `fdfsi check` (names, ranges, meshes, solid placement, probes), before
     // anything is written.
     let expected = check::check(case, "case", &options.case_dir)?;
-    if options.start_from.is_some() && (options.resume.is_some() || case.kind() != RunKind::Fsi) {
-        let what = if options.resume.is_some() { "a resumed run" } else { "this case: only FSI runs start from another run's state" };
-        return Err(RunError::Unsupported(format!("--start-from is not for {what}")));
+    if let Some(from) = &options.start_from {
+        if options.resume.is_some() || case.kind() != RunKind::Fsi {
+            let what = if options.resume.is_some() { "a resumed run" } else { "this case: only FSI runs start from another run's state" };
+            return Err(RunError::Unsupported(format!("--start-from is not for {what}")));
+        }
+        if let Some(ts) = &case.time {
+            from.check(&crate::time::Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts }, &options.out_dir)?;
+        }
     }
     if let Some(c) = &options.resume {
         if c.case != case.to_toml() {
@@ -325,7 +361,8 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     }
     summary.peak_memory_mib = peak_resident_mib();
     let earlier = options.resume.as_ref().map_or(&[][..], |c| &c.builds);
-    summary.provenance = Some(crate::io::provenance::Provenance::of_run(&case.to_toml(), earlier, options.initial_state()));
+    let dt = case.time.as_ref().map_or(1.0, |t| t.dt);
+    summary.provenance = Some(crate::io::provenance::Provenance::of_run(&case.to_toml(), earlier, options.initial_state(dt)));
     let json = serde_json::to_string_pretty(&summary).expect("summary serialises");
     write_atomic(&options.out_dir.join("summary.json"), json.as_bytes())?;
     // The results are written: a failing plot is reported, not an error of the run.

@@ -92,6 +92,8 @@ struct Recorder<'a, O> {
     krylov_iterations: usize,
     residual_norms: Vec<f64>,
     part_start: Instant,
+    /// The schedule's step (for the provenance of a run started from another's checkpoint).
+    dt: f64,
 }
 
 impl<O> Recorder<'_, O> {
@@ -184,7 +186,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
             state,
             progress,
             builds,
-            initial_state: options.initial_state(),
+            initial_state: options.initial_state(self.dt),
         };
         Ok(c.write(&options.out_dir)?)
     }
@@ -238,6 +240,7 @@ where
         krylov_iterations: start.krylov_iterations,
         residual_norms: start.residual_norms,
         part_start,
+        dt: schedule.dt,
     };
     let mut timings = start.timings;
     if record_start && options.resume.is_none() {
@@ -252,7 +255,7 @@ where
     recorder.last.extend(statistics);
     recorder.log_quantities();
     Ok(Recorded {
-        steps: schedule.num_steps(),
+        steps: schedule.num_steps() - options.steps_before(schedule.dt),
         newton_iterations: recorder.newton_iterations,
         krylov_iterations: recorder.krylov_iterations,
         residual_norms: recorder.residual_norms,
@@ -314,6 +317,7 @@ pub(crate) fn record_once<S, O: RunOutputs<S>>(
         krylov_iterations: 0,
         residual_norms: Vec::new(),
         part_start: Instant::now(),
+        dt: 1.0,
     };
     recorder.record(state, done, true)?;
     recorder.outputs.finish(state, &options.out_dir, recorder.obs)?;
