@@ -428,11 +428,14 @@ fn turek_hron_fsi2_and_fsi3_start_from_rest() {
 /// and frequency, the drag's mean (N/m).
 const FSI2_3: [(&str, [f64; 4]); 2] = [("turek-hron-fsi2", [1.23e-3, 80.6e-3, 2.0, 208.83]), ("turek-hron-fsi3", [1.48e-3, 34.38e-3, 5.3, 457.3])];
 
-/// The whole of Turek-Hron FSI2 and FSI3 (each about 3 hours here): uy(A)'s amplitude within 5 %
+/// The whole of Turek-Hron FSI2 and FSI3 (about 4 hours each here): uy(A)'s amplitude within 5 %
 /// and frequency within 3 % of Turek & Hron's, the mean drag within 2 % (the issue's
-/// tolerances).
+/// tolerances). NOT MET yet by the shipped cases on `turek-hron-fsi-0.msh` (session 16): FSI3's
+/// amplitude is 6.8 % low and its frequency 3.1 % above 5.3 Hz, FSI2's frequency 3.1 % low and its
+/// mean drag 2.7 % low (BENCHMARKS.md "Turek-Hron FSI2 and FSI3"); this test fails until the
+/// cases reach the tolerances, and is kept at them as the target.
 #[test]
-#[ignore = "about 6 hours; run with --ignored"]
+#[ignore = "about 8 hours, and fails on the shipped level-0 meshes (see its doc); run with --ignored"]
 fn turek_hron_fsi2_and_fsi3_swing_at_the_benchmark_amplitudes_and_frequencies() {
     for (name, [_, amplitude, frequency, drag]) in FSI2_3 {
         let (s, _) = run(name);
