@@ -59,7 +59,8 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let state = match (&options.resume, &options.start_from) {
         (Some(c), _) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
         (None, Some(from)) => {
-            let steps_done = from.check(&schedule, &options.out_dir)?;
+            // `run_case` has checked it against this schedule and output folder.
+            let steps_done = from.steps_before(schedule.dt);
             let state = state_started_from(from, &model)?;
             obs.log(&format!(
                 "starting after step {steps_done} (t = {:.6e}) from the state of {} (its step {})",

@@ -186,12 +186,6 @@ impl RunOptions {
             (None, None) => None,
         }
     }
-
-    /// The steps of a schedule with steps `dt` long that come before this run's first: 0 but for
-    /// a run started from another's checkpoint.
-    pub fn steps_before(&self, dt: f64) -> usize {
-        self.initial_state(dt).map_or(0, |i| i.steps_before)
-    }
 }
 
 /// Another run's checkpoint as a new run's initial state (`fdfsi run CASE --start-from DIR`):
@@ -246,10 +240,16 @@ impl StartFrom {
             run: self.dir.display().to_string(),
             step: c.step,
             time: c.time,
-            steps_before: (c.time / dt).round() as usize,
+            steps_before: self.steps_before(dt),
             case_sha256: crate::io::provenance::sha256_hex(c.case.as_bytes()),
             builds: c.builds.clone(),
         }
+    }
+
+    /// The steps of `dt` to the checkpoint's time, rounded (a whole number for a run that passed
+    /// [`StartFrom::check`]).
+    pub fn steps_before(&self, dt: f64) -> usize {
+        (self.checkpoint.time / dt).round() as usize
     }
 
     /// Checks that a run with `schedule` writing into `out_dir` can start from it: another
@@ -263,15 +263,14 @@ impl StartFrom {
         if same(&self.dir, out_dir) {
             return Err(self.error(format!("the run would write into the folder it starts from ({}); choose another --out", out_dir.display())));
         }
-        let t = self.checkpoint.time;
-        let k = (t / schedule.dt).round();
-        if (t / schedule.dt - k).abs() > 1e-6 {
+        let (t, k) = (self.checkpoint.time, self.steps_before(schedule.dt));
+        if (t / schedule.dt - k as f64).abs() > 1e-6 {
             return Err(self.error(format!("its time t = {t} is not a whole number of steps dt = {}: choose a dt that divides it", schedule.dt)));
         }
-        if k as usize >= schedule.num_steps() {
+        if k >= schedule.num_steps() {
             return Err(self.error(format!("its time t = {t} leaves no step of dt = {} before the case's end = {}", schedule.dt, schedule.end)));
         }
-        Ok(k as usize)
+        Ok(k)
     }
 }
 

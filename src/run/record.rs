@@ -92,8 +92,9 @@ struct Recorder<'a, O> {
     krylov_iterations: usize,
     residual_norms: Vec<f64>,
     part_start: Instant,
-    /// The schedule's step (for the provenance of a run started from another's checkpoint).
-    dt: f64,
+    /// Where the run's initial state came from (a run started from another's checkpoint), for
+    /// its checkpoints.
+    initial_state: Option<crate::io::provenance::InitialState>,
 }
 
 impl<O> Recorder<'_, O> {
@@ -186,7 +187,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
             state,
             progress,
             builds,
-            initial_state: options.initial_state(self.dt),
+            initial_state: self.initial_state.clone(),
         };
         Ok(c.write(&options.out_dir)?)
     }
@@ -240,7 +241,7 @@ where
         krylov_iterations: start.krylov_iterations,
         residual_norms: start.residual_norms,
         part_start,
-        dt: schedule.dt,
+        initial_state: options.initial_state(schedule.dt),
     };
     let mut timings = start.timings;
     if record_start && options.resume.is_none() {
@@ -255,7 +256,7 @@ where
     recorder.last.extend(statistics);
     recorder.log_quantities();
     Ok(Recorded {
-        steps: schedule.num_steps() - options.steps_before(schedule.dt),
+        steps: schedule.num_steps() - recorder.initial_state.as_ref().map_or(0, |i| i.steps_before),
         newton_iterations: recorder.newton_iterations,
         krylov_iterations: recorder.krylov_iterations,
         residual_norms: recorder.residual_norms,
@@ -317,7 +318,7 @@ pub(crate) fn record_once<S, O: RunOutputs<S>>(
         krylov_iterations: 0,
         residual_norms: Vec::new(),
         part_start: Instant::now(),
-        dt: 1.0,
+        initial_state: None,
     };
     recorder.record(state, done, true)?;
     recorder.outputs.finish(state, &options.out_dir, recorder.obs)?;
