@@ -190,3 +190,58 @@ fn the_adapted_mesh_encloses_the_bar_with_its_tip_among_the_cells() {
         assert!(adapted.stats.removed_cells > 0, "{data}");
     }
 }
+
+/// The fluid velocity of `t_n` on the next step's mesh where the solid uncovered fluid (issue 15,
+/// FSI2 on the second mesh level: the bar's tip uncovers more than a cell in a step). The block
+/// of [`BLOCK`] slid 0.25 to the right in one step (2.5 cells of the fluid mesh): the new
+/// velocity nodes in the block's old place lie in the hole of the old adapted mesh (its covered
+/// cells were removed). Up to a cell height beyond an old cell's facets (the cell scaled by 4
+/// about its centroid: up to 0.2 into the hole here) they take the old fluid velocity's
+/// extension (0 here, as everywhere outside the hole), farther in the solid's velocity.
+#[test]
+fn fluid_the_solid_uncovered_in_a_step_takes_the_solids_velocity() {
+    use fdfsi::discretize::fsi::{CouplingPattern, FluidRestart, FsiDiscretization, FsiRestart, FsiState, StepStart};
+    let case = Case::from_toml_str(BLOCK, "block").unwrap();
+    let dir = std::env::temp_dir();
+    let fdfsi::fem::gmsh::AnyMesh::D2(fluid_mesh) = fdfsi::setup::build_mesh(&case, &dir).unwrap() else { panic!("a 2D mesh") };
+    let model = fdfsi::setup::fsi_model(&case, &fluid_mesh, &dir).unwrap();
+    let n = model.solid.num_dofs();
+    let at_rest = vec![0.0; n];
+    let old = FsiDiscretization::build(&model, &at_rest, &CouplingPattern::default()).unwrap();
+    let (slide, v_solid) = (0.25, [0.6, -0.1]);
+    let vf = model.solid.displacement_field();
+    let (mut solid_x, mut solid_v) = (vec![0.0; n], vec![0.0; n]);
+    for node in 0..model.solid.nodes_x0.len() {
+        solid_x[vf.dof(node, 0)] = slide;
+        for (k, v) in v_solid.iter().enumerate() {
+            solid_v[vf.dof(node, k)] = *v;
+        }
+    }
+    let restart = FsiRestart {
+        solid_x,
+        solid_f: FsiState::at_rest(&model).solid_f,
+        solid_v,
+        fluid: Some(FluidRestart { solid_base: at_rest, velocity: vec![0.0; old.flow.velocity_field().num_dofs()] }),
+        coupling_pattern: CouplingPattern::default(),
+        previous: None,
+        dt: 0.1,
+    };
+    let state = FsiState::from_restart(&model, 1.0, &restart).unwrap();
+    let start = StepStart::new(&model, &state, 0.1).unwrap();
+    let u = &start.u_old[start.disc.flow.velocity_field().range()];
+    // Distance of a point of the old block ([0.3, 0.7] x [0, 0.4]) from the old fluid.
+    let depth_in_old_block = |x: &[f64; 2]| (x[0] - 0.3).min(0.7 - x[0]).min(0.4 - x[1]);
+    let mut solids = 0;
+    for (i, x) in start.disc.flow.velocity_nodes.iter().enumerate() {
+        let ui = [u[2 * i], u[2 * i + 1]];
+        let is = |v: [f64; 2]| (0..2).all(|k| (ui[k] - v[k]).abs() < 1e-12);
+        let depth = depth_in_old_block(x);
+        if is(v_solid) {
+            solids += 1;
+            assert!(depth > 0.0, "node {i} at {x:?}, outside the old block, has the solid's velocity");
+        } else {
+            assert!(is([0.0, 0.0]) && depth < 0.2, "node {i} at {x:?}, {depth:.3} into the old block: u = {ui:?}");
+        }
+    }
+    assert!(solids > 4, "{solids} nodes with the solid's velocity");
+}

@@ -39,7 +39,7 @@ use crate::solve::augmented::{MultiplierBlock, MultiplierRole};
 use crate::solve::linear::LinearSolver;
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use fdfsi_fem::dofs::{BlockLayout, NodeMap};
-use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
+use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement, MAX_DOFS};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
 use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
@@ -320,6 +320,17 @@ impl<const D: usize> SolidDiscretization<D> {
     pub fn node_near(&self, x0: &[f64; D]) -> usize {
         let dist = |p: &[f64; D]| (0..D).map(|d| (p[d] - x0[d]).powi(2)).sum::<f64>();
         (0..self.nodes_x0.len()).min_by(|&a, &b| dist(&self.nodes_x0[a]).total_cmp(&dist(&self.nodes_x0[b]))).expect("mesh has nodes")
+    }
+
+    /// The displacement-field interpolant of the global vector `x` (a displacement, or a
+    /// velocity) at the reference point `xi` of cell `c`: `sum_i x_i phi_i(xi)`.
+    pub fn interpolate(&self, x: &[f64], c: usize, xi: &[f64; D]) -> [f64; D] {
+        let vf = &self.displacement_field();
+        let n = self.element.num_dofs();
+        let (mut phi, mut grad) = ([0.0; MAX_DOFS], [[0.0; D]; MAX_DOFS]);
+        self.element.eval_into(xi, &mut phi[..n], &mut grad[..n]);
+        let nodes = vf.nodes.cell(c);
+        std::array::from_fn(|a| (0..n).map(|i| phi[i] * x[vf.dof(nodes[i], a)]).sum())
     }
 
     /// Displacement of node `node` in the global vector `x`.

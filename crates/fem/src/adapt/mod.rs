@@ -68,7 +68,7 @@ pub mod verify;
 pub use background::Background;
 pub use enclosed::remove_enclosed;
 pub use surface::{Surface, SurfacePoint};
-pub use transfer::{transfer_p2plus, transfer_p2plus_extrapolating, CellLocator};
+pub use transfer::{transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::verify_adapted;
 
 use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};

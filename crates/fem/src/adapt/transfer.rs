@@ -11,9 +11,10 @@
 //! barycentric terms) outside the mesh is an error.
 //!
 //! Where the old mesh had a hole that the new one fills (fluid cells under a solid removed, see
-//! [`super::remove_enclosed`], and uncovered as the solid moves), [`transfer_p2plus_extrapolating`]
-//! extends the velocity of an old cell near a new node (the one it is least outside of, among
-//! the 16 with the nearest boxes) to it, up to a given distance outside.
+//! [`super::remove_enclosed`], and uncovered as the solid moves), [`transfer_p2plus_or`] extends
+//! the velocity of an old cell near a new node (the one it is least outside of, among the 16
+//! with the nearest boxes) to it, up to a given distance outside, and farther out asks the
+//! caller for the value (the solid's velocity there, for an FSI step).
 
 use super::AdaptError;
 use crate::dofs::NodeMap;
@@ -111,19 +112,22 @@ pub fn transfer_p2plus<const D: usize>(
     old_values: &[f64],
     new_points: &[[f64; D]],
 ) -> Result<Vec<f64>, AdaptError> {
-    transfer_p2plus_extrapolating(old_mesh, old_nodes, old_values, new_points, OUTSIDE_TOL)
+    transfer_p2plus_or(old_mesh, old_nodes, old_values, new_points, OUTSIDE_TOL, |i, x| {
+        Err(AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh")))
+    })
 }
 
-/// As [`transfer_p2plus`], but a new point up to `outside` (barycentric: 1 is a cell's height)
+/// As [`transfer_p2plus`], but a new point up to `extend` (barycentric: 1 is a cell's height)
 /// outside the old mesh takes the value there of the polynomial of the old cell it is least
-/// outside of (see the
-/// module documentation).
-pub fn transfer_p2plus_extrapolating<const D: usize>(
+/// outside of, and a point farther out `outside_value(i, x)` (`i` its index in `new_points`),
+/// whose error is returned.
+pub fn transfer_p2plus_or<const D: usize>(
     old_mesh: &Mesh<D>,
     old_nodes: &NodeMap,
     old_values: &[f64],
     new_points: &[[f64; D]],
-    outside: f64,
+    extend: f64,
+    mut outside_value: impl FnMut(usize, &[f64; D]) -> Result<[f64; D], AdaptError>,
 ) -> Result<Vec<f64>, AdaptError> {
     let element = p2plus::<D>().ok_or_else(|| AdaptError::Transfer(format!("no P2+ element in {D}D")))?;
     let want = if D == 2 { ReferenceCell::Triangle } else { ReferenceCell::Tetrahedron };
@@ -148,15 +152,10 @@ pub fn transfer_p2plus_extrapolating<const D: usize>(
     let mut grad = [[0.0; D]; MAX_DOFS];
     let mut out = Vec::with_capacity(new_points.len() * D);
     for (i, x) in new_points.iter().enumerate() {
-        let (c, xi) = locator
-            .locate_within(old_mesh, x, outside)
-            .ok_or_else(|| {
-                AdaptError::Transfer(if outside > OUTSIDE_TOL {
-                    format!("new node {i} at {x:?} lies more than {outside} cell heights outside the old mesh: the solid uncovered it in one step; reduce the time step")
-                } else {
-                    format!("new node {i} at {x:?} lies outside the old mesh")
-                })
-            })?;
+        let Some((c, xi)) = locator.locate_within(old_mesh, x, extend) else {
+            out.extend_from_slice(&outside_value(i, x)?);
+            continue;
+        };
         element.eval_into(&xi, &mut phi[..n], &mut grad[..n]);
         let nodes = old_nodes.cell(c);
         for k in 0..D {
