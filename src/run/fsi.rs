@@ -135,7 +135,9 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]);
         known.extend(self.case.builtin_quantities().into_iter().zip(builtin));
         let fluid = st.disc.fluid_dofs();
-        let state = StepState { time: done.time, inv_dt: 1.0 / r.dt, u_star: Some(&st.u_old[..fluid]) };
+        // The step's inertia as solved: `a (u - u*)` with the scheme's `a` (BDF2: `1.5 / dt` at
+        // equal steps) and history `u*`.
+        let state = StepState { time: done.time, inv_dt: st.fluid_problem.params.inv_dt, u_star: Some(&st.u_old[..fluid]) };
         let mut values = evaluate_all(&self.case.output, &st.disc.flow, &st.fluid_problem, &st.x[..fluid], &state, &known)?;
         values.extend(known);
         Ok(values)
