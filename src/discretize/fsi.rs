@@ -502,7 +502,7 @@ fn measure<const D: usize>(p: &[[f64; D]; D]) -> f64 {
 
 /// What one step's assembly needs besides the unknowns.
 pub struct StepInput<'a, const D: usize> {
-    /// The fluid problem with `params.inv_dt = 1/dt`.
+    /// The fluid problem with `params.inv_dt = a` (the scheme's; `1/dt` for implicit Euler).
     pub fluid: &'a FlowProblem<D>,
     /// `t_{n+1}`.
     pub time: f64,
@@ -1266,7 +1266,7 @@ pub struct FsiStep<const D: usize> {
     pub disc: FsiDiscretization<D>,
     pub x: Vec<f64>,
     pub u_old: Vec<f64>,
-    /// The fluid problem of the step (`inv_dt = 1/dt`).
+    /// The fluid problem of the step (`inv_dt = a`, the scheme's; `1/dt` for implicit Euler).
     pub fluid_problem: FlowProblem<D>,
     pub report: FsiStepReport,
 }
@@ -1281,7 +1281,7 @@ pub struct StepStart<const D: usize> {
     /// implicit Euler (the paper's: adapt, then solve), the extrapolation
     /// `u_n + omega (u_n - u_{n-1})` for BDF2, so that gamma_f lags the solid by `O(dt^2)`.
     pub geometry: Vec<f64>,
-    /// The fluid problem of the step (`inv_dt = 1/dt`).
+    /// The fluid problem of the step (`inv_dt = a`, the scheme's; `1/dt` for implicit Euler).
     pub fluid: FlowProblem<D>,
     /// `t_{n+1}`.
     pub time: f64,

@@ -1,5 +1,5 @@
 //! Hyperelastic solids on one Q2 mesh: problem definition, discretisation, quasi-static load
-//! stepping (total or updated Lagrangian), an implicit-Euler dynamic step, and error norms.
+//! stepping (total or updated Lagrangian), a dynamic step (implicit Euler or BDF2 history), and error norms.
 //!
 //! Data flows one way, as in [`crate::discretize::flow`]: a [`SolidProblem`] (material, boundary conditions)
 //! and a reference mesh give a [`SolidDiscretization`] (topology, dof maps, pattern, colouring,

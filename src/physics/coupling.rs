@@ -23,7 +23,8 @@
 //!
 //! The constraint row carries `+<mu, u_f>`, so the fluid-multiplier blocks of the Jacobian are
 //! transposes of each other (`B_f` and `B_f^T`); the solid-multiplier blocks are `-B_s^T` (solid
-//! rows) and `-B_s / dt` (constraint rows).
+//! rows) and `-a B_s` (constraint rows; `a = 1/dt` for implicit Euler, `1.5/dt` for BDF2 at equal
+//! steps).
 
 /// One quadrature point of a coupling element: the weight (`ds`, times `r` when axisymmetric)
 /// and the basis values there: multiplier `mu` (the facet's P1 functions), fluid velocity `phi_f`

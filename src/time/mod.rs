@@ -10,7 +10,7 @@
 //! starts with one Euler step (it needs two time levels), and takes Euler steps again in the
 //! sub-steps of a cut step and the step after it; a step of another length than the last (a
 //! run's shorter last step) takes the variable-step BDF2 of [`step_history`]. FSI runs use
-//! implicit Euler throughout (the paper's).
+//! implicit Euler (the paper's) or BDF2, fluid and solid alike.
 //!
 //! The steppers: [`flow::FlowStepper`] (a flow on one mesh), [`fsi::FsiStepper`] (the monolithic
 //! FSI step of [`crate::discretize::fsi`]), [`solid::QuasiStaticStepper`] (load increments of
