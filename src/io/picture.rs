@@ -1,6 +1,6 @@
-//! PNG pictures (no fonts, no system libraries): `speed.png` of a 2D run shows `|u|` on the mesh,
-//! each quadratic triangle drawn as its four linear sub-triangles coloured by their mean nodal
-//! speed (viridis colour map, blue slow, yellow fast); [`write_surfaces_png`] draws the coupling
+//! PNG pictures (the font compiled in, see [`super::plot`]; no system libraries):
+//! [`write_speed_png`] draws `speed.png` of a 2D run, `|u|` on the mesh with axes, a colour bar
+//! and the solid; [`write_surfaces_png`] draws the coupling
 //! surfaces gamma_s and gamma_f of a 3D run (the paper's figs. 7 and 8).
 
 use crate::discretize::flow::FlowDiscretization;
@@ -17,65 +17,156 @@ pub fn viridis(s: f64) -> RGBColor {
     RGBColor(mix(C[i].0, C[i + 1].0), mix(C[i].1, C[i + 1].1), mix(C[i].2, C[i + 1].2))
 }
 
-/// Writes the speed of a 2D flow solution as a PNG `width` pixels wide, showing the whole mesh.
-pub fn write_speed_png<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], path: &Path, width: u32) -> Result<(), String> {
-    write_speed_png_window(disc, x, path, width, None, &[])
+/// What a speed picture ([`write_speed_png`]) shows besides the flow.
+#[derive(Clone, Debug, Default)]
+pub struct SpeedPicture {
+    /// The caption above the picture.
+    pub title: String,
+    /// The rectangle `[[x0, y0], [x1, y1]]` shown (default: the whole mesh); it is widened
+    /// across where the picture would be less than [`MIN_PLOT_HEIGHT`] pixels high.
+    pub window: Option<[[f64; 2]; 2]>,
+    /// Polygons filled in grey over the flow (the solid's cells).
+    pub solid: Vec<Vec<[f64; 2]>>,
+    /// Polylines drawn in white over the flow and the solid (gamma_f).
+    pub outlines: Vec<Vec<[f64; 2]>>,
 }
 
-/// Writes the speed of a 2D flow solution as a PNG `width` pixels wide showing the rectangle
-/// `window = [[x0, y0], [x1, y1]]` (default: the whole mesh), with the polylines `outlines`
-/// (e.g. gamma_f) drawn in white over it. The colour scale spans the speeds in the picture.
-/// 2D only: a 3D discretisation is an error.
-pub fn write_speed_png_window<const D: usize>(
+/// The least height of the plot area of a speed picture (pixels).
+pub const MIN_PLOT_HEIGHT: u32 = 160;
+/// Width of the colour bar's area at the right of a speed picture (pixels).
+const COLOUR_BAR_AREA: u32 = 170;
+/// Colour of the solid in a speed picture.
+pub const SOLID_COLOUR: RGBColor = RGBColor(190, 190, 190);
+
+/// Writes the speed `|u|` of a 2D flow solution `x` as a PNG `width` pixels wide: the flow in
+/// the window of `picture`, in model coordinates with labelled axes at the same scale, each
+/// quadratic triangle drawn as its four linear sub-triangles coloured by their mean nodal speed
+/// (viridis, from 0 to the largest speed in the window), the solid and gamma_f over it, and a
+/// colour bar with its range at the right. 2D only: a 3D discretisation is an error.
+pub fn write_speed_png<const D: usize>(
     disc: &FlowDiscretization<D>,
     x: &[f64],
     path: &Path,
     width: u32,
-    window: Option<[[f64; 2]; 2]>,
-    outlines: &[Vec<[f64; 2]>],
+    picture: &SpeedPicture,
 ) -> Result<(), String> {
     if D != 2 {
         return Err(format!("speed pictures are drawn of 2D flows, not {D}D"));
     }
+    super::plot::register_font();
+    let font = super::plot::FAMILY;
     let vf = &disc.velocity_field();
     let nodes: Vec<[f64; 2]> = disc.velocity_nodes.iter().map(|p| [p[0], p[1]]).collect();
     let speed = |n: usize| (x[vf.dof(n, 0)].powi(2) + x[vf.dof(n, 1)].powi(2)).sqrt();
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
     let (mut lo, mut hi) = ([lo[0], lo[1]], [hi[0], hi[1]]);
-    if let Some([a, b]) = window {
+    if let Some([a, b]) = picture.window {
         (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
         if !(hi[0] > lo[0] && hi[1] > lo[1]) {
-            return Err(format!("the picture window {window:?} does not overlap the mesh"));
+            return Err(format!("the picture window {:?} does not overlap the mesh", picture.window));
         }
     }
-    let inside = |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
-    let (w, h) = (hi[0] - lo[0], hi[1] - lo[1]);
-    let height = ((width as f64) * h / w).round().clamp(40.0, 4.0 * width as f64) as u32;
+    let inside = move |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
     let smax = (0..vf.nodes.num_nodes).filter(|&n| inside(&nodes[n])).map(speed).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    // The plot area at the model's aspect ratio, widened across to the least height.
+    let (margin, x_labels, y_labels, caption) = (12u32, 48u32, 72u32, 40u32);
+    let plot_w = width.saturating_sub(COLOUR_BAR_AREA + y_labels + 2 * margin).max(100);
+    let mut plot_h = (plot_w as f64 * (hi[1] - lo[1]) / (hi[0] - lo[0])).round();
+    if plot_h < MIN_PLOT_HEIGHT as f64 {
+        let half = 0.5 * (hi[0] - lo[0]) * MIN_PLOT_HEIGHT as f64 / plot_w as f64;
+        let mid = 0.5 * (lo[1] + hi[1]);
+        (lo[1], hi[1], plot_h) = (mid - half, mid + half, MIN_PLOT_HEIGHT as f64);
+    }
+    let plot_h = plot_h.min(4.0 * plot_w as f64) as u32;
+    // A cell is drawn when its box overlaps the view (plotters clips it to the plot area).
+    let overlaps = move |p: &[[f64; 2]]| (0..2).all(|d| p.iter().any(|q| q[d] >= lo[d]) && p.iter().any(|q| q[d] <= hi[d]));
+    let height = plot_h + x_labels + caption + 2 * margin;
     // Drawn under a temporary name and renamed, so a crash never leaves a half-written picture.
     let tmp = path.with_extension("tmp.png");
-    let root = BitMapBackend::new(&tmp, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let px = |p: [f64; 2]| -> (i32, i32) {
-        (((p[0] - lo[0]) / w * (width - 1) as f64).round() as i32, ((hi[1] - p[1]) / h * (height - 1) as f64).round() as i32)
-    };
-    // Sub-triangles of a 6-node triangle (vertices 0-2, mid-edge nodes 3: 01, 4: 12, 5: 20).
-    const SUB: [[usize; 3]; 4] = [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]];
-    for c in 0..disc.mesh.num_cells() {
-        let cn = vf.nodes.cell(c);
-        for t in SUB {
-            let s = t.iter().map(|&k| speed(cn[k])).sum::<f64>() / 3.0 / smax;
-            let pts: Vec<(i32, i32)> = t.iter().map(|&k| px(nodes[cn[k]])).collect();
-            root.draw(&Polygon::new(pts, viridis(s).filled())).map_err(|e| e.to_string())?;
+    {
+        let err = |e: &dyn std::fmt::Display| e.to_string();
+        let root = BitMapBackend::new(&tmp, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let (main, bar) = root.split_horizontally(width - COLOUR_BAR_AREA);
+        let mut chart = ChartBuilder::on(&main)
+            .caption(&picture.title, (font, 20))
+            .margin(margin)
+            .x_label_area_size(x_labels)
+            .y_label_area_size(y_labels)
+            .build_cartesian_2d(lo[0]..hi[0], lo[1]..hi[1])
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x")
+            .y_desc("y")
+            .label_style((font, 14))
+            .axis_desc_style((font, 16))
+            .draw()
+            .map_err(|e| err(&e))?;
+        // Sub-triangles of a 6-node triangle (vertices 0-2, mid-edge nodes 3: 01, 4: 12, 5: 20).
+        const SUB: [[usize; 3]; 4] = [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]];
+        let xy = |p: [f64; 2]| (p[0], p[1]);
+        let plot = chart.plotting_area();
+        for c in 0..disc.mesh.num_cells() {
+            let cn = vf.nodes.cell(c);
+            if !overlaps(&[nodes[cn[0]], nodes[cn[1]], nodes[cn[2]]]) {
+                continue;
+            }
+            for t in SUB {
+                let s = t.iter().map(|&k| speed(cn[k])).sum::<f64>() / 3.0 / smax;
+                let mut pts: Vec<(f64, f64)> = t.iter().map(|&k| xy(nodes[cn[k]])).collect();
+                plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(|e| err(&e))?;
+                // The outline too: the fill alone leaves pixel gaps along some edges.
+                pts.push(pts[0]);
+                plot.draw(&PathElement::new(pts, viridis(s).stroke_width(1))).map_err(|e| err(&e))?;
+            }
         }
+        for polygon in &picture.solid {
+            plot.draw(&Polygon::new(polygon.iter().map(|&p| xy(p)).collect::<Vec<_>>(), SOLID_COLOUR.filled())).map_err(|e| err(&e))?;
+        }
+        for line in &picture.outlines {
+            plot.draw(&PathElement::new(line.iter().map(|&p| xy(p)).collect::<Vec<_>>(), WHITE.stroke_width(3))).map_err(|e| err(&e))?;
+        }
+        draw_colour_bar(&bar, smax, plot_h, margin + caption, "speed |u|").map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
     }
-    for line in outlines {
-        let pts: Vec<(i32, i32)> = line.iter().map(|&p| px(p)).collect();
-        root.draw(&PathElement::new(pts, WHITE.stroke_width(3))).map_err(|e| e.to_string())?;
-    }
-    root.present().map_err(|e| e.to_string())?;
-    drop(root);
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The viridis colour bar from 0 to `max`, `plot_h` pixels high and `top` pixels from the top
+/// of `area`, with its ticks and `label`.
+fn draw_colour_bar<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    max: f64,
+    plot_h: u32,
+    top: u32,
+    label: &str,
+) -> Result<(), String> {
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let font = super::plot::FAMILY;
+    let (_, h) = area.dim_in_pixel();
+    let bottom = h.saturating_sub(top + plot_h);
+    let area = area.margin(top, bottom, 16, 0);
+    let mut chart = ChartBuilder::on(&area).y_label_area_size(90).build_cartesian_2d(0.0..1.0, 0.0..max).map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(label)
+        .y_labels(6)
+        .label_style((font, 14))
+        .axis_desc_style((font, 16))
+        .draw()
+        .map_err(|e| err(&e))?;
+    const SLICES: usize = 100;
+    chart
+        .draw_series((0..SLICES).map(|i| {
+            let (a, b) = (i as f64 / SLICES as f64, (i + 1) as f64 / SLICES as f64);
+            Rectangle::new([(0.0, a * max), (0.35, b * max)], viridis(0.5 * (a + b)).filled())
+        }))
+        .map_err(|e| err(&e))?;
+    Ok(())
 }
 
 /// Colour of gamma_s (the solid's surface pieces) in [`write_surfaces_png`].

@@ -20,7 +20,7 @@ use thiserror::Error;
 
 /// The font compiled into the binary.
 const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSansMono.ttf");
-const FAMILY: &str = "sans-serif";
+pub(crate) const FAMILY: &str = "sans-serif";
 
 /// A plotting failure.
 #[derive(Debug, Error)]
@@ -86,7 +86,7 @@ impl Table {
     }
 }
 
-fn register_font() {
+pub(crate) fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         // The bytes are a valid TrueType font compiled in; a failure would only lose the text.

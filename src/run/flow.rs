@@ -150,7 +150,8 @@ impl<const D: usize> RunOutputs<FlowStepper<'_, D>> for FlowOutputs<'_, D> {
     fn finish(&mut self, s: &FlowStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         if D == 2 {
             let png = out_dir.join("speed.png");
-            crate::io::picture::write_speed_png(s.disc, &s.x, &png, 1600)
+            let picture = crate::io::picture::SpeedPicture { title: "speed |u|".into(), ..Default::default() };
+            crate::io::picture::write_speed_png(s.disc, &s.x, &png, 1600, &picture)
                 .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
         }
         write_profiles(self.case, s.disc, self.problem, &s.x, out_dir, obs)

@@ -14,7 +14,7 @@
 //!   gamma_f);
 //! - `summary.json` as for every run.
 //!
-//! Solid boundary values are constant in time in FSI runs (no load factor).
+//! Solid boundary values are evaluated at the step's end time `t_{n+1}` (no load factor).
 
 use super::flow::write_profiles;
 use super::record::{march_and_record, RunOutputs, Start};
@@ -190,13 +190,13 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         let st = last_step(s);
         write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
-        write_speed_picture(self.model, st, &s.state.solid_x, out_dir)
+        write_speed_picture(self.model, st, &s.state.solid_x, s.state.time, out_dir)
     }
 }
 
 /// 2D: `speed.png` of the last step around the solid (its bounding box widened by twice its size
-/// on each side, clipped to the fluid mesh), with gamma_f drawn in white.
-fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, solid_x: &[f64], out_dir: &Path) -> Result<(), RunError> {
+/// on each side, clipped to the fluid mesh), with the solid in grey and gamma_f in white.
+fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, solid_x: &[f64], time: f64, out_dir: &Path) -> Result<(), RunError> {
     if D != 2 {
         return Ok(());
     }
@@ -205,11 +205,29 @@ fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, sol
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&solid.points);
     let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
     let window = [[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]];
-    let outlines: Vec<Vec<[f64; 2]>> =
-        st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| [flow.mesh.points[v][0], flow.mesh.points[v][1]]).collect()).collect();
+    let xy = |p: &[f64; D]| [p[0], p[1]];
+    let outlines = st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| xy(&flow.mesh.points[v])).collect()).collect();
+    let picture = crate::io::picture::SpeedPicture {
+        title: format!("speed |u| at t = {time:.4}"),
+        window: Some(window),
+        solid: (0..solid.num_cells()).map(|c| cell_outline(&solid, c).iter().map(|&n| xy(&solid.points[n])).collect()).collect(),
+        outlines,
+    };
     let png = out_dir.join("speed.png");
-    crate::io::picture::write_speed_png_window(flow, &st.x[..st.disc.fluid_dofs()], &png, 1600, Some(window), &outlines)
+    crate::io::picture::write_speed_png(flow, &st.x[..st.disc.fluid_dofs()], &png, 1600, &picture)
         .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
+}
+
+/// The nodes around a 2D cell's boundary in order: corners and mid-edge nodes of a 9-node
+/// quadrilateral (VTK order: corners 0-3, then the nodes on edges 01, 12, 23, 30), the corners
+/// of another cell.
+fn cell_outline<const D: usize>(mesh: &fdfsi_fem::mesh::Mesh<D>, c: usize) -> Vec<usize> {
+    let nodes = mesh.cell(c);
+    if nodes.len() >= 8 && mesh.cell_vertices(c).len() == 4 {
+        [0, 4, 1, 5, 2, 6, 3, 7].iter().map(|&k| nodes[k]).collect()
+    } else {
+        mesh.cell_vertices(c).to_vec()
+    }
 }
 
 /// 3D: `pictures/gamma_step_NNNN.png`, gamma_s (at the start of step `k`, the surface the fluid
