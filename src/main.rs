@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use fdfsi::case::builtin::{BUILTIN_CASES, DEFAULT_CASE};
+use fdfsi::case::builtin::{BUILTIN_CASES, DEFAULT_CASE, DEFAULT_CASE_NAME};
 use fdfsi::case::Case;
 use fdfsi::run::{check_case, run_case, RunObserver, RunOptions};
 use fdfsi::verify::{self, Effort};
@@ -27,7 +27,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a case (a TOML file or a built-in case name; default: the built-in channel-stokes case).
+    /// Run a case (a TOML file or a built-in case name; default: the built-in slab-one-beat case, an FSI run).
     ///
     /// Ctrl-C stops a time-dependent run after the current step and writes a checkpoint.
     Run {
@@ -91,7 +91,10 @@ enum Command {
 fn load_case(arg: Option<&str>) -> Result<(Case, PathBuf, String)> {
     let builtin_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     match arg {
-        None => Ok((Case::from_toml_str(DEFAULT_CASE, "channel-stokes (built-in)")?, builtin_dir, "channel-stokes (built-in)".into())),
+        None => {
+            let name = format!("{DEFAULT_CASE_NAME} (built-in)");
+            Ok((Case::from_toml_str(DEFAULT_CASE, &name)?, builtin_dir, name))
+        }
         Some(a) => {
             let path = Path::new(a);
             if path.exists() {

@@ -653,6 +653,25 @@ fn model_problem_1_first_steps_move_the_slab_and_conserve_volume() {
     assert!(out.join("speed.png").exists() && out.join("plots/trajectory_tip_displacement.png").exists());
 }
 
+/// The built-in default case (`fdfsi run` with no case) is an FSI run, model problem 1's first
+/// beat: CI runs its first half beat (40 steps, to peak inflow). It has solid and multiplier
+/// unknowns (`summary.json`), the slab bends downstream as the flow rises (the tip 0.339 at t = 2),
+/// volume is conserved every step, and it writes its picture and plots.
+#[test]
+fn default_case_is_an_fsi_run_of_the_slab_in_one_beat() {
+    assert_eq!(fdfsi::case::builtin::DEFAULT_CASE, include_str!("../cases/slab-one-beat.toml"));
+    let (s, out) = run_with("slab-one-beat", |c| c.time.as_mut().unwrap().end = 2.0);
+    assert_eq!(s.steps, 40);
+    let dofs = &summary_json(&out)["dofs"];
+    assert!(dofs["solid"].as_u64() > Some(0) && dofs["multiplier"].as_u64() > Some(0), "dofs {dofs}");
+    let h = check_model_problem_1(&out, 40);
+    let tip_x = &h["tip_displacement_x"];
+    println!("default case: the tip at {:.4} downstream at t = 2", tip_x[39]);
+    assert!([0, 9, 19, 39].windows(2).all(|w| tip_x[w[1]] > tip_x[w[0]]), "the tip moves downstream while the flow rises: {tip_x:?}");
+    assert!(tip_x[39] > 0.3, "tip displacement {}", tip_x[39]);
+    assert!(out.join("speed.png").exists() && out.join("plots/trajectory_tip_displacement.png").exists());
+}
+
 /// The whole case (4.5 periods; about 2.5 minutes): no failed step (360 rows), 3-5 Newton
 /// iterations and flux in = flux out every step, the tip's largest excursion (0.34 downstream,
 /// 0.12 up), and the tip path of period 4 repeating period 3 to 1.6 % (L2 over the period,
