@@ -76,6 +76,9 @@ enum Command {
         #[arg(long = "with", value_name = "OTHER_DIR")]
         with: Vec<PathBuf>,
     },
+    /// Draw DIR/animation.gif of a 2D time-dependent run: the speed at every output time of
+    /// DIR/solution.pvd, with the solid and gamma_f.
+    Animate { dir: PathBuf },
     /// Run the manufactured-solution convergence studies and print errors and rates.
     Verify {
         /// Also write the studies as JSON.
@@ -265,6 +268,13 @@ fn main() -> Result<()> {
             }
             log(&format!("{} plots in {}", files.len(), dir.join("plots").display()));
         }
+        Command::Animate { dir } => match fdfsi::io::animation::animate_run(&dir)? {
+            Some((gif, frames)) => {
+                println!("{}", gif.display());
+                log(&format!("{frames} frames in {}", gif.display()));
+            }
+            None => anyhow::bail!("{}: nothing to animate (a 2D run with fields at two or more times is needed)", dir.display()),
+        },
         Command::Cases { name } => match name {
             None => {
                 for (n, text) in BUILTIN_CASES {

@@ -97,6 +97,9 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     // Mass conservation to round-off.
     assert!((q(&s, "inlet_flux") + 1.0).abs() < 1e-12);
     assert!((q(&s, "inlet_flux") + q(&s, "outlet_flux")).abs() < 1e-12);
+    // A steady run has its picture, and nothing to animate.
+    assert!(out.join("speed.png").exists() && !out.join("animation.gif").exists());
+    assert!(matches!(fdfsi::io::animation::animate_run(&out), Ok(None)));
     // The default augmented-Lagrangian solver: one split of the system, one analysis of its LU.
     assert_eq!(s.symbolic_factorizations, 2);
     // The written solution reads back: P2 nodes carry the Poiseuille profile.
@@ -656,7 +659,7 @@ fn model_problem_1_first_steps_move_the_slab_and_conserve_volume() {
 /// The built-in default case (`fdfsi run` with no case) is an FSI run, model problem 1's first
 /// beat: CI runs its first half beat (40 steps, to peak inflow). It has solid and multiplier
 /// unknowns (`summary.json`), the slab bends downstream as the flow rises (the tip 0.339 at t = 2),
-/// volume is conserved every step, and it writes its picture and plots.
+/// volume is conserved every step, and it writes its picture, plots and animation.
 #[test]
 fn default_case_is_an_fsi_run_of_the_slab_in_one_beat() {
     assert_eq!(fdfsi::case::builtin::DEFAULT_CASE, include_str!("../cases/slab-one-beat.toml"));
@@ -670,6 +673,9 @@ fn default_case_is_an_fsi_run_of_the_slab_in_one_beat() {
     assert!([0, 9, 19, 39].windows(2).all(|w| tip_x[w[1]] > tip_x[w[0]]), "the tip moves downstream while the flow rises: {tip_x:?}");
     assert!(tip_x[39] > 0.3, "tip displacement {}", tip_x[39]);
     assert!(out.join("speed.png").exists() && out.join("plots/trajectory_tip_displacement.png").exists());
+    // The animation: a GIF of the 20 output times.
+    let gif = std::fs::read(out.join("animation.gif")).unwrap();
+    assert!(gif.starts_with(b"GIF89a") && gif.len() > 100_000, "animation.gif: {} bytes", gif.len());
 }
 
 /// The whole case (4.5 periods; about 2.5 minutes): no failed step (360 rows), 3-5 Newton

@@ -673,6 +673,10 @@ impl SolverSpec {
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
+    /// 2D time-dependent runs: draw `animation.gif` of the speed at every output time at the end
+    /// of the run ([`crate::io::animation`]); default true.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<bool>,
     /// Point values of a field, written as quantities.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub probe: Vec<ProbeSpec>,

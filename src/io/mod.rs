@@ -6,7 +6,8 @@
 //!   `velocity`; cell data `pressure` (value at the centroid) and `pressure_gradient`);
 //! - `history.csv`: one row per step, `step,time,newton_iterations,residual,<quantities...>`;
 //! - `summary.json`: `{"quantities": {NAME: final value}, "dofs": ..., "steps": ..., "timings": ...}`;
-//! - `case.toml`: the case as used.
+//! - `case.toml`: the case as used;
+//! - `speed.png` (2D), `plots/`, and `animation.gif` of a 2D time-dependent run ([`animation`]).
 //!
 //! Every file is written to a temporary name and renamed, so an interrupted run never leaves a
 //! truncated file.
@@ -16,6 +17,7 @@ use std::io::Write;
 use std::path::Path;
 use thiserror::Error;
 
+pub mod animation;
 pub mod checkpoint;
 pub mod fields;
 pub mod history;

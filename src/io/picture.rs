@@ -4,6 +4,7 @@
 //! surfaces gamma_s and gamma_f of a 3D run (the paper's figs. 7 and 8).
 
 use crate::discretize::flow::FlowDiscretization;
+use fdfsi_fem::vtk::{UnstructuredGrid, VtkCellType};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -31,12 +32,108 @@ pub struct SpeedPicture {
     pub outlines: Vec<Vec<[f64; 2]>>,
 }
 
+/// The speed of a 2D flow on its mesh: 6-node triangles (vertices, then the nodes on the edges
+/// 01, 12, 20: VTK's order) and `|u|` at their nodes.
+#[derive(Clone, Debug, Default)]
+pub struct SpeedField {
+    pub nodes: Vec<[f64; 2]>,
+    pub triangles: Vec<[usize; 6]>,
+    pub speed: Vec<f64>,
+}
+
+impl SpeedField {
+    /// The speed of the flow solution `x` of `disc` (2D).
+    pub fn of_flow<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Result<Self, String> {
+        if D != 2 {
+            return Err(format!("speed pictures are drawn of 2D flows, not {D}D"));
+        }
+        let vf = &disc.velocity_field();
+        let nodes = disc.velocity_nodes.iter().map(|p| [p[0], p[1]]).collect();
+        let speed = (0..vf.nodes.num_nodes).map(|n| x[vf.dof(n, 0)].hypot(x[vf.dof(n, 1)])).collect();
+        let triangles = (0..disc.mesh.num_cells()).map(|c| std::array::from_fn(|k| vf.nodes.cell(c)[k])).collect();
+        Ok(SpeedField { nodes, triangles, speed })
+    }
+
+    /// The speed of a fluid grid as `fdfsi run` writes it (6-node triangles, point data
+    /// `velocity`).
+    pub fn of_grid(grid: &UnstructuredGrid) -> Result<Self, String> {
+        let velocity = grid.point_array("velocity").ok_or("the grid has no point data 'velocity'")?;
+        if velocity.components != 3 || velocity.values.len() != 3 * grid.num_points() {
+            return Err(format!("'velocity' has {} components for {} points", velocity.components, grid.num_points()));
+        }
+        let mut triangles = Vec::with_capacity(grid.num_cells());
+        for c in 0..grid.num_cells() {
+            match (grid.cell_types[c], grid.cell(c)) {
+                (VtkCellType::QuadraticTriangle, nodes) => triangles.push(std::array::from_fn(|k| nodes[k])),
+                (other, _) => return Err(format!("cell {c} is a {other:?}, not a 6-node triangle (a 2D fluid grid)")),
+            }
+        }
+        let v = &velocity.values;
+        Ok(SpeedField {
+            nodes: grid.points.iter().map(|p| [p[0], p[1]]).collect(),
+            triangles,
+            speed: (0..grid.num_points()).map(|n| v[3 * n].hypot(v[3 * n + 1])).collect(),
+        })
+    }
+
+    /// The bounding box of the nodes.
+    pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
+        fdfsi_fem::mesh::bounding_box(&self.nodes)
+    }
+
+    /// The largest speed at a node in the rectangle `[lo, hi]` (at least the least positive
+    /// number).
+    pub fn max_speed_in(&self, lo: [f64; 2], hi: [f64; 2]) -> f64 {
+        let inside = |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
+        (0..self.nodes.len()).filter(|&n| inside(&self.nodes[n])).map(|n| self.speed[n]).fold(f64::MIN_POSITIVE, f64::max)
+    }
+}
+
 /// The least height of the plot area of a speed picture (pixels).
 pub const MIN_PLOT_HEIGHT: u32 = 160;
 /// Width of the colour bar's area at the right of a speed picture (pixels).
 const COLOUR_BAR_AREA: u32 = 170;
 /// Colour of the solid in a speed picture.
 pub const SOLID_COLOUR: RGBColor = RGBColor(190, 190, 190);
+/// Margin, x-label area, y-label area and caption height of a speed picture (pixels).
+const MARGIN: u32 = 12;
+const X_LABELS: u32 = 48;
+const Y_LABELS: u32 = 72;
+const CAPTION: u32 = 40;
+
+/// Where a speed picture's plot goes: the rectangle shown (`lo`, `hi`), the plot area's height
+/// and the picture's.
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    lo: [f64; 2],
+    hi: [f64; 2],
+    plot_h: u32,
+    height: u32,
+}
+
+impl Layout {
+    /// The layout of a picture `width` pixels wide of `window` (clipped to the mesh's `bounds`;
+    /// default the whole mesh), at the model's aspect ratio, widened across to
+    /// [`MIN_PLOT_HEIGHT`].
+    fn new((lo, hi): ([f64; 2], [f64; 2]), window: Option<[[f64; 2]; 2]>, width: u32) -> Result<Self, String> {
+        let (mut lo, mut hi) = (lo, hi);
+        if let Some([a, b]) = window {
+            (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
+            if !(hi[0] > lo[0] && hi[1] > lo[1]) {
+                return Err(format!("the picture window {window:?} does not overlap the mesh"));
+            }
+        }
+        let plot_w = width.saturating_sub(COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN).max(100);
+        let mut plot_h = (plot_w as f64 * (hi[1] - lo[1]) / (hi[0] - lo[0])).round();
+        if plot_h < MIN_PLOT_HEIGHT as f64 {
+            let half = 0.5 * (hi[0] - lo[0]) * MIN_PLOT_HEIGHT as f64 / plot_w as f64;
+            let mid = 0.5 * (lo[1] + hi[1]);
+            (lo[1], hi[1], plot_h) = (mid - half, mid + half, MIN_PLOT_HEIGHT as f64);
+        }
+        let plot_h = plot_h.min(4.0 * plot_w as f64) as u32;
+        Ok(Layout { lo, hi, plot_h, height: plot_h + X_LABELS + CAPTION + 2 * MARGIN })
+    }
+}
 
 /// Writes the speed `|u|` of a 2D flow solution `x` as a PNG `width` pixels wide: the flow in
 /// the window of `picture`, in model coordinates with labelled axes at the same scale, each
@@ -50,88 +147,96 @@ pub fn write_speed_png<const D: usize>(
     width: u32,
     picture: &SpeedPicture,
 ) -> Result<(), String> {
-    if D != 2 {
-        return Err(format!("speed pictures are drawn of 2D flows, not {D}D"));
-    }
-    super::plot::register_font();
-    let font = super::plot::FAMILY;
-    let vf = &disc.velocity_field();
-    let nodes: Vec<[f64; 2]> = disc.velocity_nodes.iter().map(|p| [p[0], p[1]]).collect();
-    let speed = |n: usize| (x[vf.dof(n, 0)].powi(2) + x[vf.dof(n, 1)].powi(2)).sqrt();
-    let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
-    let (mut lo, mut hi) = ([lo[0], lo[1]], [hi[0], hi[1]]);
-    if let Some([a, b]) = picture.window {
-        (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
-        if !(hi[0] > lo[0] && hi[1] > lo[1]) {
-            return Err(format!("the picture window {:?} does not overlap the mesh", picture.window));
-        }
-    }
-    let inside = move |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
-    let smax = (0..vf.nodes.num_nodes).filter(|&n| inside(&nodes[n])).map(speed).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-    // The plot area at the model's aspect ratio, widened across to the least height.
-    let (margin, x_labels, y_labels, caption) = (12u32, 48u32, 72u32, 40u32);
-    let plot_w = width.saturating_sub(COLOUR_BAR_AREA + y_labels + 2 * margin).max(100);
-    let mut plot_h = (plot_w as f64 * (hi[1] - lo[1]) / (hi[0] - lo[0])).round();
-    if plot_h < MIN_PLOT_HEIGHT as f64 {
-        let half = 0.5 * (hi[0] - lo[0]) * MIN_PLOT_HEIGHT as f64 / plot_w as f64;
-        let mid = 0.5 * (lo[1] + hi[1]);
-        (lo[1], hi[1], plot_h) = (mid - half, mid + half, MIN_PLOT_HEIGHT as f64);
-    }
-    let plot_h = plot_h.min(4.0 * plot_w as f64) as u32;
-    // A cell is drawn when its box overlaps the view (plotters clips it to the plot area).
-    let overlaps = move |p: &[[f64; 2]]| (0..2).all(|d| p.iter().any(|q| q[d] >= lo[d]) && p.iter().any(|q| q[d] <= hi[d]));
-    let height = plot_h + x_labels + caption + 2 * margin;
+    let field = SpeedField::of_flow(disc, x)?;
+    let layout = Layout::new(field.bounds(), picture.window, width)?;
+    let window = picture.window.unwrap_or([layout.lo, layout.hi]);
+    let smax = field.max_speed_in(window[0], window[1]);
     // Drawn under a temporary name and renamed, so a crash never leaves a half-written picture.
     let tmp = path.with_extension("tmp.png");
     {
-        let err = |e: &dyn std::fmt::Display| e.to_string();
-        let root = BitMapBackend::new(&tmp, (width, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let (main, bar) = root.split_horizontally(width - COLOUR_BAR_AREA);
-        let mut chart = ChartBuilder::on(&main)
-            .caption(&picture.title, (font, 20))
-            .margin(margin)
-            .x_label_area_size(x_labels)
-            .y_label_area_size(y_labels)
-            .build_cartesian_2d(lo[0]..hi[0], lo[1]..hi[1])
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc("x")
-            .y_desc("y")
-            .label_style((font, 14))
-            .axis_desc_style((font, 16))
-            .draw()
-            .map_err(|e| err(&e))?;
-        // Sub-triangles of a 6-node triangle (vertices 0-2, mid-edge nodes 3: 01, 4: 12, 5: 20).
-        const SUB: [[usize; 3]; 4] = [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]];
-        let xy = |p: [f64; 2]| (p[0], p[1]);
-        let plot = chart.plotting_area();
-        for c in 0..disc.mesh.num_cells() {
-            let cn = vf.nodes.cell(c);
-            if !overlaps(&[nodes[cn[0]], nodes[cn[1]], nodes[cn[2]]]) {
-                continue;
-            }
-            for t in SUB {
-                let s = t.iter().map(|&k| speed(cn[k])).sum::<f64>() / 3.0 / smax;
-                let mut pts: Vec<(f64, f64)> = t.iter().map(|&k| xy(nodes[cn[k]])).collect();
-                plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(|e| err(&e))?;
-                // The outline too: the fill alone leaves pixel gaps along some edges.
-                pts.push(pts[0]);
-                plot.draw(&PathElement::new(pts, viridis(s).stroke_width(1))).map_err(|e| err(&e))?;
-            }
-        }
-        for polygon in &picture.solid {
-            plot.draw(&Polygon::new(polygon.iter().map(|&p| xy(p)).collect::<Vec<_>>(), SOLID_COLOUR.filled())).map_err(|e| err(&e))?;
-        }
-        for line in &picture.outlines {
-            plot.draw(&PathElement::new(line.iter().map(|&p| xy(p)).collect::<Vec<_>>(), WHITE.stroke_width(3))).map_err(|e| err(&e))?;
-        }
-        draw_colour_bar(&bar, smax, plot_h, margin + caption, "speed |u|").map_err(|e| err(&e))?;
-        root.present().map_err(|e| err(&e))?;
+        let root = BitMapBackend::new(&tmp, (width, layout.height)).into_drawing_area();
+        draw_speed(&root, &field, picture, &layout, smax)?;
+        root.present().map_err(|e| e.to_string())?;
     }
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// One frame of an animation ([`write_speed_gif`]).
+#[derive(Clone, Debug, Default)]
+pub struct Frame {
+    pub field: SpeedField,
+    pub picture: SpeedPicture,
+}
+
+/// Writes `frames` as an animated GIF `width` pixels wide, `delay_ms` per frame, looping: each
+/// frame drawn as [`write_speed_png`] draws it, all in the window of the first frame (default
+/// the first frame's mesh) and on one colour scale, from 0 to the largest speed in that window
+/// over all frames.
+pub fn write_speed_gif(frames: &[Frame], path: &Path, width: u32, delay_ms: u32) -> Result<(), String> {
+    let first = frames.first().ok_or("no frames to animate")?;
+    let layout = Layout::new(first.field.bounds(), first.picture.window, width)?;
+    let window = first.picture.window.unwrap_or([layout.lo, layout.hi]);
+    let smax = frames.iter().map(|f| f.field.max_speed_in(window[0], window[1])).fold(f64::MIN_POSITIVE, f64::max);
+    let tmp = path.with_extension("tmp.gif");
+    {
+        let root = BitMapBackend::gif(&tmp, (width, layout.height), delay_ms).map_err(|e| e.to_string())?.into_drawing_area();
+        for frame in frames {
+            draw_speed(&root, &frame.field, &frame.picture, &layout, smax)?;
+            root.present().map_err(|e| e.to_string())?;
+        }
+    }
+    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Draws a speed picture (see [`write_speed_png`]) onto `root`, colours scaled to `smax`.
+fn draw_speed<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    field: &SpeedField,
+    picture: &SpeedPicture,
+    layout: &Layout,
+    smax: f64,
+) -> Result<(), String> {
+    super::plot::register_font();
+    let font = super::plot::FAMILY;
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let (lo, hi) = (layout.lo, layout.hi);
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (width, _) = root.dim_in_pixel();
+    let (main, bar) = root.split_horizontally(width - COLOUR_BAR_AREA);
+    let mut chart = ChartBuilder::on(&main)
+        .caption(&picture.title, (font, 20))
+        .margin(MARGIN)
+        .x_label_area_size(X_LABELS)
+        .y_label_area_size(Y_LABELS)
+        .build_cartesian_2d(lo[0]..hi[0], lo[1]..hi[1])
+        .map_err(|e| err(&e))?;
+    chart.configure_mesh().disable_mesh().x_desc("x").y_desc("y").label_style((font, 14)).axis_desc_style((font, 16)).draw().map_err(|e| err(&e))?;
+    // A cell is drawn when its box overlaps the view (plotters clips it to the plot area).
+    let overlaps = |p: &[[f64; 2]]| (0..2).all(|d| p.iter().any(|q| q[d] >= lo[d]) && p.iter().any(|q| q[d] <= hi[d]));
+    // Sub-triangles of a 6-node triangle (vertices 0-2, mid-edge nodes 3: 01, 4: 12, 5: 20).
+    const SUB: [[usize; 3]; 4] = [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]];
+    let xy = |p: [f64; 2]| (p[0], p[1]);
+    let plot = chart.plotting_area();
+    for cn in &field.triangles {
+        if !overlaps(&[field.nodes[cn[0]], field.nodes[cn[1]], field.nodes[cn[2]]]) {
+            continue;
+        }
+        for t in SUB {
+            let s = t.iter().map(|&k| field.speed[cn[k]]).sum::<f64>() / 3.0 / smax;
+            let mut pts: Vec<(f64, f64)> = t.iter().map(|&k| xy(field.nodes[cn[k]])).collect();
+            plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(|e| err(&e))?;
+            // The outline too: the fill alone leaves pixel gaps along some edges.
+            pts.push(pts[0]);
+            plot.draw(&PathElement::new(pts, viridis(s).stroke_width(1))).map_err(|e| err(&e))?;
+        }
+    }
+    for polygon in &picture.solid {
+        plot.draw(&Polygon::new(polygon.iter().map(|&p| xy(p)).collect::<Vec<_>>(), SOLID_COLOUR.filled())).map_err(|e| err(&e))?;
+    }
+    for line in &picture.outlines {
+        plot.draw(&PathElement::new(line.iter().map(|&p| xy(p)).collect::<Vec<_>>(), WHITE.stroke_width(3))).map_err(|e| err(&e))?;
+    }
+    draw_colour_bar(&bar, smax, layout.plot_h, MARGIN + CAPTION, "speed |u|")
 }
 
 /// The viridis colour bar from 0 to `max`, `plot_h` pixels high and `top` pixels from the top

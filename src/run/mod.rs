@@ -370,6 +370,13 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         Ok(_) => {}
         Err(e) => log.log(&format!("warning: plots not made: {e}")),
     }
+    if case.time.is_some() && case.output.animation != Some(false) {
+        match crate::io::animation::animate_run(&options.out_dir) {
+            Ok(Some((gif, frames))) => log.log(&format!("animation: {frames} frames in {}", gif.display())),
+            Ok(None) => {}
+            Err(e) => log.log(&format!("warning: animation not made: {e}")),
+        }
+    }
     Ok(summary)
 }
 

@@ -1,0 +1,93 @@
+//! `animation.gif` of a 2D time-dependent run: `fdfsi animate DIR`, and by itself at the end of
+//! `fdfsi run` (unless `[output] animation = false`).
+//!
+//! The frames are the fields the run wrote (`DIR/solution.pvd`): at every output time the speed
+//! of the fluid piece, with the solid piece (its cells, in grey) and gamma_f (in white) when the
+//! run has them, drawn as `speed.png` is ([`super::picture`]) on one colour scale. The window is
+//! the solid's box over the whole run widened by twice its size on each side (an FSI run), or
+//! the fluid mesh (a flow run).
+
+use super::picture::{write_speed_gif, Frame, SpeedField, SpeedPicture};
+use fdfsi_fem::vtk::{read_pvd, read_vtu, PvdEntry, UnstructuredGrid, VtkCellType, VtkError};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// Width of the animation (pixels).
+pub const ANIMATION_WIDTH: u32 = 960;
+/// Time a frame is shown (milliseconds).
+pub const FRAME_DELAY_MS: u32 = 100;
+
+/// An animation failure.
+#[derive(Debug, Error)]
+pub enum AnimationError {
+    #[error("{0}")]
+    Vtk(#[from] VtkError),
+    #[error("{path}: {message}")]
+    Fields { path: String, message: String },
+    #[error("{path}: drawing failed: {message}")]
+    Draw { path: String, message: String },
+}
+
+/// Draws `DIR/animation.gif` from the fields in `DIR/solution.pvd` (see the module
+/// documentation); returns its path and the number of frames. A run with fewer than two output
+/// times, or a 3D run, has nothing to animate: `None`.
+pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationError> {
+    let pvd = dir.join("solution.pvd");
+    let entries = read_pvd(&pvd)?;
+    let mut times: Vec<f64> = entries.iter().map(|e| e.time).collect();
+    times.dedup();
+    if times.len() < 2 {
+        return Ok(None);
+    }
+    let part = |time: f64, name: &str| entries.iter().find(|e| e.time == time && e.name == name);
+    let read = |e: &PvdEntry| read_vtu(&e.resolve(&pvd));
+    let mut frames = Vec::with_capacity(times.len());
+    let mut solid_box: Option<([f64; 2], [f64; 2])> = None;
+    for &time in &times {
+        let Some(fluid) = part(time, "fluid") else { continue };
+        let grid = read(fluid)?;
+        if grid.points.iter().any(|p| p[2] != 0.0) || grid.cell_types.iter().any(|&t| t != VtkCellType::QuadraticTriangle) {
+            return Ok(None); // 3D (or not a fluid of 6-node triangles): no animation
+        }
+        let field =
+            SpeedField::of_grid(&grid).map_err(|message| AnimationError::Fields { path: fluid.resolve(&pvd).display().to_string(), message })?;
+        let solid = part(time, "solid").map(read).transpose()?.map(|g| solid_cells(&g)).unwrap_or_default();
+        for p in solid.iter().flatten() {
+            let (lo, hi) = solid_box.get_or_insert((*p, *p));
+            for d in 0..2 {
+                lo[d] = lo[d].min(p[d]);
+                hi[d] = hi[d].max(p[d]);
+            }
+        }
+        let outlines = part(time, "gamma_f").map(read).transpose()?.map(|g| lines(&g)).unwrap_or_default();
+        frames.push(Frame { field, picture: SpeedPicture { title: format!("speed |u| at t = {time:.4}"), window: None, solid, outlines } });
+    }
+    if frames.len() < 2 {
+        return Ok(None);
+    }
+    if let Some((lo, hi)) = solid_box {
+        let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        frames[0].picture.window = Some([[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]]);
+    }
+    let gif = dir.join("animation.gif");
+    write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS)
+        .map_err(|message| AnimationError::Draw { path: gif.display().to_string(), message })?;
+    Ok(Some((gif, frames.len())))
+}
+
+/// The outlines of the 9-node quadrilaterals of a solid grid (corners and mid-edge nodes in
+/// order; VTK's biquadratic quad: corners 0-3, then the nodes on edges 01, 12, 23, 30).
+fn solid_cells(grid: &UnstructuredGrid) -> Vec<Vec<[f64; 2]>> {
+    (0..grid.num_cells())
+        .filter(|&c| grid.cell_types[c] == VtkCellType::BiquadraticQuad)
+        .map(|c| [0, 4, 1, 5, 2, 6, 3, 7].iter().map(|&k| grid.points[grid.cell(c)[k]]).map(|p| [p[0], p[1]]).collect())
+        .collect()
+}
+
+/// The segments of a grid of line cells (gamma_f in 2D).
+fn lines(grid: &UnstructuredGrid) -> Vec<Vec<[f64; 2]>> {
+    (0..grid.num_cells())
+        .filter(|&c| grid.cell_types[c] == VtkCellType::Line)
+        .map(|c| grid.cell(c).iter().map(|&n| [grid.points[n][0], grid.points[n][1]]).collect())
+        .collect()
+}
