@@ -15,7 +15,7 @@
 //! 4. the previous fluid velocity is transferred to the new velocity nodes
 //!    ([`transfer_p2plus_or`]; nodes the solid uncovered since take the old velocity's extension
 //!    up to a cell into the old mesh's hole and the solid's velocity farther in,
-//!    [`FluidSnapshot::transferred_to`]);
+//!    `FluidSnapshot::transferred_to`);
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
 //!    discretisations ([`FlowDiscretization::assemble_system`],
 //!    [`SolidDiscretization::assemble_system`], updated Lagrangian) into block matrices and
