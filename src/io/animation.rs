@@ -7,7 +7,7 @@
 //! the solid's box over the whole run widened by twice its size on each side (an FSI run), or
 //! the fluid mesh (a flow run).
 
-use super::picture::{write_speed_gif, Frame, SpeedField, SpeedPicture};
+use super::picture::{window_around, write_speed_gif, Frame, SpeedField, SpeedPicture, QUAD9_OUTLINE};
 use fdfsi_fem::vtk::{read_pvd, read_vtu, PvdEntry, UnstructuredGrid, VtkCellType, VtkError};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -35,11 +35,12 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
     let pvd = dir.join("solution.pvd");
     let entries = read_pvd(&pvd)?;
     let mut times: Vec<f64> = entries.iter().map(|e| e.time).collect();
+    times.sort_by(f64::total_cmp);
     times.dedup();
     if times.len() < 2 {
         return Ok(None);
     }
-    let part = |time: f64, name: &str| entries.iter().find(|e| e.time == time && e.name == name);
+    let part = |time: f64, name: &str| entries.iter().rfind(|e| e.time == time && e.name == name);
     let read = |e: &PvdEntry| read_vtu(&e.resolve(&pvd));
     let mut frames = Vec::with_capacity(times.len());
     let mut solid_box: Option<([f64; 2], [f64; 2])> = None;
@@ -65,22 +66,18 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
     if frames.len() < 2 {
         return Ok(None);
     }
-    if let Some((lo, hi)) = solid_box {
-        let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-        frames[0].picture.window = Some([[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]]);
-    }
+    frames[0].picture.window = solid_box.map(|(lo, hi)| window_around(lo, hi));
     let gif = dir.join("animation.gif");
     write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS)
         .map_err(|message| AnimationError::Draw { path: gif.display().to_string(), message })?;
     Ok(Some((gif, frames.len())))
 }
 
-/// The outlines of the 9-node quadrilaterals of a solid grid (corners and mid-edge nodes in
-/// order; VTK's biquadratic quad: corners 0-3, then the nodes on edges 01, 12, 23, 30).
+/// The outlines of the 9-node quadrilaterals of a solid grid ([`QUAD9_OUTLINE`]).
 fn solid_cells(grid: &UnstructuredGrid) -> Vec<Vec<[f64; 2]>> {
     (0..grid.num_cells())
         .filter(|&c| grid.cell_types[c] == VtkCellType::BiquadraticQuad)
-        .map(|c| [0, 4, 1, 5, 2, 6, 3, 7].iter().map(|&k| grid.points[grid.cell(c)[k]]).map(|p| [p[0], p[1]]).collect())
+        .map(|c| QUAD9_OUTLINE.iter().map(|&k| grid.points[grid.cell(c)[k]]).map(|p| [p[0], p[1]]).collect())
         .collect()
 }
 

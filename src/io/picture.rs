@@ -81,12 +81,23 @@ impl SpeedField {
         fdfsi_fem::mesh::bounding_box(&self.nodes)
     }
 
-    /// The largest speed at a node in the rectangle `[lo, hi]` (at least the least positive
-    /// number).
+    /// The largest speed at a node in the rectangle `[lo, hi]`, at least 1e-12 (the top of a
+    /// colour bar; a flow at rest gets `0..1e-12`).
     pub fn max_speed_in(&self, lo: [f64; 2], hi: [f64; 2]) -> f64 {
         let inside = |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
-        (0..self.nodes.len()).filter(|&n| inside(&self.nodes[n])).map(|n| self.speed[n]).fold(f64::MIN_POSITIVE, f64::max)
+        (0..self.nodes.len()).filter(|&n| inside(&self.nodes[n])).map(|n| self.speed[n]).filter(|s| s.is_finite()).fold(1e-12, f64::max)
     }
+}
+
+/// The nodes around a 9-node quadrilateral's boundary in order (VTK's order: corners 0-3, then
+/// the nodes on edges 01, 12, 23, 30), the outline a solid cell is drawn with.
+pub const QUAD9_OUTLINE: [usize; 8] = [0, 4, 1, 5, 2, 6, 3, 7];
+
+/// The window of a picture of a solid whose box is `[lo, hi]`: the box widened by twice its size
+/// on each side.
+pub fn window_around(lo: [f64; 2], hi: [f64; 2]) -> [[f64; 2]; 2] {
+    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    [[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]]
 }
 
 /// The least height of the plot area of a speed picture (pixels).
@@ -123,7 +134,14 @@ impl Layout {
                 return Err(format!("the picture window {window:?} does not overlap the mesh"));
             }
         }
-        let plot_w = width.saturating_sub(COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN).max(100);
+        let least = COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN + 100;
+        if width < least {
+            return Err(format!("a speed picture {width} pixels wide is too narrow: at least {least}"));
+        }
+        if !(lo.iter().chain(&hi).all(|v| v.is_finite()) && hi[0] > lo[0] && hi[1] > lo[1]) {
+            return Err(format!("nothing to draw: the mesh spans {lo:?} to {hi:?}"));
+        }
+        let plot_w = width - (COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN);
         let mut plot_h = (plot_w as f64 * (hi[1] - lo[1]) / (hi[0] - lo[0])).round();
         if plot_h < MIN_PLOT_HEIGHT as f64 {
             let half = 0.5 * (hi[0] - lo[0]) * MIN_PLOT_HEIGHT as f64 / plot_w as f64;
@@ -149,8 +167,7 @@ pub fn write_speed_png<const D: usize>(
 ) -> Result<(), String> {
     let field = SpeedField::of_flow(disc, x)?;
     let layout = Layout::new(field.bounds(), picture.window, width)?;
-    let window = picture.window.unwrap_or([layout.lo, layout.hi]);
-    let smax = field.max_speed_in(window[0], window[1]);
+    let smax = field.max_speed_in(layout.lo, layout.hi);
     // Drawn under a temporary name and renamed, so a crash never leaves a half-written picture.
     let tmp = path.with_extension("tmp.png");
     {
@@ -175,8 +192,7 @@ pub struct Frame {
 pub fn write_speed_gif(frames: &[Frame], path: &Path, width: u32, delay_ms: u32) -> Result<(), String> {
     let first = frames.first().ok_or("no frames to animate")?;
     let layout = Layout::new(first.field.bounds(), first.picture.window, width)?;
-    let window = first.picture.window.unwrap_or([layout.lo, layout.hi]);
-    let smax = frames.iter().map(|f| f.field.max_speed_in(window[0], window[1])).fold(f64::MIN_POSITIVE, f64::max);
+    let smax = frames.iter().map(|f| f.field.max_speed_in(layout.lo, layout.hi)).fold(f64::MIN_POSITIVE, f64::max);
     let tmp = path.with_extension("tmp.gif");
     {
         let root = BitMapBackend::gif(&tmp, (width, layout.height), delay_ms).map_err(|e| e.to_string())?.into_drawing_area();

@@ -203,8 +203,7 @@ fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, sol
     let flow = &st.disc.flow;
     let solid = model.current_solid_mesh(solid_x);
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&solid.points);
-    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    let window = [[lo[0] - 2.0 * size, lo[1] - 2.0 * size], [hi[0] + 2.0 * size, hi[1] + 2.0 * size]];
+    let window = crate::io::picture::window_around([lo[0], lo[1]], [hi[0], hi[1]]);
     let xy = |p: &[f64; D]| [p[0], p[1]];
     let outlines = st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| xy(&flow.mesh.points[v])).collect()).collect();
     let picture = crate::io::picture::SpeedPicture {
@@ -218,13 +217,12 @@ fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, sol
         .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
 }
 
-/// The nodes around a 2D cell's boundary in order: corners and mid-edge nodes of a 9-node
-/// quadrilateral (VTK order: corners 0-3, then the nodes on edges 01, 12, 23, 30), the corners
-/// of another cell.
+/// The nodes around a 2D cell's boundary in order: those of a 9-node quadrilateral
+/// ([`crate::io::picture::QUAD9_OUTLINE`]), the corners of another cell.
 fn cell_outline<const D: usize>(mesh: &fdfsi_fem::mesh::Mesh<D>, c: usize) -> Vec<usize> {
     let nodes = mesh.cell(c);
     if nodes.len() >= 8 && mesh.cell_vertices(c).len() == 4 {
-        [0, 4, 1, 5, 2, 6, 3, 7].iter().map(|&k| nodes[k]).collect()
+        crate::io::picture::QUAD9_OUTLINE.iter().map(|&k| nodes[k]).collect()
     } else {
         mesh.cell_vertices(c).to_vec()
     }

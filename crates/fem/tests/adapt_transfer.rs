@@ -89,3 +89,35 @@ fn adapt_bad_inputs_are_errors() {
     // Slightly outside by round-off: accepted.
     assert!(transfer_p2plus(&mesh, &map, &values, &[[1.0 + 1e-14, 0.5]]).is_ok());
 }
+
+/// `transfer_p2plus_or`: inside the old mesh the field, up to `extend` cell heights outside it
+/// the nearest cell's polynomial, farther out the caller's value for that point (by index).
+#[test]
+fn transfer_extends_then_asks_for_points_outside() {
+    use fdfsi_fem::adapt::transfer_p2plus_or;
+    let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 2, 2, DiagonalPattern::Right);
+    let e = ReferenceElement::p2plus_triangle();
+    let map = NodeMap::continuous(&mesh, &Topology::build(&mesh), &e);
+    // u = (1 + x, 2 y): linear, so the extension is exact.
+    let mut values = vec![0.0; map.num_nodes * 2];
+    let nodes = map.coordinates(&mesh, &e);
+    for (n, p) in nodes.iter().enumerate() {
+        values[2 * n] = 1.0 + p[0];
+        values[2 * n + 1] = 2.0 * p[1];
+    }
+    let points = [[0.3, 0.6], [1.2, 0.5], [3.0, 0.5]];
+    let mut asked = Vec::new();
+    let got = transfer_p2plus_or(&mesh, &map, &values, &points, 0.5, |i, x| {
+        asked.push((i, *x));
+        Ok([-1.0, -2.0])
+    })
+    .unwrap();
+    assert_eq!(asked, vec![(2, [3.0, 0.5])]);
+    let want = [1.3, 1.2, 2.2, 1.0, -1.0, -2.0];
+    for (g, w) in got.iter().zip(want) {
+        assert!((g - w).abs() < 1e-12, "{got:?} against {want:?}");
+    }
+    // The caller's error is the transfer's.
+    let refused = transfer_p2plus_or(&mesh, &map, &values, &points, 0.5, |_, _| Err(fdfsi_fem::adapt::AdaptError::Transfer("no".into())));
+    assert!(refused.is_err());
+}
