@@ -426,10 +426,18 @@ impl<const D: usize> FluidSnapshot<D> {
     /// at dt = 0.025 28 % larger than with the extension.) Without a hole every new node must
     /// lie in the old mesh.
     fn transferred_to(&self, model: &FsiModel<D>, disc: &FsiDiscretization<D>, solid_v: &[f64]) -> Result<Vec<f64>, FsiError> {
-        let hole = (model.covered_fluid == CoveredFluid::Removed).then(|| model.gamma_s(&self.solid_base)).transpose()?;
+        let has_hole = model.covered_fluid == CoveredFluid::Removed;
+        // gamma_s at `solid_base`, built for the first node that needs it (most steps have none).
+        let mut hole: Option<Surface<D>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
-            let Some(h) = hole.as_ref() else { return Err(outside()) };
+            if !has_hole {
+                return Err(outside());
+            }
+            if hole.is_none() {
+                hole = Some(model.gamma_s(&self.solid_base).map_err(|e| AdaptError::Transfer(format!("gamma_s of the old mesh's hole: {e}")))?);
+            }
+            let h = hole.as_ref().expect("built above");
             let sp = h.project(x).ok_or_else(outside)?;
             // In the hole: on the solid's side of gamma_s (its normals point out of the solid).
             let n = h.normal(sp.piece);
@@ -440,7 +448,7 @@ impl<const D: usize> FluidSnapshot<D> {
             let (c, xi) = h.solid_point(&sp);
             Ok(model.solid.interpolate(solid_v, c, &xi))
         };
-        let extend = if hole.is_some() { 1.0 } else { 0.0 };
+        let extend = if has_hole { 1.0 } else { 0.0 };
         let mut u = vec![0.0; disc.fluid_dofs()];
         let v = transfer_p2plus_or(&self.mesh, &self.nodes, &self.velocity, &disc.flow.velocity_nodes, extend, solid_velocity)?;
         u[disc.flow.velocity_field().range()].copy_from_slice(&v);

@@ -8,6 +8,7 @@
 //! the fluid mesh (a flow run).
 
 use super::picture::{window_around, write_speed_gif, Frame, SpeedField, SpeedPicture, QUAD9_OUTLINE};
+use fdfsi_fem::mesh::bounding_box;
 use fdfsi_fem::vtk::{read_pvd, read_vtu, PvdEntry, UnstructuredGrid, VtkCellType, VtkError};
 use std::path::{Path, PathBuf};
 use thiserror::Error;
@@ -43,7 +44,6 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
     let part = |time: f64, name: &str| entries.iter().rfind(|e| e.time == time && e.name == name);
     let read = |e: &PvdEntry| read_vtu(&e.resolve(&pvd));
     let mut frames = Vec::with_capacity(times.len());
-    let mut solid_box: Option<([f64; 2], [f64; 2])> = None;
     for &time in &times {
         let Some(fluid) = part(time, "fluid") else { continue };
         let grid = read(fluid)?;
@@ -53,20 +53,17 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
         let field =
             SpeedField::of_grid(&grid).map_err(|message| AnimationError::Fields { path: fluid.resolve(&pvd).display().to_string(), message })?;
         let solid = part(time, "solid").map(read).transpose()?.map(|g| solid_cells(&g)).unwrap_or_default();
-        for p in solid.iter().flatten() {
-            let (lo, hi) = solid_box.get_or_insert((*p, *p));
-            for d in 0..2 {
-                lo[d] = lo[d].min(p[d]);
-                hi[d] = hi[d].max(p[d]);
-            }
-        }
         let outlines = part(time, "gamma_f").map(read).transpose()?.map(|g| lines(&g)).unwrap_or_default();
         frames.push(Frame { field, picture: SpeedPicture { title: format!("speed |u| at t = {time:.4}"), window: None, solid, outlines } });
     }
     if frames.len() < 2 {
         return Ok(None);
     }
-    frames[0].picture.window = solid_box.map(|(lo, hi)| window_around(lo, hi));
+    let solid_points: Vec<[f64; 2]> = frames.iter().flat_map(|f| f.picture.solid.iter().flatten().copied()).collect();
+    if !solid_points.is_empty() {
+        let (lo, hi) = bounding_box(&solid_points);
+        frames[0].picture.window = Some(window_around(lo, hi));
+    }
     let gif = dir.join("animation.gif");
     write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS)
         .map_err(|message| AnimationError::Draw { path: gif.display().to_string(), message })?;

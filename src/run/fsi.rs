@@ -28,7 +28,6 @@ use crate::post::quantities::{evaluate_all, StepState};
 use crate::setup::{build_mesh, displacement_probes, fsi_model, SetupError};
 use crate::time::fsi::FsiStepper;
 use crate::time::march::StepDone;
-use crate::time::Schedule;
 use fdfsi_fem::gmsh::AnyMesh;
 use fdfsi_fem::mesh::Mesh;
 use fdfsi_fem::vtk::PvdSeries;
@@ -55,7 +54,7 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let mut start = Start::of(options, obs, t);
     start.timings.mesh = mesh_seconds;
-    let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
+    let schedule = super::schedule_of(ts);
     let state = match (&options.resume, &options.start_from) {
         (Some(c), _) => FsiState::from_restart(&model, c.time, c.fsi_state(&options.out_dir, model.solid.num_dofs())?)?,
         (None, Some(from)) => {

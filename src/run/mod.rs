@@ -188,6 +188,11 @@ impl RunOptions {
     }
 }
 
+/// The time steps of a case's `[time]` table.
+pub(crate) fn schedule_of(ts: &crate::case::TimeSpec) -> crate::time::Schedule {
+    crate::time::Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts }
+}
+
 /// Another run's checkpoint as a new run's initial state (`fdfsi run CASE --start-from DIR`):
 /// the new run begins at the checkpoint's time `t_k` from its state, with its own case. The case
 /// may differ in its fluid mesh (the fluid velocity is transferred to the new mesh, as from step
@@ -331,7 +336,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
             return Err(RunError::Unsupported(format!("--start-from is not for {what}")));
         }
         if let Some(ts) = &case.time {
-            from.check(&crate::time::Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts }, &options.out_dir)?;
+            from.check(&schedule_of(ts), &options.out_dir)?;
         }
     }
     if let Some(c) = &options.resume {

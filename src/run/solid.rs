@@ -85,7 +85,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
                 Some(c) => c.dynamic_solid_state(&options.out_dir, disc.num_dofs())?,
             };
             let mut stepper = DynamicStepper::new(&disc, &problem, lu.as_mut(), newton, ts.scheme, state);
-            let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
+            let schedule = super::schedule_of(ts);
             march_and_record(case, options, obs, &mut stepper, outputs, &schedule, ts.output_every, start, true)?
         }
     };
