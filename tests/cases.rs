@@ -164,9 +164,10 @@ fn axisymmetric_pipe_is_hagen_poiseuille_to_round_off() {
 
 #[test]
 fn quarter_pipe_3d_conserves_mass() {
-    let (s, _) = run("quarter-pipe-3d-stokes");
+    let (s, out) = run("quarter-pipe-3d-stokes");
     let (qin, qout) = (q(&s, "inlet_flux"), q(&s, "outlet_flux"));
     assert!((qin + qout).abs() < 1e-11 * qin.abs(), "{qin} vs {qout}");
+    assert!(out.join("speed.png").exists(), "the speed on the plane through the middle of the pipe");
     // Coarse polygonal pipe: the axis velocity is near 2 (within 5 %).
     assert!((q(&s, "axis_velocity") - 2.0).abs() < 0.1, "{}", q(&s, "axis_velocity"));
 }
@@ -853,6 +854,7 @@ fn model_problem_4_coarse_first_steps_seal_the_pipe_and_bulge_the_membrane() {
     let names: Vec<&str> = entries.iter().map(|e| e.name.as_str()).collect();
     assert_eq!(names, ["fluid", "solid", "gamma_f"]);
     assert!(out.join("pictures/gamma_step_0005.png").exists(), "the picture of gamma_s and gamma_f");
+    assert!(out.join("speed.png").exists(), "the speed on a plane through the membrane");
 }
 
 #[test]

@@ -104,6 +104,7 @@ fn every_field_the_parser_accepts_is_documented() {
         "[solver.newton]",
         "[[boundary]]",
         "[output]",
+        "[output.slice]",
         "[[output.probe]]",
         "[[output.boundary_integral]]",
         "[[output.profile]]",

@@ -677,6 +677,9 @@ pub struct OutputSpec {
     /// time at the end of the run ([`crate::io::animation`]); default true.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub animation: Option<bool>,
+    /// 3D runs with a fluid: the plane of `speed.png` (default: see [`SliceSpec`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slice: Option<SliceSpec>,
     /// Point values of a field, written as quantities.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub probe: Vec<ProbeSpec>,
@@ -727,6 +730,35 @@ pub enum DomainQuantityKind {
     /// `max |u|` over the vertices, edge midpoints and centroids of all fluid cells (the
     /// points where P2+ is interpolatory plus its bubble point).
     MaxSpeed,
+}
+
+/// The plane through a 3D model that its `speed.png` shows, normal to a coordinate axis. Without
+/// `[output.slice]` the normal is the axis along which the fluid mesh is thinnest (of equal ones
+/// the last) and the plane goes through the middle of the solid (an FSI run) or of the fluid mesh.
+#[derive(Clone, Copy, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SliceSpec {
+    /// The axis normal to the plane.
+    pub normal: Axis,
+    /// Where the plane cuts that axis; default the middle of the solid or of the fluid mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub at: Option<f64>,
+}
+
+/// A coordinate axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    /// The coordinate's index: 0, 1 or 2.
+    pub fn index(self) -> usize {
+        self as usize
+    }
 }
 
 /// A profile along a boundary: one row `s,x,y[,z],value` per facet quadrature point.

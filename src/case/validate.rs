@@ -212,6 +212,14 @@ fn output(c: &Case, p: &mut Problems) {
         }
     }
     combinations(c, p);
+    if let Some(slice) = &c.output.slice {
+        if d != 3 || c.mesh.is_none() {
+            p.push("[output.slice] is for 3D runs with a fluid mesh (a 2D run's speed.png shows the whole plane)");
+        }
+        if slice.at.is_some_and(|a| !a.is_finite()) {
+            p.push(format!("[output.slice] at = {:?} must be a finite number", slice.at));
+        }
+    }
 }
 
 /// `[[output.probe]]`: point, field and component.

@@ -54,7 +54,10 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
             SpeedField::of_grid(&grid).map_err(|message| AnimationError::Fields { path: fluid.resolve(&pvd).display().to_string(), message })?;
         let solid = part(time, "solid").map(read).transpose()?.map(|g| solid_cells(&g)).unwrap_or_default();
         let outlines = part(time, "gamma_f").map(read).transpose()?.map(|g| lines(&g)).unwrap_or_default();
-        frames.push(Frame { field, picture: SpeedPicture { title: format!("speed |u| at t = {time:.4}"), window: None, solid, outlines } });
+        frames.push(Frame {
+            field,
+            picture: SpeedPicture { title: format!("speed |u| at t = {time:.4}"), window: None, solid, outlines, axis_labels: None },
+        });
     }
     if frames.len() < 2 {
         return Ok(None);

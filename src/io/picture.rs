@@ -1,7 +1,8 @@
 //! PNG pictures (the font compiled in, see [`super::plot`]; no system libraries):
 //! [`write_speed_png`] draws `speed.png` of a 2D run, `|u|` on the mesh with axes, a colour bar
-//! and the solid; [`write_surfaces_png`] draws the coupling
-//! surfaces gamma_s and gamma_f of a 3D run (the paper's figs. 7 and 8).
+//! and the solid; [`write_slice_png`] draws `speed.png` of a 3D run, `|u|` on a plane through
+//! the solid ([`Slice`]); [`write_surfaces_png`] draws the coupling surfaces gamma_s and gamma_f
+//! of a 3D run (the paper's figs. 7 and 8).
 
 use crate::discretize::flow::FlowDiscretization;
 use fdfsi_fem::vtk::{UnstructuredGrid, VtkCellType};
@@ -30,6 +31,8 @@ pub struct SpeedPicture {
     pub solid: Vec<Vec<[f64; 2]>>,
     /// Polylines drawn in white over the flow and the solid (gamma_f).
     pub outlines: Vec<Vec<[f64; 2]>>,
+    /// The names of the axes across and up (default `x` and `y`).
+    pub axis_labels: Option<[String; 2]>,
 }
 
 /// The speed of a 2D flow on its mesh: 6-node triangles (vertices, then the nodes on the edges
@@ -76,6 +79,54 @@ impl SpeedField {
         })
     }
 
+    /// The speed of the 3D flow solution `x` of `disc` on `slice`, sampled in the rectangle
+    /// `[lo, hi]` of the plane (its coordinates, see [`Slice::project`]) at `(2 m + 1) x (2 n + 1)`
+    /// points for `cells = [m, n]`: each `2 x 2` block of points makes two 6-node triangles. The
+    /// P2+ velocity is evaluated in the cell containing each point; a point outside the fluid
+    /// mesh (outside the model, or in the fluid a solid removed) gets the speed NaN and is not
+    /// drawn.
+    pub fn of_slice<const D: usize>(
+        disc: &FlowDiscretization<D>,
+        x: &[f64],
+        slice: &Slice,
+        [lo, hi]: [[f64; 2]; 2],
+        [m, n]: [usize; 2],
+    ) -> Result<Self, String> {
+        if D != 3 {
+            return Err(format!("slices are drawn of 3D flows, not {D}D"));
+        }
+        if m == 0 || n == 0 {
+            return Err(format!("a slice needs at least one cell across and up, got {m} x {n}"));
+        }
+        let (nu, nv) = (2 * m + 1, 2 * n + 1);
+        let node = |i: usize, j: usize| j * nu + i;
+        let nodes: Vec<[f64; 2]> = (0..nv)
+            .flat_map(|j| {
+                (0..nu).map(move |i| [lo[0] + (hi[0] - lo[0]) * i as f64 / (nu - 1) as f64, lo[1] + (hi[1] - lo[1]) * j as f64 / (nv - 1) as f64])
+            })
+            .collect();
+        let points: Vec<[f64; D]> = nodes
+            .iter()
+            .map(|&q| {
+                let p = slice.point(q);
+                std::array::from_fn(|d| p[d])
+            })
+            .collect();
+        let vf = disc.velocity_field();
+        let velocity = fdfsi_fem::adapt::transfer::transfer_p2plus_or(&disc.mesh, &vf.nodes, &x[vf.range()], &points, 0.0, |_, _| Ok([f64::NAN; D]))
+            .map_err(|e| e.to_string())?;
+        let speed = velocity.chunks_exact(D).map(|v| v.iter().map(|c| c * c).sum::<f64>().sqrt()).collect();
+        let mut triangles = Vec::with_capacity(2 * m * n);
+        for j in (0..nv - 1).step_by(2) {
+            for i in (0..nu - 1).step_by(2) {
+                let q = |a: usize, b: usize| node(i + a, j + b);
+                triangles.push([q(0, 0), q(2, 0), q(2, 2), q(1, 0), q(2, 1), q(1, 1)]);
+                triangles.push([q(0, 0), q(2, 2), q(0, 2), q(1, 1), q(1, 2), q(0, 1)]);
+            }
+        }
+        Ok(SpeedField { nodes, triangles, speed })
+    }
+
     /// The bounding box of the nodes.
     pub fn bounds(&self) -> ([f64; 2], [f64; 2]) {
         fdfsi_fem::mesh::bounding_box(&self.nodes)
@@ -86,6 +137,81 @@ impl SpeedField {
     pub fn max_speed_in(&self, lo: [f64; 2], hi: [f64; 2]) -> f64 {
         let inside = |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
         (0..self.nodes.len()).filter(|&n| inside(&self.nodes[n])).map(|n| self.speed[n]).filter(|s| s.is_finite()).fold(1e-12, f64::max)
+    }
+}
+
+/// A plane through a 3D model, normal to the coordinate axis `normal` at `normal`'s coordinate
+/// `at`, drawn with the axis `axes[0]` across and `axes[1]` up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slice {
+    pub normal: usize,
+    pub at: f64,
+    pub axes: [usize; 2],
+}
+
+impl Slice {
+    /// The plane normal to the axis `normal` at `at` through a model whose box is `[lo, hi]`, the
+    /// longer of its other two sides across.
+    pub fn new(normal: usize, at: f64, lo: [f64; 3], hi: [f64; 3]) -> Self {
+        let [a, b] = match normal {
+            0 => [1, 2],
+            1 => [0, 2],
+            _ => [0, 1],
+        };
+        let axes = if hi[b] - lo[b] > hi[a] - lo[a] { [b, a] } else { [a, b] };
+        Slice { normal: normal.min(2), at, axes }
+    }
+
+    /// The axis along which the box `[lo, hi]` is thinnest (of equal ones the last).
+    pub fn thinnest_axis(lo: [f64; 3], hi: [f64; 3]) -> usize {
+        (0..3).fold(0, |best, d| if hi[d] - lo[d] <= hi[best] - lo[best] { d } else { best })
+    }
+
+    /// The names of the axes across and up.
+    pub fn axis_labels(&self) -> [String; 2] {
+        self.axes.map(|d| ["x", "y", "z"][d].to_string())
+    }
+
+    /// The point of the plane at the plane coordinates `q`.
+    pub fn point(&self, q: [f64; 2]) -> [f64; 3] {
+        let mut p = [0.0; 3];
+        p[self.normal] = self.at;
+        p[self.axes[0]] = q[0];
+        p[self.axes[1]] = q[1];
+        p
+    }
+
+    /// The plane coordinates of the point `p` (projected onto the plane).
+    pub fn project(&self, p: &[f64]) -> [f64; 2] {
+        [p[self.axes[0]], p[self.axes[1]]]
+    }
+
+    /// The rectangle of the plane covered by the projection of the box `[lo, hi]`.
+    pub fn project_box(&self, lo: [f64; 3], hi: [f64; 3]) -> [[f64; 2]; 2] {
+        [self.project(&lo), self.project(&hi)]
+    }
+
+    /// Where the plane cuts a convex cell (or a triangle) with the corners `vertices` and the
+    /// `edges` between them: the points, in plane coordinates, where it crosses an edge or meets
+    /// a corner, ordered around their centre. Empty when the plane misses the cell; two points
+    /// for a triangle it crosses, a polygon for a cell.
+    pub fn cut(&self, vertices: &[[f64; 3]], edges: &[[usize; 2]]) -> Vec<[f64; 2]> {
+        let side = |p: &[f64; 3]| p[self.normal] - self.at;
+        let mut points: Vec<[f64; 2]> = vertices.iter().filter(|p| side(p) == 0.0).map(|p| self.project(p)).collect();
+        for &[a, b] in edges {
+            let (pa, pb) = (&vertices[a], &vertices[b]);
+            let (sa, sb) = (side(pa), side(pb));
+            if sa * sb < 0.0 {
+                let t = sa / (sa - sb);
+                points.push(self.project(&std::array::from_fn::<f64, 3, _>(|d| pa[d] + t * (pb[d] - pa[d]))));
+            }
+        }
+        let n = points.len().max(1) as f64;
+        let c = [points.iter().map(|p| p[0]).sum::<f64>() / n, points.iter().map(|p| p[1]).sum::<f64>() / n];
+        let angle = |p: &[f64; 2]| (p[1] - c[1]).atan2(p[0] - c[0]);
+        points.sort_by(|p, q| angle(p).total_cmp(&angle(q)));
+        points.dedup_by(|p, q| (p[0] - q[0]).abs() + (p[1] - q[1]).abs() <= 1e-12 * (1.0 + c[0].abs() + c[1].abs()));
+        points
     }
 }
 
@@ -167,12 +293,42 @@ pub fn write_speed_png<const D: usize>(
 ) -> Result<(), String> {
     let field = SpeedField::of_flow(disc, x)?;
     let layout = Layout::new(field.bounds(), picture.window, width)?;
+    write_field_png(&field, &layout, path, width, picture)
+}
+
+/// Writes the speed `|u|` of a 3D flow solution `x` on the plane `slice` as [`write_speed_png`]
+/// draws a 2D flow: in the window of `picture` (default: the fluid mesh's box projected onto
+/// the plane), the speed sampled at about one point per 2 pixels ([`SpeedField::of_slice`]);
+/// `picture` holds what the run cuts from the solid and gamma_f ([`Slice::cut`]).
+pub fn write_slice_png<const D: usize>(
+    disc: &FlowDiscretization<D>,
+    x: &[f64],
+    slice: &Slice,
+    path: &Path,
+    width: u32,
+    picture: &SpeedPicture,
+) -> Result<(), String> {
+    if D != 3 {
+        return Err(format!("slices are drawn of 3D flows, not {D}D"));
+    }
+    let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
+    let lift = |p: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
+    let [a, b] = slice.project_box(lift(lo), lift(hi));
+    let layout = Layout::new((a, b), picture.window, width)?;
+    let plot_w = width - (COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN);
+    let cells = [(plot_w / 4).max(1) as usize, (layout.plot_h / 4).max(1) as usize];
+    let field = SpeedField::of_slice(disc, x, slice, [layout.lo, layout.hi], cells)?;
+    write_field_png(&field, &layout, path, width, picture)
+}
+
+/// Writes `field` drawn with `layout` (see [`write_speed_png`]).
+fn write_field_png(field: &SpeedField, layout: &Layout, path: &Path, width: u32, picture: &SpeedPicture) -> Result<(), String> {
     let smax = field.max_speed_in(layout.lo, layout.hi);
     // Drawn under a temporary name and renamed, so a crash never leaves a half-written picture.
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (width, layout.height)).into_drawing_area();
-        draw_speed(&root, &field, picture, &layout, smax)?;
+        draw_speed(&root, field, picture, layout, smax)?;
         root.present().map_err(|e| e.to_string())?;
     }
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
@@ -226,7 +382,16 @@ fn draw_speed<DB: DrawingBackend>(
         .y_label_area_size(Y_LABELS)
         .build_cartesian_2d(lo[0]..hi[0], lo[1]..hi[1])
         .map_err(|e| err(&e))?;
-    chart.configure_mesh().disable_mesh().x_desc("x").y_desc("y").label_style((font, 14)).axis_desc_style((font, 16)).draw().map_err(|e| err(&e))?;
+    let [across, up] = picture.axis_labels.clone().unwrap_or_else(|| ["x".into(), "y".into()]);
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(across)
+        .y_desc(up)
+        .label_style((font, 14))
+        .axis_desc_style((font, 16))
+        .draw()
+        .map_err(|e| err(&e))?;
     // A cell is drawn when its box overlaps the view (plotters clips it to the plot area).
     let overlaps = |p: &[[f64; 2]]| (0..2).all(|d| p.iter().any(|q| q[d] >= lo[d]) && p.iter().any(|q| q[d] <= hi[d]));
     // Sub-triangles of a 6-node triangle (vertices 0-2, mid-edge nodes 3: 01, 4: 12, 5: 20).
@@ -239,6 +404,9 @@ fn draw_speed<DB: DrawingBackend>(
         }
         for t in SUB {
             let s = t.iter().map(|&k| field.speed[cn[k]]).sum::<f64>() / 3.0 / smax;
+            if !s.is_finite() {
+                continue; // a point outside the fluid (a slice's)
+            }
             let mut pts: Vec<(f64, f64)> = t.iter().map(|&k| xy(field.nodes[cn[k]])).collect();
             plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(|e| err(&e))?;
             // The outline too: the fill alone leaves pixel gaps along some edges.
@@ -296,45 +464,166 @@ pub const GAMMA_S_COLOUR: RGBColor = RGBColor(31, 119, 180);
 pub const GAMMA_F_COLOUR: RGBColor = RGBColor(214, 39, 40);
 
 /// Writes the edges of two triangulated surfaces of a 3D run, gamma_s (blue) and gamma_f (red),
-/// as a PNG of two panels `size` pixels square: left, seen along the z axis (the x-y plane, the
-/// two non-conforming triangulations over each other); right, seen from the side in `(r, z)`
-/// with `r = sqrt(x^2 + y^2)` across and z up, z stretched to fill the panel (the shape of the
-/// bulge; the z range is printed nowhere, it is that of the surfaces with 10 % margins).
-pub fn write_surfaces_png(path: &Path, gamma_s: &[[[f64; 3]; 3]], gamma_f: &[[[f64; 3]; 3]], size: u32) -> Result<(), String> {
+/// as a PNG of two panels `size` pixels square under the caption `title`, each with labelled axes
+/// in model coordinates: left, seen along the z axis (the x-y plane at one scale, the two
+/// non-conforming triangulations over each other); right, seen from the side, with
+/// `r = sqrt(x^2 + y^2)` across and z up, z stretched to fill the panel (the shape of the bulge).
+pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], gamma_f: &[[[f64; 3]; 3]], size: u32) -> Result<(), String> {
     let all = || gamma_s.iter().chain(gamma_f).flatten();
     if all().next().is_none() || all().flatten().any(|v| !v.is_finite()) {
         return Err("no surface to draw, or a point that is not finite".into());
+    }
+    if size < 200 {
+        return Err(format!("a surface picture {size} pixels square is too small: at least 200"));
     }
     let fold = |f: &dyn Fn(&[f64; 3]) -> f64| all().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(f(p)), hi.max(f(p))));
     let r = |p: &[f64; 3]| p[0].hypot(p[1]);
     let (x, y, rr, z) = (fold(&|p| p[0]), fold(&|p| p[1]), fold(&r), fold(&|p| p[2]));
     let pad = |(lo, hi): (f64, f64)| {
-        let m = 0.1 * (hi - lo).max(1e-9 * (1.0 + hi.abs()));
+        let m = 0.05 * (hi - lo).max(1e-9 * (1.0 + hi.abs()));
         (lo - m, hi + m)
     };
+    // The left panel at one scale: its plot area is about square (equal label areas).
     let span = (x.1 - x.0).max(y.1 - y.0);
     let (x, y) = (pad((x.0, x.0 + span)), pad((y.0, y.0 + span)));
     let (rr, z) = (pad((rr.0.min(0.0), rr.1)), pad(z));
+    super::plot::register_font();
+    let font = super::plot::FAMILY;
+    let err = |e: &dyn std::fmt::Display| e.to_string();
     let tmp = path.with_extension("tmp.png");
-    let root = BitMapBackend::new(&tmp, (2 * size, size)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let to_px = |u: f64, (u0, u1): (f64, f64), flip: bool| {
-        let t = (u - u0) / (u1 - u0);
-        ((if flip { 1.0 - t } else { t }) * (size - 1) as f64).round() as i32
-    };
-    let top = |p: &[f64; 3]| (to_px(p[0], x, false), to_px(p[1], y, true));
-    let side = |p: &[f64; 3]| (size as i32 + to_px(r(p), rr, false), to_px(p[2], z, true));
-    for (tris, colour) in [(gamma_s, GAMMA_S_COLOUR), (gamma_f, GAMMA_F_COLOUR)] {
-        for t in tris {
-            for view in [&top as &dyn Fn(&[f64; 3]) -> (i32, i32), &side] {
-                let pts: Vec<(i32, i32)> = [0, 1, 2, 0].iter().map(|&k| view(&t[k])).collect();
-                root.draw(&PathElement::new(pts, colour.stroke_width(1))).map_err(|e| e.to_string())?;
+    {
+        let root = BitMapBackend::new(&tmp, (2 * size, size + CAPTION)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let root = root.titled(title, (font, 20)).map_err(|e| err(&e))?;
+        let (left, right) = root.split_horizontally(size);
+        let panels =
+            [(&left, "seen along z", x, y, ["x", "y"], 0usize), (&right, "seen from the side (z stretched)", rr, z, ["r = |(x, y)|", "z"], 1)];
+        for (area, caption, across, up, [xd, yd], view) in panels {
+            let mut chart = ChartBuilder::on(area)
+                .caption(caption, (font, 16))
+                .margin(MARGIN)
+                .x_label_area_size(X_LABELS)
+                .y_label_area_size(Y_LABELS)
+                .build_cartesian_2d(across.0..across.1, up.0..up.1)
+                .map_err(|e| err(&e))?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc(xd)
+                .y_desc(yd)
+                .label_style((font, 14))
+                .axis_desc_style((font, 16))
+                .draw()
+                .map_err(|e| err(&e))?;
+            let at = |p: &[f64; 3]| if view == 0 { (p[0], p[1]) } else { (r(p), p[2]) };
+            for (tris, colour, name) in [(gamma_s, GAMMA_S_COLOUR, "gamma_s (solid surface)"), (gamma_f, GAMMA_F_COLOUR, "gamma_f (fluid facets)")] {
+                chart
+                    .draw_series(tris.iter().map(|t| PathElement::new([0, 1, 2, 0].map(|k| at(&t[k])).to_vec(), colour.stroke_width(1))))
+                    .map_err(|e| err(&e))?
+                    .label(name)
+                    .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], colour.stroke_width(2)));
+            }
+            if view == 1 {
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
+                    .label_font((font, 14))
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(|e| err(&e))?;
             }
         }
+        root.present().map_err(|e| err(&e))?;
     }
-    let split = [(size as i32, 0), (size as i32, size as i32)];
-    root.draw(&PathElement::new(split, BLACK.stroke_width(1))).map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())?;
-    drop(root);
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::fluid::Formulation;
+    use fdfsi_fem::element::ReferenceCell;
+    use fdfsi_fem::generate::box_tetrahedra;
+
+    #[test]
+    fn a_slice_cuts_cells_and_triangles_where_the_plane_crosses_them() {
+        let plane = Slice::new(2, 0.5, [0.0; 3], [1.0, 1.0, 4.0]);
+        assert_eq!(plane.axes, [0, 1]);
+        // The unit cube: the square of its four side edges' midpoints, in order around it.
+        let cube: Vec<[f64; 3]> = ReferenceCell::Hexahedron.vertices().to_vec();
+        let square = plane.cut(&cube, ReferenceCell::Hexahedron.edges());
+        assert_eq!(square.len(), 4);
+        for (p, q) in square.iter().zip(square.iter().cycle().skip(1)) {
+            assert!(((p[0] - q[0]).abs() + (p[1] - q[1]).abs() - 1.0).abs() < 1e-15, "{square:?}: a side from {p:?} to {q:?}");
+        }
+        // The unit tetrahedron: the triangle (0, 0), (0.5, 0), (0, 0.5).
+        let tet: Vec<[f64; 3]> = ReferenceCell::Tetrahedron.vertices().to_vec();
+        let mut tri = plane.cut(&tet, ReferenceCell::Tetrahedron.edges());
+        tri.sort_by(|p, q| (p[0] + 2.0 * p[1]).total_cmp(&(q[0] + 2.0 * q[1])));
+        assert_eq!(tri, [[0.0, 0.0], [0.5, 0.0], [0.0, 0.5]]);
+        // A triangle: the segment where the plane crosses it; a corner on the plane counts once.
+        let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+        assert_eq!(plane.cut(&t, ReferenceCell::Triangle.edges()).len(), 2);
+        let touching = [[0.0, 0.0, 0.5], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]];
+        assert_eq!(plane.cut(&touching, ReferenceCell::Triangle.edges()), [[0.0, 0.0]]);
+        // Missed.
+        let away = Slice::new(2, 2.0, [0.0; 3], [1.0, 1.0, 4.0]);
+        assert!(away.cut(&cube, ReferenceCell::Hexahedron.edges()).is_empty());
+    }
+
+    #[test]
+    fn a_slice_is_normal_to_the_thinnest_axis_with_the_longer_side_across() {
+        let (lo, hi) = ([0.0; 3], [1.0, 1.0, 4.0]);
+        let normal = Slice::thinnest_axis(lo, hi);
+        assert_eq!(normal, 1, "x and y are equal: the last");
+        let plane = Slice::new(normal, 0.25, lo, hi);
+        assert_eq!((plane.axes, plane.axis_labels()), ([2, 0], ["z".to_string(), "x".to_string()]));
+        assert_eq!(plane.point([3.0, 0.5]), [0.5, 0.25, 3.0]);
+        assert_eq!(plane.project(&[0.5, 0.25, 3.0]), [3.0, 0.5]);
+        assert_eq!(Slice::thinnest_axis(lo, [1.0, 2.0, 0.5]), 2);
+    }
+
+    /// P2+ reproduces quadratics: the sampled speed of an interpolated quadratic flow is exact
+    /// inside the mesh and NaN outside it.
+    #[test]
+    fn the_speed_on_a_slice_is_the_flows_at_each_sample_and_nan_outside() {
+        let disc = FlowDiscretization::build(box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 2.0, 2, 2, 4), Formulation::ThreeD).unwrap();
+        let u = |p: &[f64; 3]| [p[1] * p[2], 0.5 - p[0] * p[0], 1.0 + p[0] * p[1] - p[2] * p[2]];
+        let vf = disc.velocity_field();
+        let mut x = vec![0.0; disc.num_dofs()];
+        for (n, p) in disc.velocity_nodes.iter().enumerate() {
+            for (k, v) in u(p).into_iter().enumerate() {
+                x[vf.dof(n, k)] = v;
+            }
+        }
+        let plane = Slice::new(1, 0.3, [0.0; 3], [1.0, 1.0, 2.0]);
+        assert_eq!(plane.axes, [2, 0]);
+        let field = SpeedField::of_slice(&disc, &x, &plane, [[-0.5, -0.25], [2.5, 1.25]], [12, 6]).unwrap();
+        assert_eq!((field.nodes.len(), field.triangles.len()), (25 * 13, 2 * 12 * 6));
+        let (mut inside, mut outside) = (0, 0);
+        for (q, s) in field.nodes.iter().zip(&field.speed) {
+            let p = plane.point(*q);
+            if (0.0..=2.0).contains(&p[2]) && (0.0..=1.0).contains(&p[0]) {
+                let exact = u(&p).iter().map(|c| c * c).sum::<f64>().sqrt();
+                assert!((s - exact).abs() < 1e-12, "at {p:?}: {s} against {exact}");
+                inside += 1;
+            } else {
+                assert!(s.is_nan(), "at {p:?}, outside the mesh: {s}");
+                outside += 1;
+            }
+        }
+        assert!(inside > 100 && outside > 100, "{inside} samples inside, {outside} outside");
+        // Each triangle: vertices at three corners of its 2 x 2 block, mid-edge nodes between them.
+        for t in &field.triangles {
+            for (m, [a, b]) in [(3, [0, 1]), (4, [1, 2]), (5, [2, 0])] {
+                let (pa, pb, pm) = (field.nodes[t[a]], field.nodes[t[b]], field.nodes[t[m]]);
+                assert!((0..2).all(|d| (0.5 * (pa[d] + pb[d]) - pm[d]).abs() < 1e-12), "triangle {t:?}");
+            }
+        }
+        // A 2D flow has no slice.
+        let square = fdfsi_fem::generate::rectangle_triangles(0.0, 1.0, 0.0, 1.0, 1, 1, fdfsi_fem::generate::DiagonalPattern::Right);
+        let flat = FlowDiscretization::build(square, Formulation::Plane).unwrap();
+        assert!(SpeedField::of_slice(&flat, &vec![0.0; flat.num_dofs()], &plane, [[0.0; 2], [1.0; 2]], [1, 1]).is_err());
+    }
 }

@@ -148,12 +148,26 @@ impl<const D: usize> RunOutputs<FlowStepper<'_, D>> for FlowOutputs<'_, D> {
     }
 
     fn finish(&mut self, s: &FlowStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
-        if D == 2 {
-            let png = out_dir.join("speed.png");
-            let picture = crate::io::picture::SpeedPicture { title: "speed |u|".into(), ..Default::default() };
+        let png = out_dir.join("speed.png");
+        let time = self.case.time.as_ref().map(|t| format!(" at t = {:.4}", t.end)).unwrap_or_default();
+        let written = if D == 2 {
+            let picture = crate::io::picture::SpeedPicture { title: format!("speed |u|{time}"), ..Default::default() };
             crate::io::picture::write_speed_png(s.disc, &s.x, &png, 1600, &picture)
-                .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
-        }
+        } else {
+            // The plane of [output.slice], else through the middle of the fluid mesh.
+            use crate::io::picture::Slice;
+            let (lo, hi) = fdfsi_fem::mesh::bounding_box(&s.disc.mesh.points);
+            let lift = |p: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
+            let (lo, hi) = (lift(lo), lift(hi));
+            let spec = self.case.output.slice;
+            let normal = spec.map_or_else(|| Slice::thinnest_axis(lo, hi), |s| s.normal.index());
+            let at = spec.and_then(|s| s.at).unwrap_or(0.5 * (lo[normal] + hi[normal]));
+            let plane = Slice::new(normal, at, lo, hi);
+            let title = format!("speed |u| on the plane {} = {at:.4}{time}", ["x", "y", "z"][normal]);
+            let picture = crate::io::picture::SpeedPicture { title, axis_labels: Some(plane.axis_labels()), ..Default::default() };
+            crate::io::picture::write_slice_png(s.disc, &s.x, &plane, &png, 1600, &picture)
+        };
+        written.map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
         write_profiles(self.case, s.disc, self.problem, &s.x, out_dir, obs)
     }
 }

@@ -189,31 +189,63 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         let st = last_step(s);
         write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
-        write_speed_picture(self.model, st, &s.state.solid_x, s.state.time, out_dir)
+        write_speed_picture(self.model, st, &s.state.solid_x, s.state.time, self.case.output.slice, out_dir)
     }
 }
 
-/// 2D: `speed.png` of the last step around the solid (its bounding box widened by twice its size
-/// on each side, clipped to the fluid mesh), with the solid in grey and gamma_f in white.
-fn write_speed_picture<const D: usize>(model: &FsiModel<D>, st: &FsiStep<D>, solid_x: &[f64], time: f64, out_dir: &Path) -> Result<(), RunError> {
-    if D != 2 {
-        return Ok(());
-    }
+/// `speed.png` of the last step around the solid (its bounding box widened by twice its size on
+/// each side, clipped to the fluid mesh), with the solid in grey and gamma_f in white: in 2D the
+/// plane of the model, in 3D the plane `slice` (default: see [`crate::case::SliceSpec`]) with
+/// what it cuts from the solid's cells and gamma_f.
+fn write_speed_picture<const D: usize>(
+    model: &FsiModel<D>,
+    st: &FsiStep<D>,
+    solid_x: &[f64],
+    time: f64,
+    slice: Option<crate::case::SliceSpec>,
+    out_dir: &Path,
+) -> Result<(), RunError> {
+    use crate::io::picture::{window_around, write_slice_png, write_speed_png, Slice, SpeedPicture};
     let flow = &st.disc.flow;
     let solid = model.current_solid_mesh(solid_x);
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&solid.points);
-    let window = crate::io::picture::window_around([lo[0], lo[1]], [hi[0], hi[1]]);
-    let xy = |p: &[f64; D]| [p[0], p[1]];
-    let outlines = st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| xy(&flow.mesh.points[v])).collect()).collect();
-    let picture = crate::io::picture::SpeedPicture {
-        title: format!("speed |u| at t = {time:.4}"),
-        window: Some(window),
-        solid: (0..solid.num_cells()).map(|c| cell_outline(&solid, c).iter().map(|&n| xy(&solid.points[n])).collect()).collect(),
-        outlines,
-    };
+    let x = &st.x[..st.disc.fluid_dofs()];
     let png = out_dir.join("speed.png");
-    crate::io::picture::write_speed_png(flow, &st.x[..st.disc.fluid_dofs()], &png, 1600, &picture)
-        .map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
+    let written = if D == 2 {
+        let xy = |p: &[f64; D]| [p[0], p[1]];
+        let outlines = st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| xy(&flow.mesh.points[v])).collect()).collect();
+        let picture = SpeedPicture {
+            title: format!("speed |u| at t = {time:.4}"),
+            window: Some(window_around(xy(&lo), xy(&hi))),
+            solid: (0..solid.num_cells()).map(|c| cell_outline(&solid, c).iter().map(|&n| xy(&solid.points[n])).collect()).collect(),
+            outlines,
+            axis_labels: None,
+        };
+        write_speed_png(flow, x, &png, 1600, &picture)
+    } else {
+        let lift = |p: &[f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
+        let (flo, fhi) = fdfsi_fem::mesh::bounding_box(&flow.mesh.points);
+        let normal = slice.map_or_else(|| Slice::thinnest_axis(lift(&flo), lift(&fhi)), |s| s.normal.index());
+        let at = slice.and_then(|s| s.at).unwrap_or(0.5 * (lo[normal] + hi[normal]));
+        let plane = Slice::new(normal, at, lift(&flo), lift(&fhi));
+        let [a, b] = plane.project_box(lift(&lo), lift(&hi));
+        let edges = solid.cell_type.edges();
+        let cuts_of_solid =
+            (0..solid.num_cells()).map(|c| plane.cut(&solid.cell_vertices(c).iter().map(|&v| lift(&solid.points[v])).collect::<Vec<_>>(), edges));
+        let tri = fdfsi_fem::element::ReferenceCell::Triangle.edges();
+        let cuts_of_gamma_f =
+            st.disc.adapted.gamma_f.iter().map(|g| plane.cut(&g.vertices.iter().map(|&v| lift(&flow.mesh.points[v])).collect::<Vec<_>>(), tri));
+        let [across, up] = plane.axis_labels();
+        let picture = SpeedPicture {
+            title: format!("speed |u| on the plane {} = {at:.4} at t = {time:.4}", ["x", "y", "z"][normal]),
+            window: Some(window_around(a, b)),
+            solid: cuts_of_solid.filter(|p| p.len() >= 3).collect(),
+            outlines: cuts_of_gamma_f.filter(|p| p.len() >= 2).collect(),
+            axis_labels: Some([across, up]),
+        };
+        write_slice_png(flow, x, &plane, &png, 1600, &picture)
+    };
+    written.map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
 }
 
 /// The nodes around a 2D cell's boundary in order: those of a 9-node quadrilateral
@@ -242,5 +274,6 @@ fn write_surfaces_picture<const D: usize>(st: &FsiStep<D>, k: usize, out_dir: &P
     let png = dir.join(format!("gamma_step_{k:04}.png"));
     let io = |e: std::io::Error| RunError::from(OutputError::Io { path: png.display().to_string(), source: e });
     std::fs::create_dir_all(&dir).map_err(io)?;
-    crate::io::picture::write_surfaces_png(&png, &gamma_s, &gamma_f, 700).map_err(|m| io(std::io::Error::other(m)))
+    let title = format!("gamma_s (blue) and gamma_f (red) at step {k}, t = {:.4}", st.report.time);
+    crate::io::picture::write_surfaces_png(&png, &title, &gamma_s, &gamma_f, 700).map_err(|m| io(std::io::Error::other(m)))
 }
