@@ -1,7 +1,10 @@
 //! The cases built into the binary (`fdfsi cases`), the files of `cases/`.
 
-/// The case built into the binary: `fdfsi run` with no case file runs it.
-pub const DEFAULT_CASE: &str = include_str!("../../cases/slab-one-beat.toml");
+/// The case built into the binary: `fdfsi run` with no case file runs it (the
+/// [`BUILTIN_CASES`] entry [`DEFAULT_CASE_NAME`]).
+pub const DEFAULT_CASE: &str = SLAB_ONE_BEAT;
+
+const SLAB_ONE_BEAT: &str = include_str!("../../cases/slab-one-beat.toml");
 
 /// The name `fdfsi run` gives the default case.
 pub const DEFAULT_CASE_NAME: &str = "slab-one-beat";
@@ -17,7 +20,7 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("womersley-axisymmetric", include_str!("../../cases/womersley-axisymmetric.toml")),
     ("skewed-plate-dirichlet", include_str!("../../cases/skewed-plate-dirichlet.toml")),
     ("model-problem-1", include_str!("../../cases/model-problem-1.toml")),
-    ("slab-one-beat", include_str!("../../cases/slab-one-beat.toml")),
+    ("slab-one-beat", SLAB_ONE_BEAT),
     ("model-problem-2", include_str!("../../cases/model-problem-2.toml")),
     ("model-problem-3", include_str!("../../cases/model-problem-3.toml")),
     ("model-problem-4", include_str!("../../cases/model-problem-4.toml")),

@@ -7,7 +7,7 @@
 //! the solid's box over the whole run widened by twice its size on each side (an FSI run), or
 //! the fluid mesh (a flow run).
 
-use super::picture::{window_around, write_speed_gif, Frame, SpeedField, SpeedPicture, QUAD9_OUTLINE};
+use super::picture::{window_around, write_speed_gif, Frame, PictureError, SpeedField, SpeedPicture, QUAD9_OUTLINE};
 use fdfsi_fem::mesh::bounding_box;
 use fdfsi_fem::vtk::{read_pvd, read_vtu, PvdEntry, UnstructuredGrid, VtkCellType, VtkError};
 use std::path::{Path, PathBuf};
@@ -23,10 +23,10 @@ pub const FRAME_DELAY_MS: u32 = 100;
 pub enum AnimationError {
     #[error("{0}")]
     Vtk(#[from] VtkError),
-    #[error("{path}: {message}")]
-    Fields { path: String, message: String },
-    #[error("{path}: drawing failed: {message}")]
-    Draw { path: String, message: String },
+    #[error("{path}: {source}")]
+    Fields { path: String, source: PictureError },
+    #[error("{path}: {source}")]
+    Draw { path: String, source: PictureError },
 }
 
 /// Draws `DIR/animation.gif` from the fields in `DIR/solution.pvd` (see the module
@@ -51,7 +51,7 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
             return Ok(None); // 3D (or not a fluid of 6-node triangles): no animation
         }
         let field =
-            SpeedField::of_grid(&grid).map_err(|message| AnimationError::Fields { path: fluid.resolve(&pvd).display().to_string(), message })?;
+            SpeedField::of_grid(&grid).map_err(|source| AnimationError::Fields { path: fluid.resolve(&pvd).display().to_string(), source })?;
         let solid = part(time, "solid").map(read).transpose()?.map(|g| solid_cells(&g)).unwrap_or_default();
         let outlines = part(time, "gamma_f").map(read).transpose()?.map(|g| lines(&g)).unwrap_or_default();
         frames.push(Frame {
@@ -69,7 +69,7 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
     }
     let gif = dir.join("animation.gif");
     write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS)
-        .map_err(|message| AnimationError::Draw { path: gif.display().to_string(), message })?;
+        .map_err(|source| AnimationError::Draw { path: gif.display().to_string(), source })?;
     Ok(Some((gif, frames.len())))
 }
 

@@ -37,6 +37,8 @@ pub enum OutputError {
     Vtk(#[from] VtkError),
     #[error("solid fields: {0}")]
     SolidFields(#[from] crate::discretize::solid::SolidAssemblyError),
+    #[error("{path}: {source}")]
+    Picture { path: String, source: picture::PictureError },
 }
 
 /// Writes `contents` to `path` atomically (temporary file in the same folder, then rename).

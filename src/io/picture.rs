@@ -9,6 +9,21 @@ use fdfsi_fem::vtk::{UnstructuredGrid, VtkCellType};
 use plotters::prelude::*;
 use std::path::Path;
 
+/// Why a picture was not drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PictureError {
+    /// Nothing to draw, or a request that cannot be met (a 3D flow for a 2D picture, too small a
+    /// size, a window off the mesh, ...).
+    #[error("{0}")]
+    Input(String),
+    /// The drawing backend failed (a file it could not create, a font).
+    #[error("drawing: {0}")]
+    Draw(String),
+    /// The finished picture could not be moved to its name.
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+}
+
 /// The viridis colour map at `s` in [0, 1] (piecewise linear through 5 control colours).
 pub fn viridis(s: f64) -> RGBColor {
     const C: [(f64, f64, f64); 5] = [(68.0, 1.0, 84.0), (59.0, 82.0, 139.0), (33.0, 145.0, 140.0), (94.0, 201.0, 98.0), (253.0, 231.0, 37.0)];
@@ -46,9 +61,9 @@ pub struct SpeedField {
 
 impl SpeedField {
     /// The speed of the flow solution `x` of `disc` (2D).
-    pub fn of_flow<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Result<Self, String> {
+    pub fn of_flow<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> Result<Self, PictureError> {
         if D != 2 {
-            return Err(format!("speed pictures are drawn of 2D flows, not {D}D"));
+            return Err(PictureError::Input(format!("speed pictures are drawn of 2D flows, not {D}D")));
         }
         let vf = &disc.velocity_field();
         let nodes = disc.velocity_nodes.iter().map(|p| [p[0], p[1]]).collect();
@@ -59,16 +74,16 @@ impl SpeedField {
 
     /// The speed of a fluid grid as `fdfsi run` writes it (6-node triangles, point data
     /// `velocity`).
-    pub fn of_grid(grid: &UnstructuredGrid) -> Result<Self, String> {
-        let velocity = grid.point_array("velocity").ok_or("the grid has no point data 'velocity'")?;
+    pub fn of_grid(grid: &UnstructuredGrid) -> Result<Self, PictureError> {
+        let velocity = grid.point_array("velocity").ok_or_else(|| PictureError::Input("the grid has no point data 'velocity'".into()))?;
         if velocity.components != 3 || velocity.values.len() != 3 * grid.num_points() {
-            return Err(format!("'velocity' has {} components for {} points", velocity.components, grid.num_points()));
+            return Err(PictureError::Input(format!("'velocity' has {} components for {} points", velocity.components, grid.num_points())));
         }
         let mut triangles = Vec::with_capacity(grid.num_cells());
         for c in 0..grid.num_cells() {
             match (grid.cell_types[c], grid.cell(c)) {
                 (VtkCellType::QuadraticTriangle, nodes) => triangles.push(std::array::from_fn(|k| nodes[k])),
-                (other, _) => return Err(format!("cell {c} is a {other:?}, not a 6-node triangle (a 2D fluid grid)")),
+                (other, _) => return Err(PictureError::Input(format!("cell {c} is a {other:?}, not a 6-node triangle (a 2D fluid grid)"))),
             }
         }
         let v = &velocity.values;
@@ -91,12 +106,12 @@ impl SpeedField {
         slice: &Slice,
         [lo, hi]: [[f64; 2]; 2],
         [m, n]: [usize; 2],
-    ) -> Result<Self, String> {
+    ) -> Result<Self, PictureError> {
         if D != 3 {
-            return Err(format!("slices are drawn of 3D flows, not {D}D"));
+            return Err(PictureError::Input(format!("slices are drawn of 3D flows, not {D}D")));
         }
         if m == 0 || n == 0 {
-            return Err(format!("a slice needs at least one cell across and up, got {m} x {n}"));
+            return Err(PictureError::Input(format!("a slice needs at least one cell across and up, got {m} x {n}")));
         }
         let (nu, nv) = (2 * m + 1, 2 * n + 1);
         let node = |i: usize, j: usize| j * nu + i;
@@ -114,7 +129,7 @@ impl SpeedField {
             .collect();
         let vf = disc.velocity_field();
         let velocity = fdfsi_fem::adapt::transfer::transfer_p2plus_or(&disc.mesh, &vf.nodes, &x[vf.range()], &points, 0.0, |_, _| Ok([f64::NAN; D]))
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| PictureError::Input(e.to_string()))?;
         let speed = velocity.chunks_exact(D).map(|v| v.iter().map(|c| c * c).sum::<f64>().sqrt()).collect();
         let mut triangles = Vec::with_capacity(2 * m * n);
         for j in (0..nv - 1).step_by(2) {
@@ -252,20 +267,20 @@ impl Layout {
     /// The layout of a picture `width` pixels wide of `window` (clipped to the mesh's `bounds`;
     /// default the whole mesh), at the model's aspect ratio, widened across to
     /// [`MIN_PLOT_HEIGHT`].
-    fn new((lo, hi): ([f64; 2], [f64; 2]), window: Option<[[f64; 2]; 2]>, width: u32) -> Result<Self, String> {
+    fn new((lo, hi): ([f64; 2], [f64; 2]), window: Option<[[f64; 2]; 2]>, width: u32) -> Result<Self, PictureError> {
         let (mut lo, mut hi) = (lo, hi);
         if let Some([a, b]) = window {
             (lo, hi) = ([a[0].max(lo[0]), a[1].max(lo[1])], [b[0].min(hi[0]), b[1].min(hi[1])]);
             if !(hi[0] > lo[0] && hi[1] > lo[1]) {
-                return Err(format!("the picture window {window:?} does not overlap the mesh"));
+                return Err(PictureError::Input(format!("the picture window {window:?} does not overlap the mesh")));
             }
         }
         let least = COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN + 100;
         if width < least {
-            return Err(format!("a speed picture {width} pixels wide is too narrow: at least {least}"));
+            return Err(PictureError::Input(format!("a speed picture {width} pixels wide is too narrow: at least {least}")));
         }
         if !(lo.iter().chain(&hi).all(|v| v.is_finite()) && hi[0] > lo[0] && hi[1] > lo[1]) {
-            return Err(format!("nothing to draw: the mesh spans {lo:?} to {hi:?}"));
+            return Err(PictureError::Input(format!("nothing to draw: the mesh spans {lo:?} to {hi:?}")));
         }
         let plot_w = width - (COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN);
         let mut plot_h = (plot_w as f64 * (hi[1] - lo[1]) / (hi[0] - lo[0])).round();
@@ -290,7 +305,7 @@ pub fn write_speed_png<const D: usize>(
     path: &Path,
     width: u32,
     picture: &SpeedPicture,
-) -> Result<(), String> {
+) -> Result<(), PictureError> {
     let field = SpeedField::of_flow(disc, x)?;
     let layout = Layout::new(field.bounds(), picture.window, width)?;
     write_field_png(&field, &layout, path, width, picture)
@@ -307,9 +322,9 @@ pub fn write_slice_png<const D: usize>(
     path: &Path,
     width: u32,
     picture: &SpeedPicture,
-) -> Result<(), String> {
+) -> Result<(), PictureError> {
     if D != 3 {
-        return Err(format!("slices are drawn of 3D flows, not {D}D"));
+        return Err(PictureError::Input(format!("slices are drawn of 3D flows, not {D}D")));
     }
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
     let lift = |p: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
@@ -322,16 +337,16 @@ pub fn write_slice_png<const D: usize>(
 }
 
 /// Writes `field` drawn with `layout` (see [`write_speed_png`]).
-fn write_field_png(field: &SpeedField, layout: &Layout, path: &Path, width: u32, picture: &SpeedPicture) -> Result<(), String> {
+fn write_field_png(field: &SpeedField, layout: &Layout, path: &Path, width: u32, picture: &SpeedPicture) -> Result<(), PictureError> {
     let smax = field.max_speed_in(layout.lo, layout.hi);
     // Drawn under a temporary name and renamed, so a crash never leaves a half-written picture.
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (width, layout.height)).into_drawing_area();
         draw_speed(&root, field, picture, layout, smax)?;
-        root.present().map_err(|e| e.to_string())?;
+        root.present().map_err(|e| PictureError::Draw(e.to_string()))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+    std::fs::rename(&tmp, path).map_err(|source| PictureError::Io { path: path.display().to_string(), source })
 }
 
 /// One frame of an animation ([`write_speed_gif`]).
@@ -345,19 +360,19 @@ pub struct Frame {
 /// frame drawn as [`write_speed_png`] draws it, all in the window of the first frame (default
 /// the first frame's mesh) and on one colour scale, from 0 to the largest speed in that window
 /// over all frames.
-pub fn write_speed_gif(frames: &[Frame], path: &Path, width: u32, delay_ms: u32) -> Result<(), String> {
-    let first = frames.first().ok_or("no frames to animate")?;
+pub fn write_speed_gif(frames: &[Frame], path: &Path, width: u32, delay_ms: u32) -> Result<(), PictureError> {
+    let first = frames.first().ok_or_else(|| PictureError::Input("no frames to animate".into()))?;
     let layout = Layout::new(first.field.bounds(), first.picture.window, width)?;
     let smax = frames.iter().map(|f| f.field.max_speed_in(layout.lo, layout.hi)).fold(f64::MIN_POSITIVE, f64::max);
     let tmp = path.with_extension("tmp.gif");
     {
-        let root = BitMapBackend::gif(&tmp, (width, layout.height), delay_ms).map_err(|e| e.to_string())?.into_drawing_area();
+        let root = BitMapBackend::gif(&tmp, (width, layout.height), delay_ms).map_err(|e| PictureError::Draw(e.to_string()))?.into_drawing_area();
         for frame in frames {
             draw_speed(&root, &frame.field, &frame.picture, &layout, smax)?;
-            root.present().map_err(|e| e.to_string())?;
+            root.present().map_err(|e| PictureError::Draw(e.to_string()))?;
         }
     }
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+    std::fs::rename(&tmp, path).map_err(|source| PictureError::Io { path: path.display().to_string(), source })
 }
 
 /// Draws a speed picture (see [`write_speed_png`]) onto `root`, colours scaled to `smax`.
@@ -367,10 +382,10 @@ fn draw_speed<DB: DrawingBackend>(
     picture: &SpeedPicture,
     layout: &Layout,
     smax: f64,
-) -> Result<(), String> {
+) -> Result<(), PictureError> {
     super::plot::register_font();
     let font = super::plot::FAMILY;
-    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let err = |e: &dyn std::fmt::Display| PictureError::Draw(e.to_string());
     let (lo, hi) = (layout.lo, layout.hi);
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (width, _) = root.dim_in_pixel();
@@ -431,8 +446,8 @@ fn draw_colour_bar<DB: DrawingBackend>(
     plot_h: u32,
     top: u32,
     label: &str,
-) -> Result<(), String> {
-    let err = |e: &dyn std::fmt::Display| e.to_string();
+) -> Result<(), PictureError> {
+    let err = |e: &dyn std::fmt::Display| PictureError::Draw(e.to_string());
     let font = super::plot::FAMILY;
     let (_, h) = area.dim_in_pixel();
     let bottom = h.saturating_sub(top + plot_h);
@@ -468,13 +483,13 @@ pub const GAMMA_F_COLOUR: RGBColor = RGBColor(214, 39, 40);
 /// in model coordinates: left, seen along the z axis (the x-y plane at one scale, the two
 /// non-conforming triangulations over each other); right, seen from the side, with
 /// `r = sqrt(x^2 + y^2)` across and z up, z stretched to fill the panel (the shape of the bulge).
-pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], gamma_f: &[[[f64; 3]; 3]], size: u32) -> Result<(), String> {
+pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], gamma_f: &[[[f64; 3]; 3]], size: u32) -> Result<(), PictureError> {
     let all = || gamma_s.iter().chain(gamma_f).flatten();
     if all().next().is_none() || all().flatten().any(|v| !v.is_finite()) {
-        return Err("no surface to draw, or a point that is not finite".into());
+        return Err(PictureError::Input("no surface to draw, or a point that is not finite".into()));
     }
     if size < 200 {
-        return Err(format!("a surface picture {size} pixels square is too small: at least 200"));
+        return Err(PictureError::Input(format!("a surface picture {size} pixels square is too small: at least 200")));
     }
     let fold = |f: &dyn Fn(&[f64; 3]) -> f64| all().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(f(p)), hi.max(f(p))));
     let r = |p: &[f64; 3]| p[0].hypot(p[1]);
@@ -489,7 +504,7 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
     let (rr, z) = (pad((rr.0.min(0.0), rr.1)), pad(z));
     super::plot::register_font();
     let font = super::plot::FAMILY;
-    let err = |e: &dyn std::fmt::Display| e.to_string();
+    let err = |e: &dyn std::fmt::Display| PictureError::Draw(e.to_string());
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (2 * size, size + CAPTION)).into_drawing_area();
@@ -536,7 +551,7 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
         }
         root.present().map_err(|e| err(&e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+    std::fs::rename(&tmp, path).map_err(|source| PictureError::Io { path: path.display().to_string(), source })
 }
 
 #[cfg(test)]

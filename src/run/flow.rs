@@ -167,7 +167,7 @@ impl<const D: usize> RunOutputs<FlowStepper<'_, D>> for FlowOutputs<'_, D> {
             let picture = crate::io::picture::SpeedPicture { title, axis_labels: Some(plane.axis_labels()), ..Default::default() };
             crate::io::picture::write_slice_png(s.disc, &s.x, &plane, &png, 1600, &picture)
         };
-        written.map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) })?;
+        written.map_err(|source| OutputError::Picture { path: png.display().to_string(), source })?;
         write_profiles(self.case, s.disc, self.problem, &s.x, out_dir, obs)
     }
 }

@@ -245,7 +245,7 @@ fn write_speed_picture<const D: usize>(
         };
         write_slice_png(flow, x, &plane, &png, 1600, &picture)
     };
-    written.map_err(|message| OutputError::Io { path: png.display().to_string(), source: std::io::Error::other(message) }.into())
+    written.map_err(|source| OutputError::Picture { path: png.display().to_string(), source }.into())
 }
 
 /// The nodes around a 2D cell's boundary in order: those of a 9-node quadrilateral
@@ -275,5 +275,6 @@ fn write_surfaces_picture<const D: usize>(st: &FsiStep<D>, k: usize, out_dir: &P
     let io = |e: std::io::Error| RunError::from(OutputError::Io { path: png.display().to_string(), source: e });
     std::fs::create_dir_all(&dir).map_err(io)?;
     let title = format!("gamma_s (blue) and gamma_f (red) at step {k}, t = {:.4}", st.report.time);
-    crate::io::picture::write_surfaces_png(&png, &title, &gamma_s, &gamma_f, 700).map_err(|m| io(std::io::Error::other(m)))
+    crate::io::picture::write_surfaces_png(&png, &title, &gamma_s, &gamma_f, 700)
+        .map_err(|source| OutputError::Picture { path: png.display().to_string(), source }.into())
 }
