@@ -41,6 +41,16 @@ fn tutorial_meshes_have_the_groups_their_geo_files_name() {
     }
 }
 
+/// What the README's tutorial says `fdfsi check tutorial/leaflet.toml` reports.
+#[test]
+fn tutorial_case_checks_as_the_readme_says() {
+    let case = Case::read(&tutorial().join("leaflet.toml")).unwrap();
+    let report = fdfsi::run::check_case(&case, "tutorial/leaflet.toml", &tutorial()).unwrap();
+    for said in ["8006 cells", "on 20 cells", "total 73529", "40 time steps"] {
+        assert!(report.contains(said), "`fdfsi check` does not say {said:?}: {report}");
+    }
+}
+
 #[test]
 fn tutorial_case_runs_as_fsi() {
     let mut case = Case::read(&tutorial().join("leaflet.toml")).unwrap();

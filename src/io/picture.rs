@@ -19,9 +19,12 @@ pub enum PictureError {
     /// The drawing backend failed (a file it could not create, a font).
     #[error("drawing: {0}")]
     Draw(String),
+    /// The velocity could not be evaluated on a slice's points.
+    #[error("sampling the slice: {0}")]
+    Transfer(#[from] fdfsi_fem::adapt::AdaptError),
     /// The finished picture could not be moved to its name.
-    #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
 }
 
 /// The viridis colour map at `s` in [0, 1] (piecewise linear through 5 control colours).
@@ -128,8 +131,7 @@ impl SpeedField {
             })
             .collect();
         let vf = disc.velocity_field();
-        let velocity = fdfsi_fem::adapt::transfer::transfer_p2plus_or(&disc.mesh, &vf.nodes, &x[vf.range()], &points, 0.0, |_, _| Ok([f64::NAN; D]))
-            .map_err(|e| PictureError::Input(e.to_string()))?;
+        let velocity = fdfsi_fem::adapt::transfer::transfer_p2plus_or(&disc.mesh, &vf.nodes, &x[vf.range()], &points, 0.0, |_, _| Ok([f64::NAN; D]))?;
         let speed = velocity.chunks_exact(D).map(|v| v.iter().map(|c| c * c).sum::<f64>().sqrt()).collect();
         let mut triangles = Vec::with_capacity(2 * m * n);
         for j in (0..nv - 1).step_by(2) {
@@ -155,8 +157,17 @@ impl SpeedField {
     }
 }
 
+/// The names of the coordinate axes.
+const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
+
+/// A point of 2 or 3 coordinates as 3 (the missing one 0).
+pub fn lift<const D: usize>(p: &[f64; D]) -> [f64; 3] {
+    std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })
+}
+
 /// A plane through a 3D model, normal to the coordinate axis `normal` at `normal`'s coordinate
-/// `at`, drawn with the axis `axes[0]` across and `axes[1]` up.
+/// `at`, drawn with the axis `axes[0]` across and `axes[1]` up (a projection: seen from the
+/// side of the normal that makes `axes` right-handed or from the other, as the axes fall).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Slice {
     pub normal: usize,
@@ -168,13 +179,28 @@ impl Slice {
     /// The plane normal to the axis `normal` at `at` through a model whose box is `[lo, hi]`, the
     /// longer of its other two sides across.
     pub fn new(normal: usize, at: f64, lo: [f64; 3], hi: [f64; 3]) -> Self {
+        assert!(normal < 3, "a plane normal to axis {normal}: there are 3");
         let [a, b] = match normal {
             0 => [1, 2],
             1 => [0, 2],
             _ => [0, 1],
         };
         let axes = if hi[b] - lo[b] > hi[a] - lo[a] { [b, a] } else { [a, b] };
-        Slice { normal: normal.min(2), at, axes }
+        Slice { normal, at, axes }
+    }
+
+    /// The plane of a 3D run's `speed.png` through a model whose fluid mesh has the box `fluid`:
+    /// normal to `normal` (default [`Self::thinnest_axis`] of `fluid`) at `at` (default the middle
+    /// of the box `centre` along the normal: the solid's, or the fluid mesh's own).
+    pub fn through(normal: Option<usize>, at: Option<f64>, fluid: ([f64; 3], [f64; 3]), centre: ([f64; 3], [f64; 3])) -> Self {
+        let normal = normal.unwrap_or_else(|| Self::thinnest_axis(fluid.0, fluid.1));
+        let at = at.unwrap_or(0.5 * (centre.0[normal] + centre.1[normal]));
+        Self::new(normal, at, fluid.0, fluid.1)
+    }
+
+    /// `the plane y = 0.5000`.
+    pub fn describe(&self) -> String {
+        format!("the plane {} = {:.4}", AXIS_NAMES[self.normal], self.at)
     }
 
     /// The axis along which the box `[lo, hi]` is thinnest (of equal ones the last).
@@ -184,7 +210,7 @@ impl Slice {
 
     /// The names of the axes across and up.
     pub fn axis_labels(&self) -> [String; 2] {
-        self.axes.map(|d| ["x", "y", "z"][d].to_string())
+        self.axes.map(|d| AXIS_NAMES[d].to_string())
     }
 
     /// The point of the plane at the plane coordinates `q`.
@@ -259,6 +285,7 @@ const CAPTION: u32 = 40;
 struct Layout {
     lo: [f64; 2],
     hi: [f64; 2],
+    plot_w: u32,
     plot_h: u32,
     height: u32,
 }
@@ -290,7 +317,7 @@ impl Layout {
             (lo[1], hi[1], plot_h) = (mid - half, mid + half, MIN_PLOT_HEIGHT as f64);
         }
         let plot_h = plot_h.min(4.0 * plot_w as f64) as u32;
-        Ok(Layout { lo, hi, plot_h, height: plot_h + X_LABELS + CAPTION + 2 * MARGIN })
+        Ok(Layout { lo, hi, plot_w, plot_h, height: plot_h + X_LABELS + CAPTION + 2 * MARGIN })
     }
 }
 
@@ -327,12 +354,13 @@ pub fn write_slice_png<const D: usize>(
         return Err(PictureError::Input(format!("slices are drawn of 3D flows, not {D}D")));
     }
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
-    let lift = |p: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
-    let [a, b] = slice.project_box(lift(lo), lift(hi));
+    let [a, b] = slice.project_box(lift(&lo), lift(&hi));
     let layout = Layout::new((a, b), picture.window, width)?;
-    let plot_w = width - (COLOUR_BAR_AREA + Y_LABELS + 2 * MARGIN);
-    let cells = [(plot_w / 4).max(1) as usize, (layout.plot_h / 4).max(1) as usize];
+    let cells = [(layout.plot_w / 4).max(1) as usize, (layout.plot_h / 4).max(1) as usize];
     let field = SpeedField::of_slice(disc, x, slice, [layout.lo, layout.hi], cells)?;
+    if !field.speed.iter().any(|s| s.is_finite()) {
+        return Err(PictureError::Input(format!("{} misses the fluid mesh (or the flow is not finite there)", slice.describe())));
+    }
     write_field_png(&field, &layout, path, width, picture)
 }
 
@@ -346,7 +374,7 @@ fn write_field_png(field: &SpeedField, layout: &Layout, path: &Path, width: u32,
         draw_speed(&root, field, picture, layout, smax)?;
         root.present().map_err(|e| PictureError::Draw(e.to_string()))?;
     }
-    std::fs::rename(&tmp, path).map_err(|source| PictureError::Io { path: path.display().to_string(), source })
+    Ok(std::fs::rename(&tmp, path)?)
 }
 
 /// One frame of an animation ([`write_speed_gif`]).
@@ -372,7 +400,7 @@ pub fn write_speed_gif(frames: &[Frame], path: &Path, width: u32, delay_ms: u32)
             root.present().map_err(|e| PictureError::Draw(e.to_string()))?;
         }
     }
-    std::fs::rename(&tmp, path).map_err(|source| PictureError::Io { path: path.display().to_string(), source })
+    Ok(std::fs::rename(&tmp, path)?)
 }
 
 /// Draws a speed picture (see [`write_speed_png`]) onto `root`, colours scaled to `smax`.
@@ -420,7 +448,7 @@ fn draw_speed<DB: DrawingBackend>(
         for t in SUB {
             let s = t.iter().map(|&k| field.speed[cn[k]]).sum::<f64>() / 3.0 / smax;
             if !s.is_finite() {
-                continue; // a point outside the fluid (a slice's)
+                continue; // a slice's point outside the fluid, or a value not finite: left blank
             }
             let mut pts: Vec<(f64, f64)> = t.iter().map(|&k| xy(field.nodes[cn[k]])).collect();
             plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(|e| err(&e))?;
@@ -498,7 +526,7 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
         let m = 0.05 * (hi - lo).max(1e-9 * (1.0 + hi.abs()));
         (lo - m, hi + m)
     };
-    // The left panel at one scale: its plot area is about square (equal label areas).
+    // The left panel at one scale: its plot area is about square.
     let span = (x.1 - x.0).max(y.1 - y.0);
     let (x, y) = (pad((x.0, x.0 + span)), pad((y.0, y.0 + span)));
     let (rr, z) = (pad((rr.0.min(0.0), rr.1)), pad(z));
@@ -551,7 +579,7 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
         }
         root.present().map_err(|e| err(&e))?;
     }
-    std::fs::rename(&tmp, path).map_err(|source| PictureError::Io { path: path.display().to_string(), source })
+    Ok(std::fs::rename(&tmp, path)?)
 }
 
 #[cfg(test)]
@@ -636,6 +664,21 @@ mod tests {
                 assert!((0..2).all(|d| (0.5 * (pa[d] + pb[d]) - pm[d]).abs() < 1e-12), "triangle {t:?}");
             }
         }
+        // The picture; a plane that misses the mesh has nothing to draw.
+        let dir = std::env::temp_dir().join(format!("fdfsi-slice-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let png = dir.join("speed.png");
+        write_slice_png(&disc, &x, &plane, &png, 800, &SpeedPicture::default()).unwrap();
+        assert!(std::fs::read(&png).unwrap().starts_with(b"\x89PNG"));
+        let away = Slice::new(1, 3.0, [0.0; 3], [1.0, 1.0, 2.0]);
+        let err = write_slice_png(&disc, &x, &away, &dir.join("away.png"), 800, &SpeedPicture::default()).unwrap_err();
+        assert!(err.to_string().contains("the plane y = 3.0000 misses the fluid mesh"), "{err}");
+        // The coupling surfaces: drawn, and refused too small.
+        let t = [[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.1]]];
+        write_surfaces_png(&dir.join("gamma.png"), "t = 0", &t, &t, 300).unwrap();
+        assert!(dir.join("gamma.png").exists());
+        assert!(matches!(write_surfaces_png(&dir.join("small.png"), "", &t, &t, 100), Err(PictureError::Input(_))));
+        std::fs::remove_dir_all(&dir).ok();
         // A 2D flow has no slice.
         let square = fdfsi_fem::generate::rectangle_triangles(0.0, 1.0, 0.0, 1.0, 1, 1, fdfsi_fem::generate::DiagonalPattern::Right);
         let flat = FlowDiscretization::build(square, Formulation::Plane).unwrap();

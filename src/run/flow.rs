@@ -12,6 +12,7 @@ use crate::case::Case;
 use crate::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::fluid_grid;
+use crate::io::picture::PictureError;
 use crate::io::{write_atomic, OutputError};
 use crate::post::quantities::{evaluate_all, StepState};
 use crate::setup::{flow_problem, fluid_mesh};
@@ -149,27 +150,29 @@ impl<const D: usize> RunOutputs<FlowStepper<'_, D>> for FlowOutputs<'_, D> {
 
     fn finish(&mut self, s: &FlowStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         let png = out_dir.join("speed.png");
-        let time = self.case.time.as_ref().map(|t| format!(" at t = {:.4}", t.end)).unwrap_or_default();
-        let written = if D == 2 {
-            let picture = crate::io::picture::SpeedPicture { title: format!("speed |u|{time}"), ..Default::default() };
-            crate::io::picture::write_speed_png(s.disc, &s.x, &png, 1600, &picture)
-        } else {
-            // The plane of [output.slice], else through the middle of the fluid mesh.
-            use crate::io::picture::Slice;
-            let (lo, hi) = fdfsi_fem::mesh::bounding_box(&s.disc.mesh.points);
-            let lift = |p: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
-            let (lo, hi) = (lift(lo), lift(hi));
-            let spec = self.case.output.slice;
-            let normal = spec.map_or_else(|| Slice::thinnest_axis(lo, hi), |s| s.normal.index());
-            let at = spec.and_then(|s| s.at).unwrap_or(0.5 * (lo[normal] + hi[normal]));
-            let plane = Slice::new(normal, at, lo, hi);
-            let title = format!("speed |u| on the plane {} = {at:.4}{time}", ["x", "y", "z"][normal]);
-            let picture = crate::io::picture::SpeedPicture { title, axis_labels: Some(plane.axis_labels()), ..Default::default() };
-            crate::io::picture::write_slice_png(s.disc, &s.x, &plane, &png, 1600, &picture)
-        };
-        written.map_err(|source| OutputError::Picture { path: png.display().to_string(), source })?;
+        // A picture that cannot be drawn is reported, not an error of the run (as the plots).
+        if let Err(e) = write_speed_picture(self.case, s, &png) {
+            obs.log(&format!("{} not drawn: {e}", png.display()));
+        }
         write_profiles(self.case, s.disc, self.problem, &s.x, out_dir, obs)
     }
+}
+
+/// `png` (`speed.png`) of the last step: the whole 2D flow, or a 3D flow on the plane of
+/// `[output.slice]`, else through the middle of the fluid mesh (see [`crate::case::SliceSpec`]).
+fn write_speed_picture<const D: usize>(case: &Case, s: &FlowStepper<'_, D>, png: &Path) -> Result<(), PictureError> {
+    use crate::io::picture::{lift, write_slice_png, write_speed_png, Slice, SpeedPicture};
+    let time = case.time.as_ref().map(|t| format!(" at t = {:.4}", t.end)).unwrap_or_default();
+    if D == 2 {
+        return write_speed_png(s.disc, &s.x, png, 1600, &SpeedPicture { title: format!("speed |u|{time}"), ..Default::default() });
+    }
+    let (lo, hi) = fdfsi_fem::mesh::bounding_box(&s.disc.mesh.points);
+    let fluid = (lift(&lo), lift(&hi));
+    let spec = case.output.slice;
+    let plane = Slice::through(spec.map(|s| s.normal.index()), spec.and_then(|s| s.at), fluid, fluid);
+    let picture =
+        SpeedPicture { title: format!("speed |u| on {}{time}", plane.describe()), axis_labels: Some(plane.axis_labels()), ..Default::default() };
+    write_slice_png(s.disc, &s.x, &plane, png, 1600, &picture)
 }
 
 /// Writes the case's `[[output.profile]]`s of the flow `x` to `out_dir/profiles/NAME.csv`.

@@ -23,6 +23,7 @@ use crate::case::{Case, RunKind};
 use crate::discretize::fsi::{FsiModel, FsiState, FsiStep};
 use crate::io::checkpoint::{Checkpoint, RestartState};
 use crate::io::fields::{fluid_grid, gamma_f_grid, solid_grid};
+use crate::io::picture::PictureError;
 use crate::io::OutputError;
 use crate::post::quantities::{evaluate_all, StepState};
 use crate::setup::{build_mesh, displacement_probes, fsi_model, SetupError};
@@ -189,29 +190,33 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         let st = last_step(s);
         write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
-        write_speed_picture(self.model, st, &s.state.solid_x, s.state.time, self.case.output.slice, out_dir)
+        let png = out_dir.join("speed.png");
+        // A picture that cannot be drawn is reported, not an error of the run (as the plots).
+        if let Err(e) = write_speed_picture(self.model, st, &s.state.solid_x, s.state.time, self.case.output.slice, &png) {
+            obs.log(&format!("{} not drawn: {e}", png.display()));
+        }
+        Ok(())
     }
 }
 
-/// `speed.png` of the last step around the solid (its bounding box widened by twice its size on
-/// each side, clipped to the fluid mesh), with the solid in grey and gamma_f in white: in 2D the
-/// plane of the model, in 3D the plane `slice` (default: see [`crate::case::SliceSpec`]) with
-/// what it cuts from the solid's cells and gamma_f.
+/// `png` (`speed.png`) of the last step around the solid (its bounding box widened by twice its
+/// size on each side, clipped to the fluid mesh), with the solid in grey and gamma_f in white: in
+/// 2D the plane of the model, in 3D the plane `slice` (default: see [`crate::case::SliceSpec`])
+/// with what it cuts from the solid's cells and gamma_f.
 fn write_speed_picture<const D: usize>(
     model: &FsiModel<D>,
     st: &FsiStep<D>,
     solid_x: &[f64],
     time: f64,
     slice: Option<crate::case::SliceSpec>,
-    out_dir: &Path,
-) -> Result<(), RunError> {
-    use crate::io::picture::{window_around, write_slice_png, write_speed_png, Slice, SpeedPicture};
+    png: &Path,
+) -> Result<(), PictureError> {
+    use crate::io::picture::{lift, window_around, write_slice_png, write_speed_png, Slice, SpeedPicture};
     let flow = &st.disc.flow;
     let solid = model.current_solid_mesh(solid_x);
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&solid.points);
     let x = &st.x[..st.disc.fluid_dofs()];
-    let png = out_dir.join("speed.png");
-    let written = if D == 2 {
+    if D == 2 {
         let xy = |p: &[f64; D]| [p[0], p[1]];
         let outlines = st.disc.adapted.gamma_f.iter().map(|g| g.vertices.iter().map(|&v| xy(&flow.mesh.points[v])).collect()).collect();
         let picture = SpeedPicture {
@@ -221,13 +226,10 @@ fn write_speed_picture<const D: usize>(
             outlines,
             axis_labels: None,
         };
-        write_speed_png(flow, x, &png, 1600, &picture)
+        write_speed_png(flow, x, png, 1600, &picture)
     } else {
-        let lift = |p: &[f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
         let (flo, fhi) = fdfsi_fem::mesh::bounding_box(&flow.mesh.points);
-        let normal = slice.map_or_else(|| Slice::thinnest_axis(lift(&flo), lift(&fhi)), |s| s.normal.index());
-        let at = slice.and_then(|s| s.at).unwrap_or(0.5 * (lo[normal] + hi[normal]));
-        let plane = Slice::new(normal, at, lift(&flo), lift(&fhi));
+        let plane = Slice::through(slice.map(|s| s.normal.index()), slice.and_then(|s| s.at), (lift(&flo), lift(&fhi)), (lift(&lo), lift(&hi)));
         let [a, b] = plane.project_box(lift(&lo), lift(&hi));
         let edges = solid.cell_type.edges();
         let cuts_of_solid =
@@ -235,17 +237,23 @@ fn write_speed_picture<const D: usize>(
         let tri = fdfsi_fem::element::ReferenceCell::Triangle.edges();
         let cuts_of_gamma_f =
             st.disc.adapted.gamma_f.iter().map(|g| plane.cut(&g.vertices.iter().map(|&v| lift(&flow.mesh.points[v])).collect::<Vec<_>>(), tri));
-        let [across, up] = plane.axis_labels();
         let picture = SpeedPicture {
-            title: format!("speed |u| on the plane {} = {at:.4} at t = {time:.4}", ["x", "y", "z"][normal]),
+            title: format!("speed |u| on {} at t = {time:.4}", plane.describe()),
             window: Some(window_around(a, b)),
             solid: cuts_of_solid.filter(|p| p.len() >= 3).collect(),
-            outlines: cuts_of_gamma_f.filter(|p| p.len() >= 2).collect(),
-            axis_labels: Some([across, up]),
+            outlines: cuts_of_gamma_f.filter(|p| p.len() >= 2).map(closed).collect(),
+            axis_labels: Some(plane.axis_labels()),
         };
-        write_slice_png(flow, x, &plane, &png, 1600, &picture)
-    };
-    written.map_err(|source| OutputError::Picture { path: png.display().to_string(), source }.into())
+        write_slice_png(flow, x, &plane, png, 1600, &picture)
+    }
+}
+
+/// A polyline of three or more points closed (a facet in the plane of a slice), else as it is.
+fn closed(mut line: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+    if line.len() >= 3 {
+        line.push(line[0]);
+    }
+    line
 }
 
 /// The nodes around a 2D cell's boundary in order: those of a 9-node quadrilateral
@@ -265,7 +273,7 @@ fn write_surfaces_picture<const D: usize>(st: &FsiStep<D>, k: usize, out_dir: &P
     if D != 3 {
         return Ok(());
     }
-    let lift = |p: &[f64; D]| -> [f64; 3] { std::array::from_fn(|d| p[d]) };
+    use crate::io::picture::lift;
     let surface = &st.disc.surface;
     let gamma_s: Vec<[[f64; 3]; 3]> = (0..surface.num_pieces()).map(|i| std::array::from_fn(|k| lift(&surface.corners(i)[k]))).collect();
     let points = &st.disc.flow.mesh.points;
