@@ -487,6 +487,7 @@ fn draw_colour_bar<DB: DrawingBackend>(
         .disable_x_axis()
         .y_desc(label)
         .y_labels(6)
+        .y_label_formatter(&|v| colour_bar_tick(*v, max))
         .label_style((font, 14))
         .axis_desc_style((font, 16))
         .draw()
@@ -499,6 +500,19 @@ fn draw_colour_bar<DB: DrawingBackend>(
         }))
         .map_err(|e| err(&e))?;
     Ok(())
+}
+
+/// The label of the tick `v` of a colour bar from 0 to `max`: two significant digits of `max`
+/// in fixed notation, or scientific notation below 1e-3 and from 1e5 on.
+fn colour_bar_tick(v: f64, max: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !(1e-3..1e5).contains(&max) {
+        return format!("{v:.1e}");
+    }
+    let decimals = (1.0 - max.log10().floor()).clamp(0.0, 4.0) as usize;
+    format!("{v:.decimals$}")
 }
 
 /// Colour of gamma_s (the solid's surface pieces) in [`write_surfaces_png`].
@@ -613,6 +627,12 @@ mod tests {
         // Missed.
         let away = Slice::new(2, 2.0, [0.0; 3], [1.0, 1.0, 4.0]);
         assert!(away.cut(&cube, ReferenceCell::Hexahedron.edges()).is_empty());
+    }
+
+    #[test]
+    fn colour_bar_ticks_show_two_significant_digits_of_the_range() {
+        assert_eq!([colour_bar_tick(0.2, 0.41), colour_bar_tick(1.5, 2.1), colour_bar_tick(100.0, 450.0)], ["0.20", "1.5", "100"]);
+        assert_eq!([colour_bar_tick(0.01, 0.04), colour_bar_tick(2e-4, 4e-4), colour_bar_tick(0.0, 4e-4)], ["0.010", "2.0e-4", "0"]);
     }
 
     #[test]
