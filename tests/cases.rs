@@ -434,7 +434,7 @@ const FSI2_3: [(&str, [f64; 4]); 2] = [("turek-hron-fsi2", [1.23e-3, 80.6e-3, 2.
 
 /// The whole of Turek-Hron FSI2 and FSI3 (about 4 hours each here): uy(A)'s amplitude within 5 %
 /// and frequency within 3 % of Turek & Hron's, the mean drag within 2 % (the issue's
-/// tolerances). NOT MET yet by the shipped cases on `turek-hron-fsi-0.msh` (session 16): FSI3's
+/// tolerances). NOT MET yet by the shipped cases on `turek-hron-fsi-0.msh` (sessions 16-17): FSI3's
 /// amplitude is 6.8 % low and its frequency 3.1 % above 5.3 Hz, FSI2's frequency 3.1 % low and its
 /// mean drag 2.3 % low (BENCHMARKS.md "Turek-Hron FSI2 and FSI3"); this test fails until the
 /// cases reach the tolerances, and is kept at them as the target. On the second mesh
