@@ -51,7 +51,13 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
     let t = Instant::now();
     let model = fsi_model(case, &fluid_mesh, &options.case_dir)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
-    let outputs = FsiOutputs { case, out_dir: &options.out_dir, model: &model, solid_probes: displacement_probes(case, &model.solid)? };
+    let outputs = FsiOutputs {
+        case,
+        out_dir: &options.out_dir,
+        model: &model,
+        solid_probes: displacement_probes(case, &model.solid)?,
+        pictures_not_drawn: Vec::new(),
+    };
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let mut start = Start::of(options, obs, t);
     start.timings.mesh = mesh_seconds;
@@ -119,6 +125,9 @@ struct FsiOutputs<'a, const D: usize> {
     model: &'a FsiModel<D>,
     /// Displacement probes: (name, solid node, component).
     solid_probes: Vec<(String, usize, usize)>,
+    /// Pictures of the coupling surfaces not drawn (3D), logged at the end: a picture that
+    /// cannot be drawn is not an error of the run.
+    pictures_not_drawn: Vec<String>,
 }
 
 /// The last (sub)step of an FSI stepper: there is one once a step is done.
@@ -145,7 +154,9 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
 
     fn write_fields(&mut self, s: &FsiStepper<'_, D>, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
         let (st, time) = (last_step(s), done.time);
-        write_surfaces_picture(st, done.step, self.out_dir)?;
+        if let Err(e) = write_surfaces_picture(st, done.step, self.out_dir) {
+            self.pictures_not_drawn.push(e.to_string());
+        }
         series.add(time, "fluid", &fluid_grid(&st.disc.flow, &st.x[..st.disc.fluid_dofs()])?)?;
         series.add(time, "solid", &solid_grid(&self.model.solid, self.model.problem.solid.material.as_ref(), &s.state.solid_x)?)?;
         series.add(time, "gamma_f", &gamma_f_grid(&st.disc, &st.x)?)?;
@@ -190,6 +201,9 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     fn finish(&mut self, s: &FsiStepper<'_, D>, out_dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
         let st = last_step(s);
         write_profiles(self.case, &st.disc.flow, &st.fluid_problem, &st.x[..st.disc.fluid_dofs()], out_dir, obs)?;
+        for failure in self.pictures_not_drawn.drain(..) {
+            obs.log(&format!("picture not drawn: {failure}"));
+        }
         let png = out_dir.join("speed.png");
         // A picture that cannot be drawn is reported, not an error of the run (as the plots).
         if let Err(e) = write_speed_picture(self.model, st, &s.state.solid_x, s.state.time, self.case.output.slice, &png) {
