@@ -27,6 +27,21 @@ pub enum PictureError {
     Io(#[from] std::io::Error),
 }
 
+/// A drawing backend's failure as a [`PictureError`].
+fn draw_failed(e: impl std::fmt::Display) -> PictureError {
+    PictureError::Draw(e.to_string())
+}
+
+/// Draws the axes of `chart` in model coordinates, without grid lines, named `across` and `up`.
+fn draw_axes<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>>,
+    across: &str,
+    up: &str,
+) -> Result<(), PictureError> {
+    let font = super::plot::FAMILY;
+    chart.configure_mesh().disable_mesh().x_desc(across).y_desc(up).label_style((font, 14)).axis_desc_style((font, 16)).draw().map_err(draw_failed)
+}
+
 /// The viridis colour map at `s` in [0, 1] (piecewise linear through 5 control colours).
 pub fn viridis(s: f64) -> RGBColor {
     const C: [(f64, f64, f64); 5] = [(68.0, 1.0, 84.0), (59.0, 82.0, 139.0), (33.0, 145.0, 140.0), (94.0, 201.0, 98.0), (253.0, 231.0, 37.0)];
@@ -372,7 +387,7 @@ fn write_field_png(field: &SpeedField, layout: &Layout, path: &Path, width: u32,
     {
         let root = BitMapBackend::new(&tmp, (width, layout.height)).into_drawing_area();
         draw_speed(&root, field, picture, layout, smax)?;
-        root.present().map_err(|e| PictureError::Draw(e.to_string()))?;
+        root.present().map_err(draw_failed)?;
     }
     Ok(std::fs::rename(&tmp, path)?)
 }
@@ -394,10 +409,10 @@ pub fn write_speed_gif(frames: &[Frame], path: &Path, width: u32, delay_ms: u32)
     let smax = frames.iter().map(|f| f.field.max_speed_in(layout.lo, layout.hi)).fold(f64::MIN_POSITIVE, f64::max);
     let tmp = path.with_extension("tmp.gif");
     {
-        let root = BitMapBackend::gif(&tmp, (width, layout.height), delay_ms).map_err(|e| PictureError::Draw(e.to_string()))?.into_drawing_area();
+        let root = BitMapBackend::gif(&tmp, (width, layout.height), delay_ms).map_err(draw_failed)?.into_drawing_area();
         for frame in frames {
             draw_speed(&root, &frame.field, &frame.picture, &layout, smax)?;
-            root.present().map_err(|e| PictureError::Draw(e.to_string()))?;
+            root.present().map_err(draw_failed)?;
         }
     }
     Ok(std::fs::rename(&tmp, path)?)
@@ -413,9 +428,8 @@ fn draw_speed<DB: DrawingBackend>(
 ) -> Result<(), PictureError> {
     super::plot::register_font();
     let font = super::plot::FAMILY;
-    let err = |e: &dyn std::fmt::Display| PictureError::Draw(e.to_string());
     let (lo, hi) = (layout.lo, layout.hi);
-    root.fill(&WHITE).map_err(|e| err(&e))?;
+    root.fill(&WHITE).map_err(draw_failed)?;
     let (width, _) = root.dim_in_pixel();
     let (main, bar) = root.split_horizontally(width - COLOUR_BAR_AREA);
     let mut chart = ChartBuilder::on(&main)
@@ -424,17 +438,9 @@ fn draw_speed<DB: DrawingBackend>(
         .x_label_area_size(X_LABELS)
         .y_label_area_size(Y_LABELS)
         .build_cartesian_2d(lo[0]..hi[0], lo[1]..hi[1])
-        .map_err(|e| err(&e))?;
+        .map_err(draw_failed)?;
     let [across, up] = picture.axis_labels.clone().unwrap_or_else(|| ["x".into(), "y".into()]);
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .x_desc(across)
-        .y_desc(up)
-        .label_style((font, 14))
-        .axis_desc_style((font, 16))
-        .draw()
-        .map_err(|e| err(&e))?;
+    draw_axes(&mut chart, &across, &up)?;
     // A cell is drawn when its box overlaps the view (plotters clips it to the plot area).
     let overlaps = |p: &[[f64; 2]]| (0..2).all(|d| p.iter().any(|q| q[d] >= lo[d]) && p.iter().any(|q| q[d] <= hi[d]));
     // Sub-triangles of a 6-node triangle (vertices 0-2, mid-edge nodes 3: 01, 4: 12, 5: 20).
@@ -451,17 +457,17 @@ fn draw_speed<DB: DrawingBackend>(
                 continue; // a slice's point outside the fluid, or a value not finite: left blank
             }
             let mut pts: Vec<(f64, f64)> = t.iter().map(|&k| xy(field.nodes[cn[k]])).collect();
-            plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(|e| err(&e))?;
+            plot.draw(&Polygon::new(pts.clone(), viridis(s).filled())).map_err(draw_failed)?;
             // The outline too: the fill alone leaves pixel gaps along some edges.
             pts.push(pts[0]);
-            plot.draw(&PathElement::new(pts, viridis(s).stroke_width(1))).map_err(|e| err(&e))?;
+            plot.draw(&PathElement::new(pts, viridis(s).stroke_width(1))).map_err(draw_failed)?;
         }
     }
     for polygon in &picture.solid {
-        plot.draw(&Polygon::new(polygon.iter().map(|&p| xy(p)).collect::<Vec<_>>(), SOLID_COLOUR.filled())).map_err(|e| err(&e))?;
+        plot.draw(&Polygon::new(polygon.iter().map(|&p| xy(p)).collect::<Vec<_>>(), SOLID_COLOUR.filled())).map_err(draw_failed)?;
     }
     for line in &picture.outlines {
-        plot.draw(&PathElement::new(line.iter().map(|&p| xy(p)).collect::<Vec<_>>(), WHITE.stroke_width(3))).map_err(|e| err(&e))?;
+        plot.draw(&PathElement::new(line.iter().map(|&p| xy(p)).collect::<Vec<_>>(), WHITE.stroke_width(3))).map_err(draw_failed)?;
     }
     draw_colour_bar(&bar, smax, layout.plot_h, MARGIN + CAPTION, "speed |u|")
 }
@@ -475,12 +481,11 @@ fn draw_colour_bar<DB: DrawingBackend>(
     top: u32,
     label: &str,
 ) -> Result<(), PictureError> {
-    let err = |e: &dyn std::fmt::Display| PictureError::Draw(e.to_string());
     let font = super::plot::FAMILY;
     let (_, h) = area.dim_in_pixel();
     let bottom = h.saturating_sub(top + plot_h);
     let area = area.margin(top, bottom, 16, 0);
-    let mut chart = ChartBuilder::on(&area).y_label_area_size(90).build_cartesian_2d(0.0..1.0, 0.0..max).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&area).y_label_area_size(90).build_cartesian_2d(0.0..1.0, 0.0..max).map_err(draw_failed)?;
     chart
         .configure_mesh()
         .disable_mesh()
@@ -491,14 +496,14 @@ fn draw_colour_bar<DB: DrawingBackend>(
         .label_style((font, 14))
         .axis_desc_style((font, 16))
         .draw()
-        .map_err(|e| err(&e))?;
+        .map_err(draw_failed)?;
     const SLICES: usize = 100;
     chart
         .draw_series((0..SLICES).map(|i| {
             let (a, b) = (i as f64 / SLICES as f64, (i + 1) as f64 / SLICES as f64);
             Rectangle::new([(0.0, a * max), (0.35, b * max)], viridis(0.5 * (a + b)).filled())
         }))
-        .map_err(|e| err(&e))?;
+        .map_err(draw_failed)?;
     Ok(())
 }
 
@@ -546,12 +551,11 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
     let (rr, z) = (pad((rr.0.min(0.0), rr.1)), pad(z));
     super::plot::register_font();
     let font = super::plot::FAMILY;
-    let err = |e: &dyn std::fmt::Display| PictureError::Draw(e.to_string());
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (2 * size, size + CAPTION)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let root = root.titled(title, (font, 20)).map_err(|e| err(&e))?;
+        root.fill(&WHITE).map_err(draw_failed)?;
+        let root = root.titled(title, (font, 20)).map_err(draw_failed)?;
         let (left, right) = root.split_horizontally(size);
         let panels =
             [(&left, "seen along z", x, y, ["x", "y"], 0usize), (&right, "seen from the side (z stretched)", rr, z, ["r = |(x, y)|", "z"], 1)];
@@ -562,21 +566,13 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
                 .x_label_area_size(X_LABELS)
                 .y_label_area_size(Y_LABELS)
                 .build_cartesian_2d(across.0..across.1, up.0..up.1)
-                .map_err(|e| err(&e))?;
-            chart
-                .configure_mesh()
-                .disable_mesh()
-                .x_desc(xd)
-                .y_desc(yd)
-                .label_style((font, 14))
-                .axis_desc_style((font, 16))
-                .draw()
-                .map_err(|e| err(&e))?;
+                .map_err(draw_failed)?;
+            draw_axes(&mut chart, xd, yd)?;
             let at = |p: &[f64; 3]| if view == 0 { (p[0], p[1]) } else { (r(p), p[2]) };
             for (tris, colour, name) in [(gamma_s, GAMMA_S_COLOUR, "gamma_s (solid surface)"), (gamma_f, GAMMA_F_COLOUR, "gamma_f (fluid facets)")] {
                 chart
                     .draw_series(tris.iter().map(|t| PathElement::new([0, 1, 2, 0].map(|k| at(&t[k])).to_vec(), colour.stroke_width(1))))
-                    .map_err(|e| err(&e))?
+                    .map_err(draw_failed)?
                     .label(name)
                     .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 20, py)], colour.stroke_width(2)));
             }
@@ -588,10 +584,10 @@ pub fn write_surfaces_png(path: &Path, title: &str, gamma_s: &[[[f64; 3]; 3]], g
                     .background_style(WHITE.mix(0.8))
                     .border_style(BLACK)
                     .draw()
-                    .map_err(|e| err(&e))?;
+                    .map_err(draw_failed)?;
             }
         }
-        root.present().map_err(|e| err(&e))?;
+        root.present().map_err(draw_failed)?;
     }
     Ok(std::fs::rename(&tmp, path)?)
 }
