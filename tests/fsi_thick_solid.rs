@@ -144,6 +144,24 @@ fn covered_fluid_removed_needs_gamma_f_to_enclose_the_solid() {
     assert!(message.contains("gamma_f does not enclose the solid"), "{message}");
 }
 
+/// Adapts `fluid` to `surface` with the covered cells removed and checks that gamma_f encloses
+/// the bar: the removal succeeds, removes cells, and gamma_f has gamma_s's length (chords of the
+/// curved bar: to 1e-4).
+fn assert_encloses(bg: &fdfsi::fem::adapt::Background<2>, surface: &fdfsi::fem::adapt::Surface<2>, label: &str) {
+    use fdfsi::fem::adapt::{adapt_with, remove_enclosed, AdaptOptions};
+    let adapted = remove_enclosed(adapt_with(bg, surface, &AdaptOptions::new(0.2)).unwrap()).unwrap_or_else(|e| panic!("{label}: {e}"));
+    let gamma_f = adapted.gamma_f_measure();
+    assert!((gamma_f - surface.measure()).abs() < 1e-4 * surface.measure(), "{label}: gamma_f {gamma_f} against gamma_s {}", surface.measure());
+    assert!(adapted.stats.removed_cells > 0, "{label}");
+}
+
+/// The original fluid mesh `meshes/NAME.msh`, prepared for adaptation.
+fn background(name: &str) -> fdfsi::fem::adapt::Background<2> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes").join(name);
+    let fdfsi::fem::gmsh::AnyMesh::D2(fluid) = fdfsi::fem::gmsh::read_msh(&path).unwrap() else { panic!("{name}: a 2D mesh") };
+    fdfsi::fem::adapt::Background::new(&fluid).unwrap()
+}
+
 /// The Turek-Hron bar swung far, its tip among the cells of `turek-hron-fsi-0.msh` as in the FSI3
 /// and FSI2 runs where they stopped ("gamma_f does not enclose the solid"; gamma_s saved from
 /// those runs in `tests/data`). FSI3 at t = 3.786 (swung down): near the tip's lower corner an
@@ -151,43 +169,101 @@ fn covered_fluid_removed_needs_gamma_f_to_enclose_the_solid() {
 /// that cut as if the edge touched the bottom face at the moved end, and gamma_f lost the bottom
 /// face between the cut and the corner; now the move is undone instead. FSI2 at t = 7.642 (swung
 /// up): an edge from a vertex next to the bottom face crossed the tip face, and the point kept on
-/// it was the bottom face's; now the point farther from the edge's ends is kept. Both: gamma_f
-/// encloses the bar, the covered cells are removed, and gamma_f has gamma_s's length (chords of
-/// the curved bar: to 1e-4).
+/// it was the bottom face's; now the point farther from the edge's ends is kept.
 #[test]
 fn the_adapted_mesh_encloses_the_bar_with_its_tip_among_the_cells() {
-    use fdfsi::fem::adapt::{adapt, remove_enclosed, Surface};
-    use std::collections::HashMap;
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let fdfsi::fem::gmsh::AnyMesh::D2(fluid) = fdfsi::fem::gmsh::read_msh(&root.join("meshes/turek-hron-fsi-0.msh")).unwrap() else {
-        panic!("a 2D mesh")
-    };
+    let bg = background("turek-hron-fsi-0.msh");
     for data in ["turek-hron-fsi3-gamma-s-t3.786.csv", "turek-hron-fsi2-gamma-s-t7.642.csv"] {
-        let text = std::fs::read_to_string(root.join("tests/data").join(data)).unwrap();
-        let (mut points, mut index, mut pieces) = (Vec::new(), HashMap::new(), Vec::new());
-        for line in text.lines().filter(|l| !l.starts_with('#')) {
-            let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-            let mut id = |p: [f64; 2]| {
-                *index.entry(p.map(f64::to_bits)).or_insert_with(|| {
-                    points.push(p);
-                    points.len() - 1
-                })
-            };
-            let a = id([v[0], v[1]]);
-            pieces.push([a, id([v[2], v[3]])]);
-        }
-        let surface = Surface::from_pieces(points, pieces).unwrap();
-        let adapted = remove_enclosed(adapt(&fluid, &surface, 0.2).unwrap()).unwrap_or_else(|e| panic!("{data}: {e}"));
-        let gamma_f: f64 = adapted
-            .gamma_f
-            .iter()
-            .map(|g| {
-                let [p, q] = g.vertices.map(|v| adapted.mesh.points[v]);
-                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
+        assert_encloses(&bg, &saved_gamma_s(data), data);
+    }
+}
+
+/// gamma_s saved in `tests/data/NAME` (one flat piece per row: `x0,y0,x1,y1`).
+fn saved_gamma_s(name: &str) -> fdfsi::fem::adapt::Surface<2> {
+    let text = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)).unwrap();
+    let (mut points, mut index, mut pieces) = (Vec::new(), std::collections::HashMap::new(), Vec::new());
+    for line in text.lines().filter(|l| !l.starts_with('#')) {
+        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        let mut id = |p: [f64; 2]| {
+            *index.entry(p.map(f64::to_bits)).or_insert_with(|| {
+                points.push(p);
+                points.len() - 1
             })
-            .sum();
-        assert!((gamma_f - surface.measure()).abs() < 1e-4 * surface.measure(), "{data}: gamma_f {gamma_f} against gamma_s {}", surface.measure());
-        assert!(adapted.stats.removed_cells > 0, "{data}");
+        };
+        let a = id([v[0], v[1]]);
+        pieces.push([a, id([v[2], v[3]])]);
+    }
+    fdfsi::fem::adapt::Surface::from_pieces(points, pieces).unwrap()
+}
+
+/// Deflection of mode `n` (1, 2, 3) of a clamped-free Euler-Bernoulli beam of length `L` at
+/// arc length `s`, scaled to 1 at the free end, and its slope:
+/// `phi(s) = (cosh bs - cos bs - sigma (sinh bs - sin bs)) / 2` with `b L` = 1.8751, 4.6941,
+/// 7.8548.
+fn cantilever_mode(n: usize, s: f64, length: f64) -> (f64, f64) {
+    let (bl, sigma) = [(1.875_104_068_7, 0.734_095_513_7), (4.694_091_133_0, 1.018_466_459_2), (7.854_757_438_2, 0.999_224_495_0)][n - 1];
+    let b = bl / length;
+    let x = b * s;
+    let phi = (x.cosh() - x.cos() - sigma * (x.sinh() - x.sin())) / 2.0;
+    let slope = b * (x.sinh() + x.sin() - sigma * (x.cosh() - x.cos())) / 2.0;
+    let tip = (bl.cosh() - bl.cos() - sigma * (bl.sinh() - bl.sin())) / 2.0;
+    (phi / tip, slope / tip)
+}
+
+/// gamma_s of the Turek-Hron bar (0.35 x 0.02, clamped to the cylinder at x = 0.24899) bent
+/// into `sum a_n phi_n` (tip deflections `a`, [`cantilever_mode`]) and stretched by `stretch`
+/// along its centreline, the sections kept normal to it: its bottom, tip and top faces in 80, 8
+/// and 80 flat pieces, as the Q2 nodes of `turek-hron-bar-40.msh` divide them.
+fn bent_bar(a: [f64; 3], stretch: f64) -> fdfsi::fem::adapt::Surface<2> {
+    let (x0, length, thickness) = (0.248_989_794_855_663_6, 0.35, 0.02);
+    let (along, across, substeps) = (80, 8, 50);
+    let angle = |s: f64| (0..3).map(|n| a[n] * cantilever_mode(n + 1, s, length).1).sum::<f64>().atan();
+    // The centreline and its angle at the section s = length i / along, by the midpoint rule.
+    let mut centre = vec![([x0, 0.2], 0.0)];
+    let ds = (1.0 + stretch) * length / (along * substeps) as f64;
+    for i in 0..along {
+        let mut c = centre[i].0;
+        for k in 0..substeps {
+            let theta = angle((i * substeps + k) as f64 * length / (along * substeps) as f64 + 0.5 * length / (along * substeps) as f64);
+            c = [c[0] + ds * theta.cos(), c[1] + ds * theta.sin()];
+        }
+        centre.push((c, angle(length * (i + 1) as f64 / along as f64)));
+    }
+    let at = |i: usize, eta: f64| {
+        let (c, theta) = centre[i];
+        [c[0] - eta * theta.sin(), c[1] + eta * theta.cos()]
+    };
+    let half = thickness / 2.0;
+    let mut points: Vec<[f64; 2]> = (0..=along).map(|i| at(i, -half)).collect();
+    points.extend((1..=across).map(|j| at(along, -half + thickness * j as f64 / across as f64)));
+    points.extend((0..along).rev().map(|i| at(i, half)));
+    // The root's corners where the mesh has them, on the cylinder.
+    let last = points.len() - 1;
+    (points[0], points[last]) = ([x0, 0.19], [x0, 0.21]);
+    let pieces = (0..points.len() - 1).map(|i| [i, i + 1]).collect();
+    fdfsi::fem::adapt::Surface::from_pieces(points, pieces).unwrap()
+}
+
+/// The bar bent as in FSI2's swings over the level-1 mesh. The saved shape (cantilever modes
+/// 1-3, its tip far down; `tests/data/turek-hron-bar-bent-level1.csv`) opened gamma_f at the
+/// tip's lower corner (a 2.7 mm gap in the bottom face next to the corner; the same message as
+/// FSI2 on level 1 at t = 17.08, whose checkpoint is lost, so whether that was this gap is not
+/// known): a cell cut twice by the tip face, its third vertex moved onto the bottom face, was
+/// bisected along the diagonal between the two faces; that child had all its vertices on gamma_s
+/// (flat), the move was undone, and the bottom face between the corner and the next cut had no
+/// facet. Now the diagonal that makes no flat child is taken. Found among 12 000 random shapes
+/// (tip deflections up to 0.1, modes 2 and 3 up to 0.02 and 0.004, stretch up to 3e-3) on level 1;
+/// with the fix none of them fails, nor 3 000 on each of levels 0 and 2. The swing below, tip
+/// from -0.1 to 0.1 on levels 0 and 1, keeps the common shapes covered.
+#[test]
+fn the_adapted_mesh_encloses_the_bar_bent_as_in_fsi2() {
+    let (l0, l1) = (background("turek-hron-fsi-0.msh"), background("turek-hron-fsi-1.msh"));
+    assert_encloses(&l1, &saved_gamma_s("turek-hron-bar-bent-level1.csv"), "the tip's lower corner, level 1");
+    for k in -10..=10 {
+        let tip = 0.01 * k as f64;
+        for (mesh, label) in [(&l0, "level 0"), (&l1, "level 1")] {
+            assert_encloses(mesh, &bent_bar([tip, -0.1 * tip, 0.01 * tip], 0.0), &format!("tip {tip}, {label}"));
+        }
     }
 }
 

@@ -432,7 +432,8 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
             }
         };
         let split_edges: Vec<usize> = (0..ct.edges().len()).filter(|&k| plan.new_node.contains_key(&bg.cell_edge(c, k))).collect();
-        let order = split_order(bg, plan, c, &split_edges, &global);
+        let flat = |l: &[usize; 4]| is_flat(&std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX }), &on_surface, corners);
+        let order = split_order(bg, plan, c, &split_edges, &global, &flat);
         let labels = subdivide::bisect(ct, &order);
         let ids: Vec<[usize; 4]> = labels.iter().map(|l| std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX })).collect();
         for kid in &ids {
@@ -447,8 +448,21 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
 
 /// The order in which the split edges of cell `c` are bisected: in 3D globally consistent
 /// (longest edge first at the current node positions, ties by global edge number); in 2D the
-/// order whose worst child has the largest minimum angle.
-fn split_order<const D: usize>(bg: &Background<D>, plan: &Plan<D>, c: usize, split_edges: &[usize], global: &dyn Fn(usize) -> usize) -> Vec<usize> {
+/// order with the fewest flat children ([`is_flat`], children given by their labels), and among
+/// those the one whose worst child has the largest minimum angle. A flat child would undo the
+/// move of its moved node ([`refused_by_cells`]) where another diagonal makes none: near the
+/// Turek-Hron bar's tip, a cell cut twice by the tip face with its third vertex moved onto the
+/// bottom face got the diagonal between the two faces, a flat child across the corner; the
+/// move was undone, the bottom face between the corner and the next cut had no facet, and
+/// gamma_f was open (a bent bar on `turek-hron-fsi-1.msh`, `tests/fsi_thick_solid.rs`).
+fn split_order<const D: usize>(
+    bg: &Background<D>,
+    plan: &Plan<D>,
+    c: usize,
+    split_edges: &[usize],
+    global: &dyn Fn(usize) -> usize,
+    flat: &dyn Fn(&[usize; 4]) -> bool,
+) -> Vec<usize> {
     let ct = bg.mesh.cell_type;
     if D == 3 {
         let key = |k: usize| {
@@ -464,9 +478,11 @@ fn split_order<const D: usize>(bg: &Background<D>, plan: &Plan<D>, c: usize, spl
         });
         return order;
     }
-    let mut best = (f64::NEG_INFINITY, split_edges.to_vec());
+    let mut best = ((usize::MAX, f64::NEG_INFINITY), split_edges.to_vec());
     for order in subdivide::permutations(split_edges) {
-        let worst = subdivide::bisect(ct, &order)
+        let children = subdivide::bisect(ct, &order);
+        let flat_children = children.iter().filter(|l| flat(l)).count();
+        let worst = children
             .iter()
             .map(|l| {
                 let p: [[f64; 2]; 3] = std::array::from_fn(|k| {
@@ -476,8 +492,8 @@ fn split_order<const D: usize>(bg: &Background<D>, plan: &Plan<D>, c: usize, spl
                 min_angle2(&p)
             })
             .fold(f64::INFINITY, f64::min);
-        if worst > best.0 {
-            best = (worst, order);
+        if flat_children < best.0 .0 || (flat_children == best.0 .0 && worst > best.0 .1) {
+            best = ((flat_children, worst), order);
         }
     }
     best.1
