@@ -17,13 +17,18 @@
 //! * **in surface**: both end points lie on the line / plane (the edge lies along gamma_s); the
 //!   end points inside the piece are on gamma_s, the edge is not cut (counted).
 //!
-//! An edge cut by several pieces at different points (a folded surface, or two sheets) keeps the
-//! point farthest from its ends (ties: the one closest to its first vertex `n1`, its smaller
-//! vertex number) and is counted. A point near an end is likely to be taken by moving that end
-//! (step 2), which the end's other edges across the same sheet can request too; a point inside
-//! the edge has no other way onto the mesh. Near the Turek-Hron bar's tip swung up (FSI2 at t =
-//! 7.642), an edge from a vertex next to the bottom face crossed the tip face; keeping the
-//! bottom face's point left the tip face without a facet between that edge and the corner.
+//! An edge cut by several pieces at different points (a folded surface, two sheets, or the two
+//! sides of a corner) keeps the point farthest from its ends (ties: the one closest to its first
+//! vertex `n1`, its smaller vertex number) and is counted. A point near an end is likely to be
+//! taken by moving that end (step 2), which the end's other edges across the same sheet can
+//! request too; a point inside the edge has no other way onto the mesh. Near the Turek-Hron bar's
+//! tip swung up (FSI2 at t = 7.642), an edge from a vertex next to the bottom face crossed the
+//! tip face; keeping the bottom face's point left the tip face without a facet between that edge
+//! and the corner. The point nearest an end among the others is kept too, as the edge's
+//! **second cut** (`CutSet::second_cuts`): step 2 moves that end onto it where it can, however
+//! far, since an edge has room for one new node only. Across a block's corner, an edge cut at
+//! 0.24 and 0.75 of its length by the two sides lost the first point, and the side between the
+//! corner and that edge had no facet.
 
 use super::background::Background;
 use super::geom::{collinear_point_in_segment, coplanar_point_in_triangle, dist2, lerp, orient, pad3};
@@ -47,6 +52,9 @@ pub(crate) struct Cut<const D: usize> {
 pub(crate) struct CutSet<const D: usize> {
     /// One cut per cut edge, sorted by edge.
     pub cuts: Vec<Cut<D>>,
+    /// The second point of each edge cut at several points, sorted by edge (see the module
+    /// documentation).
+    pub second_cuts: Vec<Cut<D>>,
     /// Original vertices lying on gamma_s (touched or snapped), sorted, unique.
     pub touched: Vec<usize>,
     pub multi_cut_edges: usize,
@@ -105,32 +113,42 @@ pub(crate) fn find_cuts<const D: usize>(bg: &Background<D>, surface: &Surface<D>
     }
     raw.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.cmp(&y.2)));
     let mut cuts: Vec<Cut<D>> = Vec::new();
-    let mut multi_cut_edges = 0;
+    let mut second_cuts: Vec<Cut<D>> = Vec::new();
     let mut i = 0;
     while i < raw.len() {
-        let (edge, mut t, _) = raw[i];
-        let first = t;
-        let mut j = i + 1;
-        let mut multi = false;
+        let edge = raw[i].0;
+        let mut j = i;
         while j < raw.len() && raw[j].0 == edge {
-            let tj = raw[j].1;
-            multi |= tj - first > 1e-12;
-            // Sorted by t: a later point wins only if it is strictly farther from the ends.
-            if tj.min(1.0 - tj) > t.min(1.0 - t) + 1e-12 {
-                t = tj;
-            }
             j += 1;
         }
-        multi_cut_edges += multi as usize;
+        let ts: Vec<f64> = raw[i..j].iter().map(|r| r.1).collect();
         let [ia, ib] = bg.topology.edges[edge];
-        cuts.push(Cut { edge, t, x: lerp(&bg.mesh.points[ia], &bg.mesh.points[ib], t) });
+        let cut = |t: f64| Cut { edge, t, x: lerp(&bg.mesh.points[ia], &bg.mesh.points[ib], t) };
+        let (kept, second) = kept_and_second(&ts);
+        cuts.push(cut(kept));
+        second_cuts.extend(second.map(cut));
         i = j;
     }
+    let multi_cut_edges = second_cuts.len();
     touched.sort_unstable();
     touched.dedup();
     in_plane_edges.sort_unstable();
     in_plane_edges.dedup();
-    CutSet { cuts, touched, multi_cut_edges, edges_in_surface: in_plane_edges.len(), snapped }
+    CutSet { cuts, second_cuts, touched, multi_cut_edges, edges_in_surface: in_plane_edges.len(), snapped }
+}
+
+/// Of the points `ts` (sorted) where pieces cut one edge: the one kept as the edge's cut, farthest
+/// from the edge's ends (ties: the first), and, where others lie more than `1e-12` from it, the
+/// second: the one of those nearest an end (ties: the first).
+fn kept_and_second(ts: &[f64]) -> (f64, Option<f64>) {
+    let from_ends = |t: f64| t.min(1.0 - t);
+    // Sorted by t: a later point wins only if it is strictly farther from the ends.
+    let kept = ts.iter().copied().fold(ts[0], |k, t| if from_ends(t) > from_ends(k) + 1e-12 { t } else { k });
+    let second = ts.iter().copied().filter(|t| (t - kept).abs() > 1e-12).fold(None, |s: Option<f64>, t| match s {
+        Some(s) if from_ends(s) <= from_ends(t) + 1e-12 => Some(s),
+        _ => Some(t),
+    });
+    (kept, second)
 }
 
 /// Round-off allowance of the side orientations in [`classify`]: an orientation of segment `ab`
@@ -207,6 +225,15 @@ mod tests {
         assert_eq!(classify(&[0.0, 0.5], &[0.0, 3.0], &piece), Hit::Touch { a: true, b: false, in_plane: true });
         // The piece ends on the edge: still a cut.
         assert!(matches!(classify(&[-1.0, 1.0], &[1.0, 1.0], &piece), Hit::Cut(_)));
+    }
+
+    #[test]
+    fn an_edge_cut_twice_keeps_the_inner_point_and_the_other_as_its_second_cut() {
+        assert_eq!(kept_and_second(&[0.24, 0.75]), (0.75, Some(0.24)));
+        assert_eq!(kept_and_second(&[0.1, 0.3, 0.95]), (0.3, Some(0.95)));
+        assert_eq!(kept_and_second(&[0.5]), (0.5, None));
+        // Points within 1e-12 are one point (a piece's end shared by two pieces).
+        assert_eq!(kept_and_second(&[0.1, 0.1 + 1e-13]), (0.1, None));
     }
 
     #[test]

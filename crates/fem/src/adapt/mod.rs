@@ -44,8 +44,11 @@
 //!   is on gamma_s as it is; the edges touching it there are not cut (`touched_vertices`,
 //!   `edges_in_surface`). A cut within `T_SNAP = 1e-12` (relative) of an end point snaps to it
 //!   (`snapped_cuts`).
-//! * **Several points on one edge** (folded surface, two sheets): the one farthest from the
-//!   edge's ends is kept, ties to the one closest to `n1` (`multi_cut_edges`; see [`intersect`]).
+//! * **Several points on one edge** (folded surface, two sheets, the two sides of a corner): the
+//!   one farthest from the edge's ends is kept, ties to the one closest to `n1`
+//!   (`multi_cut_edges`; see [`intersect`]). Of the others, the one nearest an end moves that end
+//!   onto it, however far, after all other moves (`second_cut_moves`), unless the end is on
+//!   gamma_s already, pinned or on the domain boundary (`dropped_second_cuts`).
 //! * **gamma_f rule**: a facet is on gamma_f when all its vertices are on gamma_s (touched, moved
 //!   or new nodes) and its centroid is within `GAMMA_F_REL_TOL = 0.1` times the facet's diameter
 //!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold);
@@ -184,6 +187,11 @@ pub struct AdaptStats {
     pub edges_in_surface: usize,
     /// Edges cut at several different points.
     pub multi_cut_edges: usize,
+    /// Of which the second point was taken by moving the edge's end nearer to it onto it.
+    pub second_cut_moves: usize,
+    /// Of which the second point was dropped (its end on gamma_s already, pinned, or on the
+    /// domain boundary).
+    pub dropped_second_cuts: usize,
     /// Second move requests dropped.
     pub skipped_cuts: usize,
     /// Cuts dropped because an end of their edge moved onto gamma_s and their new node made a
@@ -297,6 +305,8 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.multi_cut_edges = cuts.multi_cut_edges;
     stats.skipped_cuts = plan.skipped;
     stats.cuts_at_moved_ends = plan.cuts_at_moved_ends;
+    stats.second_cut_moves = plan.second_cut_moves;
+    stats.dropped_second_cuts = plan.dropped_second_cuts;
     stats.flat_cells = split.flat_cells;
     stats.rejected_facets = rejected;
     stats.min_quality = split.min_quality;
@@ -320,6 +330,8 @@ struct Plan<const D: usize> {
     refused_boundary: usize,
     skipped: usize,
     cuts_at_moved_ends: usize,
+    second_cut_moves: usize,
+    dropped_second_cuts: usize,
 }
 
 impl<const D: usize> Plan<D> {
@@ -368,6 +380,7 @@ fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64
             plan.moved.insert(v, cut.x);
         }
     }
+    second_cut_moves(bg, cuts, pinned, &mut plan);
     unmoved.sort_unstable();
     for i in unmoved {
         let cut = cuts.cuts[i];
@@ -378,6 +391,32 @@ fn plan_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64
         }
     }
     plan
+}
+
+/// The second cuts of edges cut at several points ([`intersect`]), nearest its end first: each
+/// moves the end nearer to it onto it, unless that end is on gamma_s already (touched or moved),
+/// pinned, or on the domain boundary and would leave it; then it is dropped. The end's cells are
+/// checked like any move's ([`refused_by_cells`]).
+fn second_cut_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, pinned: &HashSet<usize>, plan: &mut Plan<D>) {
+    let end = |c: &intersect::Cut<D>| {
+        let [a, b] = bg.topology.edges[c.edge];
+        if c.t < 0.5 {
+            a
+        } else {
+            b
+        }
+    };
+    let mut order: Vec<&intersect::Cut<D>> = cuts.second_cuts.iter().collect();
+    order.sort_by(|c, d| c.t.min(1.0 - c.t).total_cmp(&d.t.min(1.0 - d.t)).then(c.edge.cmp(&d.edge)));
+    for cut in order {
+        let v = end(cut);
+        if cuts.touched.binary_search(&v).is_ok() || plan.moved.contains_key(&v) || pinned.contains(&v) || !boundary_move_ok(bg, v, &cut.x) {
+            plan.dropped_second_cuts += 1;
+        } else {
+            plan.moved.insert(v, cut.x);
+            plan.second_cut_moves += 1;
+        }
+    }
 }
 
 fn add_node<const D: usize>(plan: &mut Plan<D>, edge: usize, x: [f64; D]) {
