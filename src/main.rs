@@ -163,7 +163,41 @@ impl RunObserver for CliObserver {
     }
 }
 
-fn main() -> Result<()> {
+fn main() -> std::process::ExitCode {
+    match run_command() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{}", error_report(&e));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// `Error: MESSAGE` and, under `Caused by:`, each cause whose text the message above it does not
+/// already quote: the library's errors name their cause in their own message (`solid: {0}`), so
+/// anyhow's report repeated every message once per level. No backtrace: these are errors of the
+/// input or of the run, not of fdfsi (a panic still prints one with `RUST_BACKTRACE=1`).
+fn error_report(e: &anyhow::Error) -> String {
+    let mut report = format!("Error: {e}");
+    let mut above = e.to_string();
+    let mut causes = Vec::new();
+    for cause in e.chain().skip(1) {
+        let text = cause.to_string();
+        if !above.contains(&text) {
+            causes.push(text.clone());
+        }
+        above = text;
+    }
+    if !causes.is_empty() {
+        report.push_str("\n\nCaused by:");
+        for (i, c) in causes.iter().enumerate() {
+            report.push_str(&format!("\n    {i}: {c}"));
+        }
+    }
+    report
+}
+
+fn run_command() -> Result<()> {
     let cli = Cli::parse();
     // Solver internals (the reuse of factorisations, their cost) log through `tracing`, off unless
     // FDFSI_LOG asks for them (e.g. FDFSI_LOG=debug).
@@ -312,4 +346,20 @@ fn main() -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod report_tests {
+    use super::error_report;
+    use anyhow::Context;
+
+    #[test]
+    fn a_cause_quoted_by_the_message_above_it_is_not_repeated() {
+        let inner = std::io::Error::other("gamma_f does not enclose the solid");
+        let quoted: anyhow::Result<()> = Err(inner).context("solid: gamma_f does not enclose the solid");
+        let e = quoted.context("adapting b6.toml").unwrap_err();
+        assert_eq!(error_report(&e), "Error: adapting b6.toml\n\nCaused by:\n    0: solid: gamma_f does not enclose the solid");
+        let plain = anyhow::anyhow!("line 1: key with no value");
+        assert_eq!(error_report(&plain), "Error: line 1: key with no value");
+    }
 }
