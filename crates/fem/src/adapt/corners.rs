@@ -10,8 +10,9 @@
 //! corner, and that stays on its boundary lines if it is a boundary vertex. The cuts are then
 //! found on the mesh with those vertices moved; the moved vertices lie on gamma_s (they touch
 //! it). A corner no vertex can take is counted ([`super::AdaptStats::unplaced_corners`]).
-//! The ends of an open gamma_s are not corners. In 3D, edges and vertices of gamma_s are not
-//! treated this way (yet): [`corners`] finds none.
+//! The ends of an open gamma_s are not corners. In 3D [`corners`] finds none: the edges and
+//! vertices of gamma_s are treated in [`super::features`], which uses [`corner_moves`] for the
+//! vertices.
 
 use super::background::Background;
 use super::geom::{dist2, dot, simplex_measure, simplex_quality, sub};
@@ -71,7 +72,7 @@ pub(crate) fn corner_moves<const D: usize>(bg: &Background<D>, corners: &[[f64; 
 
 /// Do all cells around vertex `v` keep a positive measure and quality `min_quality` with `v` at
 /// `x` and the vertices of `moves` already moved?
-fn star_ok<const D: usize>(bg: &Background<D>, moves: &[(usize, [f64; D])], v: usize, x: &[f64; D], min_quality: f64) -> bool {
+pub(crate) fn star_ok<const D: usize>(bg: &Background<D>, moves: &[(usize, [f64; D])], v: usize, x: &[f64; D], min_quality: f64) -> bool {
     let at = |g: usize| match moves.iter().find(|m| m.0 == g) {
         Some(m) => m.1,
         None => bg.mesh.points[g],

@@ -4,8 +4,10 @@
 //! Every step starts from the ORIGINAL fluid mesh (prepared once as a [`Background`]) and the
 //! CURRENT gamma_s (a [`Surface`] of flat pieces):
 //!
-//! 0. **Corners** ([`corners`], 2D): where gamma_s turns sharply, the nearest fluid vertex that
-//!    can is moved onto the corner first, so that the adapted mesh has a node there.
+//! 0. **Corners** ([`corners`], 2D) **and feature lines** ([`features`], 3D): where gamma_s turns
+//!    sharply, the nearest fluid vertex that can is moved onto the corner first, so that the
+//!    adapted mesh has a node there; in 3D the corners and ends of a thick solid's edges take a
+//!    vertex each, and a chain of vertices moved onto each edge joins them.
 //! 1. **Cut edges** ([`intersect`]): the edges crossed by gamma_s, one point per edge (the one
 //!    farthest from the edge's ends if there are several).
 //! 2. **Move or add** ([`adapt_with`]): `eps = |x_i - x_n1| / |x_n2 - x_n1|`;
@@ -51,8 +53,13 @@
 //!   gamma_s already, pinned or on the domain boundary (`dropped_second_cuts`).
 //! * **gamma_f rule**: a facet is on gamma_f when all its vertices are on gamma_s (touched, moved
 //!   or new nodes) and its centroid is within `GAMMA_F_REL_TOL = 0.1` times the facet's diameter
-//!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold);
-//!   rejected ones are counted (`rejected_facets`).
+//!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold); in 3D
+//!   also its vertices within that distance of the plane of the gamma_s piece nearest its
+//!   centroid (this rejects a triangle across a block's edge, whose centroid lies near both
+//!   faces); rejected ones are counted (`rejected_facets`).
+//! * **Flat cells**: a cell whose vertices all lie on gamma_s, within `GAMMA_F_REL_TOL` times its
+//!   diameter of the plane of the piece nearest its centroid, and none at a corner or on a
+//!   feature line of step 0. A cell spanning a solid's corner or edge is not flat: it fills it.
 //! * **Quadratic geometry**: a mesh with 6/10-node cells is adapted through its vertex mesh; its
 //!   curved boundary geometry is not carried into the adapted (linear) mesh.
 //! * **Region interfaces** inside the fluid mesh are not protected against moves (only the
@@ -61,6 +68,7 @@
 pub mod background;
 pub mod corners;
 pub mod enclosed;
+pub mod features;
 mod geom;
 pub mod intersect;
 pub mod subdivide;
@@ -262,7 +270,7 @@ fn check_eps_hat(eps_hat: f64) -> Result<(), AdaptError> {
 /// Adapts the prepared original mesh `bg` to `surface`.
 pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts: &AdaptOptions) -> Result<Adapted<D>, AdaptError> {
     check_eps_hat(opts.eps_hat)?;
-    let (moves, unplaced_corners) = corners::corner_moves(bg, &corners::corners(surface), opts.min_move_quality);
+    let (moves, unplaced_corners) = features::feature_moves(bg, surface, opts.min_move_quality);
     let cornered;
     let bg = if moves.is_empty() {
         bg
@@ -279,7 +287,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let (plan, split) = loop {
         passes += 1;
         let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
-        let split = subdivide_cells(bg, &plan, &cuts, &corner_vertices);
+        let split = subdivide_cells(bg, surface, &plan, &cuts, &corner_vertices);
         let bad = refused_by_cells(bg, surface, &plan, &cuts, &split, opts.min_move_quality, &corner_vertices);
         let (np, nd) = (pinned.len(), dropped.len());
         pinned.extend(bad.pin);
@@ -452,7 +460,7 @@ struct Split {
 }
 
 /// Step 3: subdivides the affected cells.
-fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &CutSet<D>, corners: &[usize]) -> Split {
+fn subdivide_cells<const D: usize>(bg: &Background<D>, surface: &Surface<D>, plan: &Plan<D>, cuts: &CutSet<D>, corners: &[usize]) -> Split {
     let mut affected: Vec<usize> = plan.new_node.keys().flat_map(|&e| bg.edge_cells.row(e).iter().copied()).collect();
     affected.extend(plan.moved.keys().flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
     affected.sort_unstable();
@@ -460,6 +468,8 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
     let nv = bg.mesh.points.len();
     let ct = bg.mesh.cell_type;
     let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
+    let pos = |g: usize| plan.pos(bg, g);
+    let flat_test = FlatTest { on_surface: &on_surface, corners, pos: &pos, surface };
     let mut split = Split { min_quality: 1.0, ..Default::default() };
     for c in affected {
         let verts = bg.cell(c);
@@ -471,14 +481,14 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &Cu
             }
         };
         let split_edges: Vec<usize> = (0..ct.edges().len()).filter(|&k| plan.new_node.contains_key(&bg.cell_edge(c, k))).collect();
-        let flat = |l: &[usize; 4]| is_flat(&std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX }), &on_surface, corners);
+        let flat = |l: &[usize; 4]| is_flat(&std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX }), &flat_test);
         let order = split_order(bg, plan, c, &split_edges, &global, &flat);
         let labels = subdivide::bisect(ct, &order);
         let ids: Vec<[usize; 4]> = labels.iter().map(|l| std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX })).collect();
         for kid in &ids {
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
             split.min_quality = split.min_quality.min(simplex_quality(&v));
-            split.flat_cells += is_flat(kid, &on_surface, corners) as usize;
+            split.flat_cells += is_flat(kid, &flat_test) as usize;
         }
         split.cells.push((c, ids, labels));
     }
@@ -538,11 +548,40 @@ fn split_order<const D: usize>(
     best.1
 }
 
-/// Is the cell with vertices `kid` flat: all its vertices on gamma_s? A cell with a vertex at a
-/// corner of gamma_s (step 0) is not: it fills the corner, two of its facets on the two sides.
-fn is_flat(kid: &[usize; 4], on_surface: &dyn Fn(usize) -> bool, corners: &[usize]) -> bool {
+/// What [`is_flat`] needs to know of the adaptation in progress.
+struct FlatTest<'a, const D: usize> {
+    on_surface: &'a dyn Fn(usize) -> bool,
+    /// Vertices placed at corners, edges and vertices of gamma_s in step 0, sorted.
+    corners: &'a [usize],
+    pos: &'a dyn Fn(usize) -> [f64; D],
+    surface: &'a Surface<D>,
+}
+
+/// Is the cell with vertices `kid` flat: all its vertices on gamma_s, along one smooth part of
+/// it? A cell with a vertex at a corner, edge or vertex of gamma_s (step 0) is not: it fills the
+/// solid's corner or wedge, its facets on the sides that meet there. Nor is a cell that spans
+/// such a wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
+/// from the plane of the gamma_s piece nearest the cell's centroid (in 3D, cells between a
+/// block's two faces beside the chain of its edge; in 2D, a cell cut twice by a bar's tip face
+/// with its third vertex on the bottom face).
+fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
     let vertices = &kid[..kid.iter().position(|&g| g == usize::MAX).unwrap_or(4)];
-    vertices.iter().all(|&g| on_surface(g)) && !vertices.iter().any(|g| corners.binary_search(g).is_ok())
+    if !vertices.iter().all(|&g| (t.on_surface)(g)) || vertices.iter().any(|g| t.corners.binary_search(g).is_ok()) {
+        return false;
+    }
+    let p: Vec<[f64; D]> = vertices.iter().map(|&g| (t.pos)(g)).collect();
+    let centroid: [f64; D] = std::array::from_fn(|d| p.iter().map(|x| x[d]).sum::<f64>() / p.len() as f64);
+    let Some(sp) = t.surface.project(&centroid) else { return true };
+    let diameter = p.iter().flat_map(|a| p.iter().map(move |b| dist2(a, b))).fold(0.0, f64::max).sqrt();
+    in_piece_plane(t.surface, sp.piece, &p, GAMMA_F_REL_TOL * diameter)
+}
+
+/// Do all `points` lie within `tol` of the line (2D) or plane (3D) of gamma_s piece `piece`?
+fn in_piece_plane<const D: usize>(surface: &Surface<D>, piece: usize, points: &[[f64; D]], tol: f64) -> bool {
+    let n = surface.normal(piece);
+    let origin = surface.corners(piece)[0];
+    let n_len = geom::dot(&n, &n).sqrt();
+    points.iter().all(|x| geom::dot(&n, &sub(x, &origin)).abs() <= tol * n_len)
 }
 
 /// What the next pass of steps 2-3 changes (see [`refused_by_cells`]).
@@ -573,6 +612,8 @@ fn refused_by_cells<const D: usize>(
 ) -> Refusals {
     let nv = bg.mesh.points.len();
     let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
+    let pos = |g: usize| plan.pos(bg, g);
+    let flat_test = FlatTest { on_surface: &on_surface, corners, pos: &pos, surface };
     let mut edge_of_new_node = vec![0; plan.new_points.len()];
     for (&e, &k) in &plan.new_node {
         edge_of_new_node[k] = e;
@@ -585,7 +626,7 @@ fn refused_by_cells<const D: usize>(
                 continue;
             }
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
-            let flat = is_flat(kid, &on_surface, corners);
+            let flat = is_flat(kid, &flat_test);
             if simplex_measure(&v) > 0.0 && simplex_quality(&v) >= min_quality && !flat {
                 continue;
             }
@@ -733,7 +774,8 @@ fn build_gamma_f<const D: usize>(
         let centroid: [f64; D] = std::array::from_fn(|d| pts.iter().map(|p| p[d]).sum::<f64>() / D as f64);
         let diam2 = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| dist2(&pts[i], &pts[j])).fold(0.0, f64::max);
         let Some(sp) = surface.project(&centroid) else { continue };
-        if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 {
+        let spans_a_feature = D == 3 && !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt());
+        if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 || spans_a_feature {
             rejected += 1;
             continue;
         }
