@@ -11,7 +11,7 @@
 //! found on the mesh with those vertices moved; the moved vertices lie on gamma_s (they touch
 //! it). A corner no vertex can take is counted ([`super::AdaptStats::unplaced_corners`]).
 //! The ends of an open gamma_s are not corners. In 3D [`corners`] finds none: the edges and
-//! vertices of gamma_s are treated in [`super::features`], which uses [`corner_moves`] for the
+//! vertices of gamma_s are treated in [`super::features`], which uses `corner_moves` for the
 //! vertices.
 
 use super::background::Background;

@@ -6,7 +6,7 @@
 //! them: the adapted facets next to it are chords that cut the solid's wedge off. So before the
 //! cuts, (1) the **feature vertices** (where the feature segments do not continue as one line:
 //! the block's corners, the ends of its edges on the domain boundary) take the nearest fluid
-//! vertex that can move there, as the 2D corners do ([`super::corners::corner_moves`]); (2) each
+//! vertex that can move there, as the 2D corners do (`corners::corner_moves`); (2) each
 //! **feature line** between two of them is walked from its first end: among the fluid neighbours
 //! of the last chain vertex that lie farther along the line, the one nearest the line moves onto
 //! it (where its cells stay positive and of quality at least `min_move_quality`, and a boundary
