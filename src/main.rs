@@ -174,7 +174,7 @@ fn main() -> std::process::ExitCode {
 }
 
 /// `Error: MESSAGE` and, under `Caused by:`, each cause whose text the message above it does not
-/// already quote: the library's errors name their cause in their own message (`solid: {0}`), so
+/// already end with: the library's errors name their cause in their own message (`solid: {0}`), so
 /// anyhow's report repeated every message once per level. No backtrace: these are errors of the
 /// input or of the run, not of fdfsi (a panic still prints one with `RUST_BACKTRACE=1`).
 fn error_report(e: &anyhow::Error) -> String {
@@ -183,7 +183,7 @@ fn error_report(e: &anyhow::Error) -> String {
     let mut causes = Vec::new();
     for cause in e.chain().skip(1) {
         let text = cause.to_string();
-        if !above.contains(&text) {
+        if !above.ends_with(&text) {
             causes.push(text.clone());
         }
         above = text;
@@ -354,7 +354,7 @@ mod report_tests {
     use anyhow::Context;
 
     #[test]
-    fn a_cause_quoted_by_the_message_above_it_is_not_repeated() {
+    fn a_cause_the_message_above_it_ends_with_is_not_repeated() {
         let inner = std::io::Error::other("gamma_f does not enclose the solid");
         let quoted: anyhow::Result<()> = Err(inner).context("solid: gamma_f does not enclose the solid");
         let e = quoted.context("adapting b6.toml").unwrap_err();

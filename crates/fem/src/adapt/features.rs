@@ -11,8 +11,12 @@
 //! of the last chain vertex that lie farther along the line, the one nearest the line moves onto
 //! it (where its cells stay positive and of quality at least `min_move_quality`, and a boundary
 //! vertex stays on its boundary planes), until the vertex at the other end is a neighbour. The
-//! chain's edges then lie along the feature line. A line whose walk finds no vertex to move is
-//! counted ([`super::AdaptStats::unplaced_corners`]).
+//! chain's edges then lie along the feature line (a line with only its last end placed is walked
+//! from that end). A line with neither end placed, or whose walk finds no vertex to move before
+//! it reaches the other end, is counted ([`super::AdaptStats::unplaced_corners`]). A closed line
+//! without feature vertices (a faceted rim) is counted and not walked (not treated yet). Pieces
+//! need not be consistently oriented: where two run alike along their shared edge, one normal is
+//! turned before the angle is taken.
 
 use super::background::Background;
 use super::geom::{closest_on_segment, dist2, dot, lerp, sub};
@@ -34,11 +38,12 @@ pub fn features<const D: usize>(surface: &Surface<D>) -> Features<D> {
     if D != 3 {
         return Features { vertices: Vec::new(), lines: Vec::new() };
     }
-    let mut edge_pieces: HashMap<[usize; 2], Vec<usize>> = HashMap::new();
+    // Each edge's pieces, with whether the piece runs along the edge from its smaller point.
+    let mut edge_pieces: HashMap<[usize; 2], Vec<(usize, bool)>> = HashMap::new();
     for (i, p) in surface.pieces.iter().enumerate() {
         for k in 0..D {
             let (a, b) = (p[k], p[(k + 1) % D]);
-            edge_pieces.entry([a.min(b), a.max(b)]).or_default().push(i);
+            edge_pieces.entry([a.min(b), a.max(b)]).or_default().push((i, a < b));
         }
     }
     let cos_corner = super::corners::CORNER_ANGLE_DEG.to_radians().cos();
@@ -47,8 +52,13 @@ pub fn features<const D: usize>(surface: &Surface<D>) -> Features<D> {
         let l = dot(&n, &n).sqrt();
         n.map(|v| v / l)
     };
-    let mut segments: Vec<[usize; 2]> =
-        edge_pieces.iter().filter(|(_, p)| p.len() == 2 && dot(&unit(p[0]), &unit(p[1])) < cos_corner).map(|(e, _)| *e).collect();
+    // Two consistently oriented pieces run along their shared edge in opposite directions; where
+    // they run alike (a surface given piece by piece, one of them flipped), one normal is turned.
+    let turn = |p: &[(usize, bool)]| {
+        let alike = if p[0].1 == p[1].1 { -1.0 } else { 1.0 };
+        alike * dot(&unit(p[0].0), &unit(p[1].0))
+    };
+    let mut segments: Vec<[usize; 2]> = edge_pieces.iter().filter(|(_, p)| p.len() == 2 && turn(p) < cos_corner).map(|(e, _)| *e).collect();
     segments.sort_unstable();
     let mut at: HashMap<usize, Vec<usize>> = HashMap::new();
     for (s, e) in segments.iter().enumerate() {
@@ -142,6 +152,14 @@ pub(crate) fn feature_moves<const D: usize>(bg: &Background<D>, surface: &Surfac
     }
     let vertex_at = |moves: &[(usize, [f64; D])], x: &[f64; D]| moves.iter().find(|m| m.1 == *x).map(|m| m.0);
     for line in &f.lines {
+        // Walked from an end with a vertex: the first, else the last.
+        let reversed: Vec<[f64; D]>;
+        let line = if vertex_at(&moves, &line[0]).is_none() && vertex_at(&moves, &line[line.len() - 1]).is_some() {
+            reversed = line.iter().rev().copied().collect();
+            &reversed
+        } else {
+            line
+        };
         let (first, last) = (line[0], line[line.len() - 1]);
         let Some(mut v) = vertex_at(&moves, &first) else {
             unplaced += 1;
@@ -175,7 +193,7 @@ pub(crate) fn feature_moves<const D: usize>(bg: &Background<D>, surface: &Surfac
                     (v, s_v) = (w, s);
                 }
                 None => {
-                    unplaced += end.is_some() as usize;
+                    unplaced += 1;
                     break;
                 }
             }
@@ -195,12 +213,17 @@ mod tests {
         let p = |i: usize| [(i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64];
         let points: Vec<[f64; 3]> = (0..8).map(p).collect();
         let quads = [[0, 1, 5, 4], [1, 3, 7, 5], [3, 2, 6, 7], [2, 0, 4, 6], [4, 5, 7, 6]];
-        let pieces = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
-        let f = features(&Surface::from_pieces(points, pieces).unwrap());
-        assert_eq!(f.vertices.len(), 8);
-        assert_eq!(f.lines.len(), 8);
-        assert!(f.lines.iter().all(|l| l.len() == 2 && dist2(&l[0], &l[1]) == 1.0), "{:?}", f.lines);
-        let vertical = f.lines.iter().filter(|l| l[0][2] != l[1][2]).count();
-        assert_eq!(vertical, 4);
+        let pieces: Vec<[usize; 3]> = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        // The same with one triangle of the top flipped: its diagonal is still flat.
+        let mut flipped = pieces.clone();
+        flipped[8].swap(1, 2);
+        for pieces in [pieces, flipped] {
+            let f = features(&Surface::from_pieces(points.clone(), pieces).unwrap());
+            assert_eq!(f.vertices.len(), 8);
+            assert_eq!(f.lines.len(), 8);
+            assert!(f.lines.iter().all(|l| l.len() == 2 && dist2(&l[0], &l[1]) == 1.0), "{:?}", f.lines);
+            let vertical = f.lines.iter().filter(|l| l[0][2] != l[1][2]).count();
+            assert_eq!(vertical, 4);
+        }
     }
 }

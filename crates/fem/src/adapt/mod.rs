@@ -39,7 +39,8 @@
 //!   only move within the planes (lines) of all its boundary facets (tolerance `1e-12` relative),
 //!   so the domain never changes; and a move is undone when a cell touching the moved node (or one
 //!   of its children) would get a non-positive measure, a quality below
-//!   [`AdaptOptions::min_move_quality`], or all its vertices on gamma_s (a flat cell), unless a cut
+//!   [`AdaptOptions::min_move_quality`], or is flat (all its vertices on gamma_s along one smooth
+//!   part of it: see **Flat cells** below), unless a cut
 //!   at a moved end is dropped instead (above). Undoing re-runs steps 2-3 with that node pinned,
 //!   until no cell is refused.
 //! * **gamma_s through a vertex / along an edge / in a face**: the vertex (edge's, face's vertices)
@@ -50,7 +51,8 @@
 //!   one farthest from the edge's ends is kept, ties to the one closest to `n1`
 //!   (`multi_cut_edges`; see [`intersect`]). Of the others, the one nearest an end moves that end
 //!   onto it, however far, after all other moves (`second_cut_moves`), unless the end is on
-//!   gamma_s already, pinned or on the domain boundary (`dropped_second_cuts`).
+//!   gamma_s already, pinned, or a boundary vertex the move would take off its boundary lines or
+//!   planes (`dropped_second_cuts`).
 //! * **gamma_f rule**: a facet is on gamma_f when all its vertices are on gamma_s (touched, moved
 //!   or new nodes) and its centroid is within `GAMMA_F_REL_TOL = 0.1` times the facet's diameter
 //!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold); in 3D
@@ -177,9 +179,11 @@ pub struct AdaptStats {
     /// Sum of the degenerate-configuration counters below (all but `skipped_cuts`, which is the
     /// paper's own rule, and `passes`).
     pub degenerate_cases: usize,
-    /// Fluid vertices moved onto corners of gamma_s (step 0).
+    /// Fluid vertices moved onto corners of gamma_s (step 0; in 3D also onto its edges' ends and
+    /// corners and, as chains, its edges).
     pub corner_nodes: usize,
-    /// Corners of gamma_s no fluid vertex could move to (their neighbourhood is cut as elsewhere).
+    /// Corners of gamma_s no fluid vertex could move to (their neighbourhood is cut as elsewhere);
+    /// in 3D also the edges whose chain could not be completed.
     pub unplaced_corners: usize,
     /// Cells enclosed by gamma_f and removed ([`remove_enclosed`]).
     pub removed_cells: usize,
@@ -205,7 +209,8 @@ pub struct AdaptStats {
     /// Cuts dropped because an end of their edge moved onto gamma_s and their new node made a
     /// bad cell with it.
     pub cuts_at_moved_ends: usize,
-    /// Cells with all vertices on gamma_s that were kept (no moved node to undo).
+    /// Flat cells (all vertices on gamma_s along one smooth part of it, none placed in step 0)
+    /// that were kept (no moved node to undo).
     pub flat_cells: usize,
     /// Facets with all vertices on gamma_s but not lying in it.
     pub rejected_facets: usize,
