@@ -284,7 +284,7 @@ fn block(centre: [f64; 2], length: f64, thickness: f64, angle: f64) -> fdfsi::fe
 }
 
 /// Blocks turned by any angle in the coarse part of `turek-hron-fsi-0.msh` (cells about 0.04
-/// across), at least a cell thick, are enclosed by gamma_f with nothing of gamma_s lost. The
+/// across), about a cell thick or more, are enclosed by gamma_f with nothing of gamma_s lost. The
 /// first one's lower left corner lies in a cell whose opposite edge both sides cross, at 0.24 and
 /// 0.75 of its length: the edge kept only the second point, and the left side between the corner
 /// and that edge had no facet; now the end nearer the first point moves onto it (a second cut).
