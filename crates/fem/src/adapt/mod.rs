@@ -9,7 +9,7 @@
 //!    adapted mesh has a node there; in 3D the corners and ends of a thick solid's edges take a
 //!    vertex each, and a chain of vertices moved onto each edge joins them.
 //! 1. **Cut edges** ([`intersect`]): the edges crossed by gamma_s, one point per edge (the one
-//!    farthest from the edge's ends if there are several).
+//!    farthest from the edge's ends if there are several, and a second cut for step 2).
 //! 2. **Move or add** ([`adapt_with`]): `eps = |x_i - x_n1| / |x_n2 - x_n1|`;
 //!    `eps < eps_hat` moves `n1` onto `x_i`, `eps > 1 - eps_hat` moves `n2`, otherwise a new node
 //!    is added at `x_i`. Rules for what the paper leaves open are listed below.
@@ -201,8 +201,8 @@ pub struct AdaptStats {
     pub multi_cut_edges: usize,
     /// Of which the second point was taken by moving the edge's end nearer to it onto it.
     pub second_cut_moves: usize,
-    /// Of which the second point was dropped (its end on gamma_s already, pinned, or on the
-    /// domain boundary).
+    /// Of which the second point was dropped (its end on gamma_s already, pinned, or a boundary
+    /// vertex the move would take off its boundary lines or planes).
     pub dropped_second_cuts: usize,
     /// Second move requests dropped.
     pub skipped_cuts: usize,
