@@ -172,13 +172,13 @@ pub(crate) fn feature_moves<const D: usize>(bg: &Background<D>, surface: &Surfac
             if end.is_some_and(|e| neighbours[v].contains(&e)) {
                 break;
             }
-            let pos = |g: usize| moves.iter().find(|m| m.0 == g).map(|m| m.1).unwrap_or(bg.mesh.points[g]);
             let mut candidates: Vec<(f64, usize, f64, [f64; D])> = neighbours[v]
                 .iter()
                 .copied()
                 .filter(|&w| !moves.iter().any(|m| m.0 == w))
                 .map(|w| {
-                    let (s, p, d) = project_on_line(line, &pos(w));
+                    // Not moved yet (filtered above): at its original position.
+                    let (s, p, d) = project_on_line(line, &bg.mesh.points[w]);
                     (d, w, s, p)
                 })
                 .filter(|&(_, _, s, _)| s > s_v && s < length)

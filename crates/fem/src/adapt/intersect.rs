@@ -53,11 +53,10 @@ pub(crate) struct CutSet<const D: usize> {
     /// One cut per cut edge, sorted by edge.
     pub cuts: Vec<Cut<D>>,
     /// The second point of each edge cut at several points, sorted by edge (see the module
-    /// documentation).
+    /// documentation); one per edge cut at several points (`multi_cut_edges`).
     pub second_cuts: Vec<Cut<D>>,
     /// Original vertices lying on gamma_s (touched or snapped), sorted, unique.
     pub touched: Vec<usize>,
-    pub multi_cut_edges: usize,
     pub edges_in_surface: usize,
     pub snapped: usize,
 }
@@ -129,12 +128,11 @@ pub(crate) fn find_cuts<const D: usize>(bg: &Background<D>, surface: &Surface<D>
         second_cuts.extend(second.map(cut));
         i = j;
     }
-    let multi_cut_edges = second_cuts.len();
     touched.sort_unstable();
     touched.dedup();
     in_plane_edges.sort_unstable();
     in_plane_edges.dedup();
-    CutSet { cuts, second_cuts, touched, multi_cut_edges, edges_in_surface: in_plane_edges.len(), snapped }
+    CutSet { cuts, second_cuts, touched, edges_in_surface: in_plane_edges.len(), snapped }
 }
 
 /// Of the points `ts` (sorted) where pieces cut one edge: the one kept as the edge's cut, farthest

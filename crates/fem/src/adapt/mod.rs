@@ -292,8 +292,12 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let (plan, split) = loop {
         passes += 1;
         let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
-        let split = subdivide_cells(bg, surface, &plan, &cuts, &corner_vertices);
-        let bad = refused_by_cells(bg, surface, &plan, &cuts, &split, opts.min_move_quality, &corner_vertices);
+        let nv = bg.mesh.points.len();
+        let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
+        let pos = |g: usize| plan.pos(bg, g);
+        let flat_test = FlatTest { on_surface: &on_surface, corners: &corner_vertices, pos: &pos, surface };
+        let split = subdivide_cells(bg, &plan, &flat_test);
+        let bad = refused_by_cells(bg, surface, &plan, &split, opts.min_move_quality, &flat_test);
         let (np, nd) = (pinned.len(), dropped.len());
         pinned.extend(bad.pin);
         dropped.extend(bad.drop);
@@ -315,7 +319,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.touched_vertices = cuts.touched.len().saturating_sub(moves.len()); // corner nodes touch by design
     stats.snapped_cuts = cuts.snapped;
     stats.edges_in_surface = cuts.edges_in_surface;
-    stats.multi_cut_edges = cuts.multi_cut_edges;
+    stats.multi_cut_edges = cuts.second_cuts.len();
     stats.skipped_cuts = plan.skipped;
     stats.cuts_at_moved_ends = plan.cuts_at_moved_ends;
     stats.second_cut_moves = plan.second_cut_moves;
@@ -465,16 +469,13 @@ struct Split {
 }
 
 /// Step 3: subdivides the affected cells.
-fn subdivide_cells<const D: usize>(bg: &Background<D>, surface: &Surface<D>, plan: &Plan<D>, cuts: &CutSet<D>, corners: &[usize]) -> Split {
+fn subdivide_cells<const D: usize>(bg: &Background<D>, plan: &Plan<D>, flat_test: &FlatTest<D>) -> Split {
     let mut affected: Vec<usize> = plan.new_node.keys().flat_map(|&e| bg.edge_cells.row(e).iter().copied()).collect();
     affected.extend(plan.moved.keys().flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
     affected.sort_unstable();
     affected.dedup();
     let nv = bg.mesh.points.len();
     let ct = bg.mesh.cell_type;
-    let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
-    let pos = |g: usize| plan.pos(bg, g);
-    let flat_test = FlatTest { on_surface: &on_surface, corners, pos: &pos, surface };
     let mut split = Split { min_quality: 1.0, ..Default::default() };
     for c in affected {
         let verts = bg.cell(c);
@@ -486,14 +487,14 @@ fn subdivide_cells<const D: usize>(bg: &Background<D>, surface: &Surface<D>, pla
             }
         };
         let split_edges: Vec<usize> = (0..ct.edges().len()).filter(|&k| plan.new_node.contains_key(&bg.cell_edge(c, k))).collect();
-        let flat = |l: &[usize; 4]| is_flat(&std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX }), &flat_test);
+        let flat = |l: &[usize; 4]| is_flat(&std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX }), flat_test);
         let order = split_order(bg, plan, c, &split_edges, &global, &flat);
         let labels = subdivide::bisect(ct, &order);
         let ids: Vec<[usize; 4]> = labels.iter().map(|l| std::array::from_fn(|k| if k <= D { global(l[k]) } else { usize::MAX })).collect();
         for kid in &ids {
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
             split.min_quality = split.min_quality.min(simplex_quality(&v));
-            split.flat_cells += is_flat(kid, &flat_test) as usize;
+            split.flat_cells += is_flat(kid, flat_test) as usize;
         }
         split.cells.push((c, ids, labels));
     }
@@ -610,15 +611,11 @@ fn refused_by_cells<const D: usize>(
     bg: &Background<D>,
     surface: &Surface<D>,
     plan: &Plan<D>,
-    cuts: &CutSet<D>,
     split: &Split,
     min_quality: f64,
-    corners: &[usize],
+    flat_test: &FlatTest<D>,
 ) -> Refusals {
     let nv = bg.mesh.points.len();
-    let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
-    let pos = |g: usize| plan.pos(bg, g);
-    let flat_test = FlatTest { on_surface: &on_surface, corners, pos: &pos, surface };
     let mut edge_of_new_node = vec![0; plan.new_points.len()];
     for (&e, &k) in &plan.new_node {
         edge_of_new_node[k] = e;
@@ -631,7 +628,7 @@ fn refused_by_cells<const D: usize>(
                 continue;
             }
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
-            let flat = is_flat(kid, &flat_test);
+            let flat = is_flat(kid, flat_test);
             if simplex_measure(&v) > 0.0 && simplex_quality(&v) >= min_quality && !flat {
                 continue;
             }
