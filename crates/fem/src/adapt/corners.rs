@@ -45,9 +45,14 @@ pub fn corners<const D: usize>(surface: &Surface<D>) -> Vec<[f64; D]> {
     out.into_iter().map(|(_, x)| x).collect()
 }
 
-/// The vertex moves that put fluid vertices at `corners` (see the module documentation) and the
-/// number of corners left without one.
-pub(crate) fn corner_moves<const D: usize>(bg: &Background<D>, corners: &[[f64; D]], min_quality: f64) -> (Vec<(usize, [f64; D])>, usize) {
+/// The vertex moves that put fluid vertices at `corners` (see the module documentation; the
+/// vertices `banned` are not taken) and the number of corners left without one.
+pub(crate) fn corner_moves<const D: usize>(
+    bg: &Background<D>,
+    corners: &[[f64; D]],
+    min_quality: f64,
+    banned: &std::collections::HashSet<usize>,
+) -> (Vec<(usize, [f64; D])>, usize) {
     let mut moves: Vec<(usize, [f64; D])> = Vec::new();
     let mut unplaced = 0;
     let h = (bg.measure / bg.num_cells().max(1) as f64).powf(1.0 / D as f64);
@@ -61,7 +66,7 @@ pub(crate) fn corner_moves<const D: usize>(bg: &Background<D>, corners: &[[f64; 
         }
         candidates.sort_by(|&a, &b| dist2(&bg.mesh.points[a], x).total_cmp(&dist2(&bg.mesh.points[b], x)).then(a.cmp(&b)));
         candidates.dedup();
-        let free = |v: usize| !moves.iter().any(|(m, _)| *m == v);
+        let free = |v: usize| !banned.contains(&v) && !moves.iter().any(|(m, _)| *m == v);
         match candidates.into_iter().find(|&v| free(v) && super::boundary_move_ok(bg, v, x) && star_ok(bg, &moves, v, x, min_quality)) {
             Some(v) => moves.push((v, *x)),
             None => unplaced += 1,

@@ -7,14 +7,17 @@
 //! 0. **Corners** ([`corners`], 2D) **and feature lines** ([`features`], 3D): where gamma_s turns
 //!    sharply, the nearest fluid vertex that can is moved onto the corner first, so that the
 //!    adapted mesh has a node there; in 3D the corners and ends of a thick solid's edges take a
-//!    vertex each, and a chain of vertices moved onto each edge joins them.
+//!    vertex each, and a chain of vertices moved onto each edge joins them (the cheapest path of
+//!    fluid edges between them, [`features`]).
 //! 1. **Cut edges** ([`intersect`]): the edges crossed by gamma_s, one point per edge (the one
 //!    farthest from the edge's ends if there are several, and a second cut for step 2).
 //! 2. **Move or add** ([`adapt_with`]): `eps = |x_i - x_n1| / |x_n2 - x_n1|`;
 //!    `eps < eps_hat` moves `n1` onto `x_i`, `eps > 1 - eps_hat` moves `n2`, otherwise a new node
 //!    is added at `x_i`. Rules for what the paper leaves open are listed below.
 //! 3. **Subdivide** ([`subdivide`]): every cell with split edges is replaced by the children of
-//!    successive bisection; faces are split consistently, so the mesh stays conforming.
+//!    successive bisection; faces are split consistently, so the mesh stays conforming. In 3D
+//!    with feature lines, the children's edges that still cross gamma_s within their length of a
+//!    line are cut and the cells subdivided again (`cut_crossings_near_features`).
 //! 4. **gamma_f**: facets of the adapted mesh whose vertices all lie on gamma_s and which lie in
 //!    gamma_s, with the cells on both sides and each vertex's location on gamma_s.
 //!
@@ -58,7 +61,10 @@
 //!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold); in 3D
 //!   also its vertices within that distance of the plane of the gamma_s piece nearest its
 //!   centroid (this rejects a triangle across a block's edge, whose centroid lies near both
-//!   faces); rejected ones are counted (`rejected_facets`).
+//!   faces), and its vertices on one smooth part of gamma_s ([`features::smooth_parts`]: a
+//!   vertex on a block's edge is on both faces; this rejects a triangle inside the block's wedge
+//!   that is nearly parallel to one face, with a vertex on the other); rejected ones are counted
+//!   (`rejected_facets`).
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s, within `GAMMA_F_REL_TOL` times its
 //!   diameter of the plane of the piece nearest its centroid, and none at a corner or on a
 //!   feature line of step 0. A cell spanning a solid's corner or edge is not flat: it fills it.
@@ -93,6 +99,11 @@ use thiserror::Error;
 /// Facets whose centroid is farther than this times their diameter from gamma_s are not on
 /// gamma_f.
 pub const GAMMA_F_REL_TOL: f64 = 0.1;
+
+/// 3D: a vertex of a gamma_f facet lies on the smooth parts of gamma_s
+/// ([`features::smooth_parts`]) within this times the facet's diameter of it; a facet whose
+/// vertices share no part spans a feature line and is not on gamma_f.
+const PARTS_REL_TOL: f64 = 1e-9;
 
 /// Name of the boundary [`tag_gamma_f`] gives the facets of gamma_f (seen from one side).
 pub const GAMMA_F: &str = "gamma_f";
@@ -214,6 +225,9 @@ pub struct AdaptStats {
     pub flat_cells: usize,
     /// Facets with all vertices on gamma_s but not lying in it.
     pub rejected_facets: usize,
+    /// 3D: edges of the subdivided cells still crossing gamma_s next to a feature line, cut in
+    /// further passes (counted in `new_nodes` too).
+    pub crossing_cuts: usize,
     /// Passes of steps 2-3 (1 + the number of rounds of undone moves).
     pub passes: usize,
 }
@@ -306,12 +320,22 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         }
     };
     let mut out = assemble(bg, &plan, &split);
-    let on_surface = on_surface_flags(bg, &plan, &cuts);
-    let (gamma_f, rejected) = build_gamma_f(bg, &out, &plan, &cuts, &on_surface, surface);
+    let mut on_surface = on_surface_flags(bg, &plan, &cuts);
+    let mut candidates: Vec<usize> = out.child_index.iter().flatten().copied().collect();
+    candidates.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
+    let lines = features::features(surface).lines;
+    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines)?;
+    if extra.passes > 0 {
+        let mesh = &out.mesh;
+        candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
+    }
+    let parts = features::smooth_parts(surface);
+    let (gamma_f, rejected) = build_gamma_f(&out.mesh, candidates, &on_surface, surface, &parts);
     let stats = &mut out.stats;
     stats.cut_edges = cuts.cuts.len();
     stats.moved_nodes = plan.moved.len();
-    stats.new_nodes = plan.new_points.len();
+    stats.new_nodes = plan.new_points.len() + extra.cuts;
+    stats.crossing_cuts = extra.cuts;
     stats.refused_moves = plan.refused;
     stats.refused_boundary = plan.refused_boundary;
     stats.new_cells = out.mesh.num_cells() - bg.num_cells();
@@ -326,8 +350,8 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.dropped_second_cuts = plan.dropped_second_cuts;
     stats.flat_cells = split.flat_cells;
     stats.rejected_facets = rejected;
-    stats.min_quality = split.min_quality;
-    stats.passes = passes;
+    stats.min_quality = split.min_quality.min(extra.min_quality);
+    stats.passes = passes + extra.passes;
     stats.corner_nodes = moves.len();
     stats.unplaced_corners = unplaced_corners;
     stats.degenerate_cases =
@@ -730,20 +754,86 @@ fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
     f
 }
 
-/// Step 4: gamma_f (see the module documentation for the rule). Only cells that are children or
-/// touch an on-surface vertex are searched. Returns the facets and the number rejected.
+/// 3D with feature lines: the edges of the adapted mesh that still cross gamma_s within their
+/// length of a feature line, cut at new nodes (no moves), and the mesh subdivided again, pass
+/// after pass (at most [`MAX_CROSSING_PASSES`]) until none is left; edges with both ends on
+/// gamma_s are not cut (a chord along it), nor crossings within [`CROSSING_AT_END`] of an end on
+/// gamma_s. Next to a block's edge a fluid cell can be cut by
+/// both faces without holding the edge's chain: an edge of it passes through the solid's wedge,
+/// crossing both faces, and keeps one point; the children of the bisection then have edges
+/// between that point and the cell's other vertices that cross the other face, and gamma_f had a
+/// hole there. The cut children leave no edge crossing gamma_s near the feature lines, so the
+/// faces there are unions of facets. Modifies `out` (its `child_index` is left as it was) and
+/// `on_surface`.
+fn cut_crossings_near_features<const D: usize>(
+    out: &mut Assembled<D>,
+    on_surface: &mut Vec<bool>,
+    surface: &Surface<D>,
+    lines: &[Vec<[f64; D]>],
+) -> Result<Extra, AdaptError> {
+    let mut extra = Extra { min_quality: 1.0, ..Default::default() };
+    if D != 3 || lines.is_empty() {
+        return Ok(extra);
+    }
+    while extra.passes < MAX_CROSSING_PASSES {
+        let bg = Background::new(&out.mesh)?;
+        let cuts = find_cuts(&bg, surface);
+        let mut plan = Plan::default();
+        for c in &cuts.cuts {
+            let [u, v] = bg.topology.edges[c.edge];
+            let len2 = dist2(&bg.mesh.points[u], &bg.mesh.points[v]);
+            let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| on_surface[w] && t <= CROSSING_AT_END);
+            if !(at_surface_end || on_surface[u] && on_surface[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
+                add_node(&mut plan, c.edge, c.x);
+            }
+        }
+        if plan.new_points.is_empty() {
+            break;
+        }
+        let nv = bg.mesh.points.len();
+        let flags: &[bool] = on_surface;
+        let on = |g: usize| g >= nv || flags[g];
+        let pos = |g: usize| plan.pos(&bg, g);
+        let flat_test = FlatTest { on_surface: &on, corners: &[], pos: &pos, surface };
+        let split = subdivide_cells(&bg, &plan, &flat_test);
+        let next = assemble(&bg, &plan, &split);
+        out.new_to_old_cell = next.new_to_old_cell.iter().map(|&c| out.new_to_old_cell[c]).collect();
+        out.mesh = next.mesh;
+        on_surface.resize(nv + plan.new_points.len(), true);
+        extra.cuts += plan.new_points.len();
+        extra.min_quality = extra.min_quality.min(split.min_quality);
+        extra.passes += 1;
+    }
+    Ok(extra)
+}
+
+/// A crossing this close (relative to its edge) to an end of the edge on gamma_s is that end
+/// touching gamma_s, moved off it by round-off (`cut_crossings_near_features`): an edge
+/// nearly parallel to a face from a vertex on a feature line.
+const CROSSING_AT_END: f64 = 1e-6;
+
+/// Passes of [`cut_crossings_near_features`] at most.
+const MAX_CROSSING_PASSES: usize = 4;
+
+/// What [`cut_crossings_near_features`] did.
+#[derive(Clone, Copy, Debug, Default)]
+struct Extra {
+    passes: usize,
+    cuts: usize,
+    min_quality: f64,
+}
+
+/// Step 4: gamma_f (see the module documentation for the rule) among the facets of the `cells`
+/// of `mesh` (the children and the cells touching an on-surface vertex). Returns the facets and
+/// the number rejected.
 fn build_gamma_f<const D: usize>(
-    bg: &Background<D>,
-    out: &Assembled<D>,
-    plan: &Plan<D>,
-    cuts: &CutSet<D>,
+    mesh: &Mesh<D>,
+    mut cells: Vec<usize>,
     on_surface: &[bool],
     surface: &Surface<D>,
+    parts: &[usize],
 ) -> (Vec<GammaFacet<D>>, usize) {
-    let mesh = &out.mesh;
     let ct = mesh.cell_type;
-    let mut cells: Vec<usize> = out.child_index.iter().flatten().copied().collect();
-    cells.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
     cells.sort_unstable();
     cells.dedup();
     let mut facets: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::new();
@@ -765,6 +855,7 @@ fn build_gamma_f<const D: usize>(
     keys.sort_unstable();
     let mut located: HashMap<usize, SurfacePoint<D>> = HashMap::new();
     let mut locate = |v: usize| *located.entry(v).or_insert_with(|| surface.project(&mesh.points[v]).expect("non-empty surface"));
+    let mut vertex_parts: HashMap<usize, Vec<usize>> = HashMap::new();
     let mut out_facets = Vec::new();
     let mut rejected = 0;
     for key in keys {
@@ -776,7 +867,15 @@ fn build_gamma_f<const D: usize>(
         let centroid: [f64; D] = std::array::from_fn(|d| pts.iter().map(|p| p[d]).sum::<f64>() / D as f64);
         let diam2 = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| dist2(&pts[i], &pts[j])).fold(0.0, f64::max);
         let Some(sp) = surface.project(&centroid) else { continue };
-        let spans_a_feature = D == 3 && !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt());
+        let spans_a_feature = D == 3
+            && (!in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt()) || {
+                let tol = PARTS_REL_TOL * diam2.sqrt();
+                let mut at =
+                    verts.iter().map(|&v| vertex_parts.entry(v).or_insert_with(|| features::parts_at(surface, parts, &mesh.points[v], tol)).clone());
+                let first = at.next().unwrap_or_default();
+                let rest: Vec<Vec<usize>> = at.collect();
+                !first.iter().any(|p| rest.iter().all(|r| r.contains(p)))
+            });
         if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 || spans_a_feature {
             rejected += 1;
             continue;
