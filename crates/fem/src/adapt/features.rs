@@ -25,7 +25,7 @@
 //! again where their edges still cross gamma_s (`super::cut_crossings_near_features`).
 
 use super::background::Background;
-use super::geom::{closest_on_piece, closest_on_segment, dist2, dot, lerp, piece_point, sub};
+use super::geom::{closest_on_piece, closest_on_segment, dist2, dot, lerp, piece_point, simplex_measure, simplex_quality, sub};
 use super::surface::{piece_normal, Surface};
 use std::collections::{HashMap, HashSet};
 
@@ -182,6 +182,94 @@ pub(crate) fn parts_at<const D: usize>(surface: &Surface<D>, parts: &[usize], x:
     found.dedup();
     found
 }
+
+/// The kinks of the feature `lines` between mesh vertices on them: for each edge of `bg` whose
+/// two ends (among `on_line`, checked) lie on one line (within round-off), the point of the line
+/// between them where it bends away from the edge by more than round-off (the middle one of
+/// several), with the edge. A curved solid's edge is a polyline through its geometry nodes; a
+/// chain's edge between two of its vertices is a chord of it, and the faces meeting at the line
+/// cross that chord next to the bend: cut there on both faces, at points apart by the chord's
+/// sag (1.7e-5 for a block's top edge bent by its Q2 deformation), they left a sliver between
+/// them and a hole in gamma_f. The bend placed as the edge's node (off the edge by its sag,
+/// at most [`MAX_KINK_SAG`] of its length, where the cells around the edge stay positive and of
+/// quality `min_quality`: [`halves_ok`]) makes the chain follow the line; further passes take
+/// the other bends.
+pub(crate) fn kinks<const D: usize>(
+    bg: &Background<D>,
+    lines: &[Vec<[f64; D]>],
+    on_line: impl Iterator<Item = usize>,
+    min_quality: f64,
+) -> Vec<(usize, [f64; D])> {
+    if lines.is_empty() {
+        return Vec::new();
+    }
+    // Each candidate vertex's lines and arc lengths.
+    let mut at: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
+    for v in on_line {
+        let x = bg.mesh.points[v];
+        let scale = 1.0 + x.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        for (i, line) in lines.iter().enumerate() {
+            let (s, _, d) = project_on_line(line, &x);
+            if d <= ON_LINE_TOL * scale {
+                at.entry(v).or_default().push((i, s));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (e, [a, b]) in bg.topology.edges.iter().enumerate() {
+        let (Some(la), Some(lb)) = (at.get(a), at.get(b)) else { continue };
+        let (pa, pb) = (bg.mesh.points[*a], bg.mesh.points[*b]);
+        let len = dist2(&pa, &pb).sqrt();
+        for &(i, sa) in la {
+            let Some(&(_, sb)) = lb.iter().find(|l| l.0 == i) else { continue };
+            let (s0, s1) = (sa.min(sb), sa.max(sb));
+            let line = &lines[i];
+            let mut s = 0.0;
+            let mut bends = Vec::new();
+            for w in line.windows(2) {
+                s += dist2(&w[0], &w[1]).sqrt();
+                if s > s0 + KINK_GAP * len && s < s1 - KINK_GAP * len {
+                    let sag = dist2(&w[1], &lerp(&pa, &pb, closest_on_segment(&w[1], &pa, &pb))).sqrt();
+                    if sag > ON_LINE_TOL * (1.0 + len) && sag <= MAX_KINK_SAG * len {
+                        bends.push(w[1]);
+                    }
+                }
+            }
+            if !bends.is_empty() {
+                let x = bends[bends.len() / 2];
+                if halves_ok(bg, e, &x, min_quality) {
+                    out.push((e, x));
+                }
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// May edge `e` of `bg` take a node at `x` off it: is it inside the domain (not both ends on the
+/// boundary, where the cells around it do not close), and are the halves of every cell around
+/// it, with `x` in place of either end, positive and of quality `min_quality` at least?
+fn halves_ok<const D: usize>(bg: &Background<D>, e: usize, x: &[f64; D], min_quality: f64) -> bool {
+    let ends = bg.topology.edges[e];
+    if ends.iter().all(|&v| !bg.vertex_boundary.row(v).is_empty()) {
+        return false;
+    }
+    bg.edge_cells.row(e).iter().all(|&c| {
+        ends.iter().all(|&end| {
+            let p: Vec<[f64; D]> = bg.cell(c).iter().map(|&g| if g == end { *x } else { bg.mesh.points[g] }).collect();
+            simplex_measure(&p) > 0.0 && simplex_quality(&p) >= min_quality
+        })
+    })
+}
+
+/// A vertex this close (relative to its coordinates) to a feature line is on it ([`kinks`]).
+const ON_LINE_TOL: f64 = 1e-9;
+/// Bends closer than this (relative to the edge) to an end of the edge are that end ([`kinks`]).
+const KINK_GAP: f64 = 1e-6;
+/// Bends farther than this (relative to the edge) from it are not put on it ([`kinks`]): the
+/// node would leave the edge too far for the cells around it.
+const MAX_KINK_SAG: f64 = 0.05;
 
 /// Arc length along `line` of the point of `line` nearest `x`, that point, and its distance.
 pub(crate) fn project_on_line<const D: usize>(line: &[[f64; D]], x: &[f64; D]) -> (f64, [f64; D], f64) {

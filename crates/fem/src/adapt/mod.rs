@@ -228,6 +228,9 @@ pub struct AdaptStats {
     /// 3D: edges of the subdivided cells still crossing gamma_s next to a feature line, cut in
     /// further passes (counted in `new_nodes` too).
     pub crossing_cuts: usize,
+    /// 3D: points where a curved feature line bends between two vertices on it, added on the
+    /// edge between them (counted in `new_nodes` too; see `features::kinks`).
+    pub feature_kinks: usize,
     /// Passes of steps 2-3 (1 + the number of rounds of undone moves).
     pub passes: usize,
 }
@@ -297,7 +300,10 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         cornered = bg.with_moved_vertices(&moves);
         &cornered
     };
-    let cuts = find_cuts(bg, surface);
+    let lines = features::features(surface).lines;
+    let mut cuts = find_cuts(bg, surface);
+    let kinks = features::kinks(bg, &lines, moves.iter().map(|m| m.0), opts.min_move_quality);
+    drop_cuts_on(&mut cuts, &kinks);
     let mut corner_vertices: Vec<usize> = moves.iter().map(|m| m.0).collect();
     corner_vertices.sort_unstable();
     let mut pinned: HashSet<usize> = HashSet::new();
@@ -305,7 +311,10 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let mut passes = 0;
     let (plan, split) = loop {
         passes += 1;
-        let plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
+        let mut plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
+        for &(e, x) in &kinks {
+            add_node(&mut plan, e, x);
+        }
         let nv = bg.mesh.points.len();
         let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
         let pos = |g: usize| plan.pos(bg, g);
@@ -323,8 +332,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let mut on_surface = on_surface_flags(bg, &plan, &cuts);
     let mut candidates: Vec<usize> = out.child_index.iter().flatten().copied().collect();
     candidates.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
-    let lines = features::features(surface).lines;
-    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines)?;
+    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, opts.min_move_quality)?;
     if extra.passes > 0 {
         let mesh = &out.mesh;
         candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
@@ -336,6 +344,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.moved_nodes = plan.moved.len();
     stats.new_nodes = plan.new_points.len() + extra.cuts;
     stats.crossing_cuts = extra.cuts;
+    stats.feature_kinks = kinks.len() + extra.kinks;
     stats.refused_moves = plan.refused;
     stats.refused_boundary = plan.refused_boundary;
     stats.new_cells = out.mesh.num_cells() - bg.num_cells();
@@ -770,6 +779,7 @@ fn cut_crossings_near_features<const D: usize>(
     on_surface: &mut Vec<bool>,
     surface: &Surface<D>,
     lines: &[Vec<[f64; D]>],
+    min_quality: f64,
 ) -> Result<Extra, AdaptError> {
     let mut extra = Extra { min_quality: 1.0, ..Default::default() };
     if D != 3 || lines.is_empty() {
@@ -777,7 +787,10 @@ fn cut_crossings_near_features<const D: usize>(
     }
     while extra.passes < MAX_CROSSING_PASSES {
         let bg = Background::new(&out.mesh)?;
-        let cuts = find_cuts(&bg, surface);
+        let mut cuts = find_cuts(&bg, surface);
+        let flags: &[bool] = on_surface;
+        let kinks = features::kinks(&bg, lines, (0..flags.len()).filter(|&v| flags[v]), min_quality);
+        drop_cuts_on(&mut cuts, &kinks);
         let mut plan = Plan::default();
         for c in &cuts.cuts {
             let [u, v] = bg.topology.edges[c.edge];
@@ -787,6 +800,10 @@ fn cut_crossings_near_features<const D: usize>(
                 add_node(&mut plan, c.edge, c.x);
             }
         }
+        for &(e, x) in &kinks {
+            add_node(&mut plan, e, x);
+        }
+        extra.kinks += kinks.len();
         if plan.new_points.is_empty() {
             break;
         }
@@ -807,6 +824,13 @@ fn cut_crossings_near_features<const D: usize>(
     Ok(extra)
 }
 
+/// Removes the cuts (and second cuts) of the edges that take a kink of a feature line instead.
+fn drop_cuts_on<const D: usize>(cuts: &mut CutSet<D>, kinks: &[(usize, [f64; D])]) {
+    let edges: HashSet<usize> = kinks.iter().map(|k| k.0).collect();
+    cuts.cuts.retain(|c| !edges.contains(&c.edge));
+    cuts.second_cuts.retain(|c| !edges.contains(&c.edge));
+}
+
 /// A crossing this close (relative to its edge) to an end of the edge on gamma_s is that end
 /// touching gamma_s, moved off it by round-off (`cut_crossings_near_features`): an edge
 /// nearly parallel to a face from a vertex on a feature line.
@@ -820,6 +844,7 @@ const MAX_CROSSING_PASSES: usize = 4;
 struct Extra {
     passes: usize,
     cuts: usize,
+    kinks: usize,
     min_quality: f64,
 }
 
