@@ -450,6 +450,9 @@ pub(crate) fn feature_moves<const D: usize>(bg: &Background<D>, surface: &Surfac
         return super::corners::corner_moves(bg, &super::corners::corners(surface), min_quality, &banned);
     }
     let f = features(surface);
+    if f.lines.is_empty() && f.vertices.is_empty() {
+        return (Vec::new(), 0);
+    }
     let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); bg.mesh.points.len()];
     for e in &bg.topology.edges {
         neighbours[e[0]].push(e[1]);

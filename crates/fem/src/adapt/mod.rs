@@ -231,7 +231,8 @@ pub struct AdaptStats {
     /// 3D: points where a curved feature line bends between two vertices on it, added on the
     /// edge between them (counted in `new_nodes` too; see `features::kinks`).
     pub feature_kinks: usize,
-    /// Passes of steps 2-3 (1 + the number of rounds of undone moves).
+    /// Passes of steps 2-3 (1 + the number of rounds of undone moves), plus the 3D passes that
+    /// cut again next to feature lines.
     pub passes: usize,
 }
 
@@ -337,7 +338,9 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         let mesh = &out.mesh;
         candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
     }
-    let parts = features::smooth_parts(surface);
+    // Without feature lines gamma_s is one part (pieces given without shared corners would
+    // otherwise be a part each).
+    let parts = if lines.is_empty() { vec![0; surface.num_pieces()] } else { features::smooth_parts(surface) };
     let (gamma_f, rejected) = build_gamma_f(&out.mesh, candidates, &on_surface, surface, &parts);
     let stats = &mut out.stats;
     stats.cut_edges = cuts.cuts.len();
@@ -817,7 +820,7 @@ fn cut_crossings_near_features<const D: usize>(
         out.new_to_old_cell = next.new_to_old_cell.iter().map(|&c| out.new_to_old_cell[c]).collect();
         out.mesh = next.mesh;
         on_surface.resize(nv + plan.new_points.len(), true);
-        extra.cuts += plan.new_points.len();
+        extra.cuts += plan.new_points.len() - kinks.len();
         extra.min_quality = extra.min_quality.min(split.min_quality);
         extra.passes += 1;
     }
@@ -859,6 +862,7 @@ fn build_gamma_f<const D: usize>(
     parts: &[usize],
 ) -> (Vec<GammaFacet<D>>, usize) {
     let ct = mesh.cell_type;
+    let has_features = parts.iter().any(|&p| p != 0);
     cells.sort_unstable();
     cells.dedup();
     let mut facets: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::new();
@@ -893,14 +897,16 @@ fn build_gamma_f<const D: usize>(
         let diam2 = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| dist2(&pts[i], &pts[j])).fold(0.0, f64::max);
         let Some(sp) = surface.project(&centroid) else { continue };
         let spans_a_feature = D == 3
-            && (!in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt()) || {
-                let tol = PARTS_REL_TOL * diam2.sqrt();
-                let mut at =
-                    verts.iter().map(|&v| vertex_parts.entry(v).or_insert_with(|| features::parts_at(surface, parts, &mesh.points[v], tol)).clone());
-                let first = at.next().unwrap_or_default();
-                let rest: Vec<Vec<usize>> = at.collect();
-                !first.iter().any(|p| rest.iter().all(|r| r.contains(p)))
-            });
+            && (!in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
+                || has_features && {
+                    let tol = PARTS_REL_TOL * diam2.sqrt();
+                    let mut at = verts
+                        .iter()
+                        .map(|&v| vertex_parts.entry(v).or_insert_with(|| features::parts_at(surface, parts, &mesh.points[v], tol)).clone());
+                    let first = at.next().unwrap_or_default();
+                    let rest: Vec<Vec<usize>> = at.collect();
+                    !first.iter().any(|p| rest.iter().all(|r| r.contains(p)))
+                });
         if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 || spans_a_feature {
             rejected += 1;
             continue;
