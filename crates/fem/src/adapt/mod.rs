@@ -345,7 +345,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let stats = &mut out.stats;
     stats.cut_edges = cuts.cuts.len();
     stats.moved_nodes = plan.moved.len();
-    stats.new_nodes = plan.new_points.len() + extra.cuts;
+    stats.new_nodes = plan.new_points.len() + extra.cuts + extra.kinks;
     stats.crossing_cuts = extra.cuts;
     stats.feature_kinks = kinks.len() + extra.kinks;
     stats.refused_moves = plan.refused;
@@ -811,7 +811,6 @@ fn cut_crossings_near_features<const D: usize>(
             break;
         }
         let nv = bg.mesh.points.len();
-        let flags: &[bool] = on_surface;
         let on = |g: usize| g >= nv || flags[g];
         let pos = |g: usize| plan.pos(&bg, g);
         let flat_test = FlatTest { on_surface: &on, corners: &[], pos: &pos, surface };
