@@ -178,20 +178,21 @@ fn the_adapted_mesh_encloses_the_bar_with_its_tip_among_the_cells() {
     }
 }
 
-/// gamma_s saved in `tests/data/NAME` (one flat piece per row: `x0,y0,x1,y1`).
-fn saved_gamma_s(name: &str) -> fdfsi::fem::adapt::Surface<2> {
+/// gamma_s saved in `tests/data/NAME`: one flat piece per row, its `D` corners' coordinates
+/// (`x0,y0,x1,y1` in 2D, `x0,y0,z0,x1,...,z2` in 3D); corners with equal coordinates are one point.
+fn saved_gamma_s<const D: usize>(name: &str) -> fdfsi::fem::adapt::Surface<D> {
     let text = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)).unwrap();
     let (mut points, mut index, mut pieces) = (Vec::new(), std::collections::HashMap::new(), Vec::new());
     for line in text.lines().filter(|l| !l.starts_with('#')) {
         let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        let mut id = |p: [f64; 2]| {
+        assert_eq!(v.len(), D * D, "{name}: {line}");
+        pieces.push(std::array::from_fn(|k| {
+            let p: [f64; D] = std::array::from_fn(|d| v[D * k + d]);
             *index.entry(p.map(f64::to_bits)).or_insert_with(|| {
                 points.push(p);
                 points.len() - 1
             })
-        };
-        let a = id([v[0], v[1]]);
-        pieces.push([a, id([v[2], v[3]])]);
+        }));
     }
     fdfsi::fem::adapt::Surface::from_pieces(points, pieces).unwrap()
 }
@@ -481,6 +482,73 @@ fn turned_3d_blocks_are_enclosed_with_their_edges_and_corners() {
         assert!((ratio - 1.0).abs() < 1e-9, "{label}: gamma_f / gamma_s = {ratio} ({:?})", adapted.stats);
         let removed = remove_enclosed(adapted).unwrap_or_else(|e| panic!("{label}: {e}"));
         assert!(removed.stats.removed_cells > 0, "{label}");
+    }
+}
+
+/// [`block_3d`] swinging sideways in its fluid: softer (G = 0.2), with inertia (density 1), its
+/// weight and a lateral force (body force [0.25, 0.12, -0.1]), BDF2 with dt = 0.1 to `end`,
+/// no step cuts (a step that fails fails the run). Its sides shear and bend: gamma_s has curved
+/// faces and edges that move through the fluid cells, adapted every step with the covered cells
+/// removed.
+fn swinging_block_3d(n: usize, end: f64) -> String {
+    let text = block_3d(n)
+        .replace("shear_modulus = 1.0", "shear_modulus = 0.2\ndensity = 1.0")
+        .replace("body_force = [0.0, 0.0, -0.3]", "body_force = [0.25, 0.12, -0.1]")
+        .replace("dt = 1.0\nend = 6.0\nscheme = \"euler\"", &format!("dt = 0.1\nend = {end}\nscheme = \"bdf2\"\nmax_cuts = 0\noutput_every = 1000"));
+    assert!(["shear_modulus = 0.2", "[0.25, 0.12, -0.1]", "dt = 0.1"].iter().all(|t| text.contains(t)), "{text}");
+    text
+}
+
+/// The first steps of [`swinging_block_3d`] on 6^3 cubes: every step adapts, encloses the block
+/// (else the run fails) and converges; the top corner moves sideways.
+#[test]
+fn a_3d_block_starts_swinging_in_fluid() {
+    let s = run(&swinging_block_3d(6, 0.6), "swing3d");
+    assert_eq!(s.steps, 6);
+    assert!(q(&s, "ux_corner") > 1e-3, "ux_corner {}", q(&s, "ux_corner"));
+}
+
+/// [`swinging_block_3d`] on 8^3 cubes to t = 5 (50 steps; about 9 s each): the block sways to
+/// and fro, its faces sheared and curved; every step's gamma_f encloses it. It stopped at step 3
+/// before the feature lines' kinks, at step 18 before the smooth parts told a chord of a curved
+/// face from one across an edge, and at step 26 before a cell along one face with vertices on
+/// the block's edge was flat (the saved surfaces of
+/// [`a_swung_3d_block_with_curved_faces_is_enclosed`]).
+#[test]
+#[ignore = "about 8 minutes: run with --ignored"]
+fn a_3d_block_swinging_in_fluid_is_enclosed_at_every_step() {
+    let s = run(&swinging_block_3d(8, 5.0), "swing3d-long");
+    assert_eq!(s.steps, 50);
+    assert!(q(&s, "ux_corner").abs() > 1e-2, "ux_corner {}", q(&s, "ux_corner"));
+}
+
+/// The block of [`block_3d`] on 8^3 cubes swung sideways in fluid (the ignored
+/// [`a_3d_block_swinging_in_fluid_is_enclosed_at_every_step`]), its gamma_s saved in `tests/data`
+/// at the two times where that run stopped ("gamma_f does not enclose the solid"):
+/// - t = 1.8, at the floor beside the face leaning out. The sheared faces are curved (their
+///   normals turn by 13 degrees within a cell height above the floor), and a triangle of fluid
+///   vertices on one face, a chord from the floor to the face's edge, was refused as spanning an
+///   edge: a vertex lay 12 % of its diameter off the plane of the piece at its centroid (the
+///   limit is 10 %). Where gamma_s has feature lines, that is now told by the smooth parts alone.
+/// - t = 2.6, where a face had come near a plane of the grid: cells with all four vertices on
+///   that face, two of them on the block's edge, were not taken as flat (a cell with a vertex on
+///   an edge was taken to fill the wedge), and gamma_f had facets on both their sides. A cell is
+///   now flat when its vertices share a smooth part.
+///
+/// gamma_f (chords of the curved faces) has 99.79 % and 99.99 % of gamma_s's area (held at 0.5 %).
+#[test]
+fn a_swung_3d_block_with_curved_faces_is_enclosed() {
+    use fdfsi::fem::adapt::{adapt_with, remove_enclosed, verify_adapted, AdaptOptions, Background};
+    let fluid = fdfsi::fem::generate::box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 8, 8, 8);
+    let bg = Background::new(&fluid).unwrap();
+    for data in ["block-3d-swung-gamma-s-t1.8.csv", "block-3d-swung-gamma-s-t2.6.csv"] {
+        let surface = saved_gamma_s::<3>(data);
+        let adapted = adapt_with(&bg, &surface, &AdaptOptions::new(0.2)).unwrap();
+        verify_adapted(&fluid, &adapted, &surface).unwrap_or_else(|e| panic!("{data}: {e}"));
+        let ratio = adapted.gamma_f_measure() / surface.measure();
+        assert!((ratio - 1.0).abs() < 5e-3, "{data}: gamma_f / gamma_s = {ratio}");
+        let removed = remove_enclosed(adapted).unwrap_or_else(|e| panic!("{data}: {e}"));
+        assert!(removed.stats.removed_cells > 0 && removed.stats.feature_kinks > 0, "{data}: {:?}", removed.stats);
     }
 }
 

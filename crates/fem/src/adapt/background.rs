@@ -4,9 +4,11 @@
 //! depends only on that mesh is built here once: its vertex mesh (linear simplices, vertices
 //! renumbered `0..nv` in increasing original node order, which is the identity for a linear
 //! mesh), its [`Topology`], an R-tree over the bounding boxes of its edges, and the incidence
-//! tables `edge -> cells`, `vertex -> cells`, `vertex -> boundary facets`. With these a step's work is local to the cut (but for a gamma_s with corners, whose step
-//! clones the vertex positions and rebuilds the edge index once: [`super::corners`]): its cost grows with the number of cut
-//! elements, plus one copy of the cell table.
+//! tables `edge -> cells`, `vertex -> cells`, `vertex -> boundary facets`. With these a step's
+//! work is local to the cut: its cost grows with the number of cut elements, plus one copy of
+//! the cell table. Not quite for a gamma_s with corners (its step clones the vertex positions
+//! and rebuilds the edge index once: [`super::corners`]), nor in 3D with feature lines, where
+//! each pass that cuts the adapted mesh again near them builds this for the whole adapted mesh.
 
 use super::AdaptError;
 use crate::element::ReferenceCell;

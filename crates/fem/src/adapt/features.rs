@@ -193,7 +193,8 @@ pub(crate) fn parts_at<const D: usize>(surface: &Surface<D>, parts: &[usize], x:
 /// them and a hole in gamma_f. The bend placed as the edge's node (off the edge by its sag,
 /// at most [`MAX_KINK_SAG`] of its length, where the cells around the edge stay positive and of
 /// quality `min_quality`: [`halves_ok`]) makes the chain follow the line; further passes take
-/// the other bends.
+/// the other bends. A cell split on other edges too can still be spoilt by the kink: the
+/// adaptation checks the children and refuses such kinks (`AdaptStats::refused_kinks`).
 pub(crate) fn kinks<const D: usize>(
     bg: &Background<D>,
     lines: &[Vec<[f64; D]>],
@@ -289,8 +290,10 @@ pub(crate) fn project_on_line<const D: usize>(line: &[[f64; D]], x: &[f64; D]) -
 }
 
 /// The chain along `line` from the vertex `start` placed at its first point to `end`, placed at
-/// its last: the path of mesh edges from `start` to `end` through unmoved vertices that costs
-/// least (Dijkstra), each vertex moving onto the line, farther along it than the one before, to a
+/// its last: a path of mesh edges from `start` to `end` through unmoved vertices, the cheapest
+/// Dijkstra's search finds (each vertex is reached once, its move checked against the path that
+/// reached it first, so a cheaper path through it can be missed), each vertex moving onto the
+/// line, farther along it than the one before, to a
 /// point nearer to it than its edge from the one before is long, and costing its squared
 /// distance to that point over that edge's squared length plus [`CHAIN_VERTEX_COST`] (few
 /// vertices, short moves). A vertex's point is its projection onto the line or, where the

@@ -59,12 +59,15 @@
 //! * **gamma_f rule**: a facet is on gamma_f when all its vertices are on gamma_s (touched, moved
 //!   or new nodes) and its centroid is within `GAMMA_F_REL_TOL = 0.1` times the facet's diameter
 //!   of gamma_s (this accepts chords of a curved gamma_s, rejects facets spanning a fold); in 3D
-//!   also its vertices within that distance of the plane of the gamma_s piece nearest its
-//!   centroid (this rejects a triangle across a block's edge, whose centroid lies near both
-//!   faces), and its vertices on one smooth part of gamma_s ([`features::smooth_parts`]: a
-//!   vertex on a block's edge is on both faces; this rejects a triangle inside the block's wedge
-//!   that is nearly parallel to one face, with a vertex on the other); rejected ones are counted
-//!   (`rejected_facets`).
+//!   also, where gamma_s has feature lines, its vertices on one smooth part of gamma_s
+//!   ([`features::smooth_parts`]: a vertex on a block's edge is on both faces; this rejects a
+//!   triangle across a block's edge, whose centroid lies near both faces, and one inside the
+//!   block's wedge that is nearly parallel to one face, with a vertex on the other), and where
+//!   it has none (a smooth gamma_s, or pieces given without shared corners), its vertices within
+//!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid
+//!   (that test also refuses chords of faces curved more than that, such as a sheared block's
+//!   sides near the floor, so it is not used where the parts tell the edges); rejected ones are
+//!   counted (`rejected_facets`).
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s, within `GAMMA_F_REL_TOL` times its
 //!   diameter of the plane of the piece nearest its centroid, and none at a corner or on a
 //!   feature line of step 0. A cell spanning a solid's corner or edge is not flat: it fills it.
@@ -100,10 +103,43 @@ use thiserror::Error;
 /// gamma_f.
 pub const GAMMA_F_REL_TOL: f64 = 0.1;
 
-/// 3D: a vertex of a gamma_f facet lies on the smooth parts of gamma_s
-/// ([`features::smooth_parts`]) within this times the facet's diameter of it; a facet whose
-/// vertices share no part spans a feature line and is not on gamma_f.
+/// 3D: a vertex lies on the smooth parts of gamma_s ([`features::smooth_parts`]) within this
+/// times its coordinates' size (`1 + max |x_i|`) of it ([`PartsAt`]).
 const PARTS_REL_TOL: f64 = 1e-9;
+
+/// The smooth parts of gamma_s ([`features::smooth_parts`]) each vertex lies on (within
+/// [`PARTS_REL_TOL`]), looked up once per vertex: one for a point inside a face, two on a
+/// block's edge, three at its corner. Vertices that share no part span a feature line: a facet
+/// of them is not on gamma_f, a cell of them is not flat.
+struct PartsAt<'a, const D: usize> {
+    surface: &'a Surface<D>,
+    parts: &'a [usize],
+    found: std::cell::RefCell<HashMap<usize, Vec<usize>>>,
+}
+
+impl<'a, const D: usize> PartsAt<'a, D> {
+    fn new(surface: &'a Surface<D>, parts: &'a [usize]) -> Self {
+        PartsAt { surface, parts, found: Default::default() }
+    }
+
+    /// Do `vertices` (at `pos`) lie on one smooth part?
+    fn on_one_part(&self, vertices: &[usize], pos: impl Fn(usize) -> [f64; D]) -> bool {
+        let mut found = self.found.borrow_mut();
+        let mut at = |v: usize| {
+            found
+                .entry(v)
+                .or_insert_with(|| {
+                    let x = pos(v);
+                    let tol = PARTS_REL_TOL * (1.0 + x.iter().fold(0.0f64, |m, c| m.max(c.abs())));
+                    features::parts_at(self.surface, self.parts, &x, tol)
+                })
+                .clone()
+        };
+        let first = at(vertices[0]);
+        let rest: Vec<Vec<usize>> = vertices[1..].iter().map(|&v| at(v)).collect();
+        first.iter().any(|p| rest.iter().all(|r| r.contains(p)))
+    }
+}
 
 /// Name of the boundary [`tag_gamma_f`] gives the facets of gamma_f (seen from one side).
 pub const GAMMA_F: &str = "gamma_f";
@@ -231,6 +267,9 @@ pub struct AdaptStats {
     /// 3D: points where a curved feature line bends between two vertices on it, added on the
     /// edge between them (counted in `new_nodes` too; see `features::kinks`).
     pub feature_kinks: usize,
+    /// Kinks refused because a child cell holding one, split on another edge too, would be
+    /// inverted or poor (their edges cut as found; see `refused_kinks`).
+    pub refused_kinks: usize,
     /// Passes of steps 2-3 (1 + the number of rounds of undone moves), plus the 3D passes that
     /// cut again next to feature lines.
     pub passes: usize,
@@ -302,16 +341,20 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         &cornered
     };
     let lines = features::features(surface).lines;
-    let mut cuts = find_cuts(bg, surface);
-    let kinks = features::kinks(bg, &lines, moves.iter().map(|m| m.0), opts.min_move_quality);
-    drop_cuts_on(&mut cuts, &kinks);
+    let all_cuts = find_cuts(bg, surface);
+    let mut kinks = features::kinks(bg, &lines, moves.iter().map(|m| m.0), opts.min_move_quality);
+    let mut refused_kink_count = 0;
     let mut corner_vertices: Vec<usize> = moves.iter().map(|m| m.0).collect();
     corner_vertices.sort_unstable();
+    // Without feature lines gamma_s is one part (pieces given without shared corners would
+    // otherwise be a part each).
+    let parts = if lines.is_empty() { vec![0; surface.num_pieces()] } else { features::smooth_parts(surface) };
     let mut pinned: HashSet<usize> = HashSet::new();
     let mut dropped: HashSet<usize> = HashSet::new();
     let mut passes = 0;
-    let (plan, split) = loop {
+    let (plan, split, cuts) = loop {
         passes += 1;
+        let cuts = without_kink_edges(&all_cuts, &kinks);
         let mut plan = plan_moves(bg, &cuts, opts.eps_hat, &pinned, &dropped);
         for &(e, x) in &kinks {
             add_node(&mut plan, e, x);
@@ -319,28 +362,33 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         let nv = bg.mesh.points.len();
         let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
         let pos = |g: usize| plan.pos(bg, g);
-        let flat_test = FlatTest { on_surface: &on_surface, corners: &corner_vertices, pos: &pos, surface };
+        let parts_at = PartsAt::new(surface, &parts);
+        let flat_test =
+            FlatTest { on_surface: &on_surface, corners: &corner_vertices, parts: (!lines.is_empty()).then_some(&parts_at), pos: &pos, surface };
         let split = subdivide_cells(bg, &plan, &flat_test);
         let bad = refused_by_cells(bg, surface, &plan, &split, opts.min_move_quality, &flat_test);
         let (np, nd) = (pinned.len(), dropped.len());
         pinned.extend(bad.pin);
         dropped.extend(bad.drop);
         if (pinned.len(), dropped.len()) == (np, nd) {
-            break (plan, split);
+            // The moves settled: the kinks that still spoil a cell are refused.
+            let refused = refused_kinks(bg, &plan, &split, &kinks, opts.min_move_quality);
+            if refused.is_empty() {
+                break (plan, split, cuts);
+            }
+            refused_kink_count += refused.len();
+            kinks.retain(|k| !refused.contains(&k.0));
         }
     };
     let mut out = assemble(bg, &plan, &split);
     let mut on_surface = on_surface_flags(bg, &plan, &cuts);
     let mut candidates: Vec<usize> = out.child_index.iter().flatten().copied().collect();
     candidates.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
-    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, opts.min_move_quality)?;
+    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, &parts, opts.min_move_quality)?;
     if extra.passes > 0 {
         let mesh = &out.mesh;
         candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
     }
-    // Without feature lines gamma_s is one part (pieces given without shared corners would
-    // otherwise be a part each).
-    let parts = if lines.is_empty() { vec![0; surface.num_pieces()] } else { features::smooth_parts(surface) };
     let (gamma_f, rejected) = build_gamma_f(&out.mesh, candidates, &on_surface, surface, &parts);
     let stats = &mut out.stats;
     stats.cut_edges = cuts.cuts.len();
@@ -348,6 +396,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.new_nodes = plan.new_points.len() + extra.cuts + extra.kinks;
     stats.crossing_cuts = extra.cuts;
     stats.feature_kinks = kinks.len() + extra.kinks;
+    stats.refused_kinks = refused_kink_count + extra.refused_kinks;
     stats.refused_moves = plan.refused;
     stats.refused_boundary = plan.refused_boundary;
     stats.new_cells = out.mesh.num_cells() - bg.num_cells();
@@ -595,20 +644,32 @@ struct FlatTest<'a, const D: usize> {
     on_surface: &'a dyn Fn(usize) -> bool,
     /// Vertices placed at corners, edges and vertices of gamma_s in step 0, sorted.
     corners: &'a [usize],
+    /// The smooth parts at the vertices, where gamma_s has feature lines (3D).
+    parts: Option<&'a PartsAt<'a, D>>,
     pos: &'a dyn Fn(usize) -> [f64; D],
     surface: &'a Surface<D>,
 }
 
 /// Is the cell with vertices `kid` flat: all its vertices on gamma_s, along one smooth part of
-/// it? A cell with a vertex at a corner, edge or vertex of gamma_s (step 0) is not: it fills the
-/// solid's corner or wedge, its facets on the sides that meet there. Nor is a cell that spans
-/// such a wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
+/// it? A cell that fills a solid's corner or wedge, its facets on the sides that meet there, is
+/// not: where gamma_s has feature lines (3D), its vertices share no smooth part ([`PartsAt`]);
+/// without (2D), it has a vertex placed at a corner in step 0. Nor is a cell that spans such a
+/// wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
 /// from the plane of the gamma_s piece nearest the cell's centroid (in 3D, cells between a
 /// block's two faces beside the chain of its edge; in 2D, a cell cut twice by a bar's tip face
-/// with its third vertex on the bottom face).
+/// with its third vertex on the bottom face). A cell with vertices on a block's edge that lies
+/// along one face is flat: a face moved near a plane of the grid gave such cells, with facets
+/// on gamma_f on both sides (a 3D block swinging in fluid, t = 2.6).
 fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
     let vertices = &kid[..kid.iter().position(|&g| g == usize::MAX).unwrap_or(4)];
-    if !vertices.iter().all(|&g| (t.on_surface)(g)) || vertices.iter().any(|g| t.corners.binary_search(g).is_ok()) {
+    if !vertices.iter().all(|&g| (t.on_surface)(g)) {
+        return false;
+    }
+    let fills_a_corner = match t.parts {
+        Some(parts) => !parts.on_one_part(vertices, t.pos),
+        None => vertices.iter().any(|g| t.corners.binary_search(g).is_ok()),
+    };
+    if fills_a_corner {
         return false;
     }
     let p: Vec<[f64; D]> = vertices.iter().map(|&g| (t.pos)(g)).collect();
@@ -782,6 +843,7 @@ fn cut_crossings_near_features<const D: usize>(
     on_surface: &mut Vec<bool>,
     surface: &Surface<D>,
     lines: &[Vec<[f64; D]>],
+    parts: &[usize],
     min_quality: f64,
 ) -> Result<Extra, AdaptError> {
     let mut extra = Extra { min_quality: 1.0, ..Default::default() };
@@ -790,31 +852,40 @@ fn cut_crossings_near_features<const D: usize>(
     }
     while extra.passes < MAX_CROSSING_PASSES {
         let bg = Background::new(&out.mesh)?;
-        let mut cuts = find_cuts(&bg, surface);
+        let all_cuts = find_cuts(&bg, surface);
         let flags: &[bool] = on_surface;
-        let kinks = features::kinks(&bg, lines, (0..flags.len()).filter(|&v| flags[v]), min_quality);
-        drop_cuts_on(&mut cuts, &kinks);
-        let mut plan = Plan::default();
-        for c in &cuts.cuts {
-            let [u, v] = bg.topology.edges[c.edge];
-            let len2 = dist2(&bg.mesh.points[u], &bg.mesh.points[v]);
-            let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| on_surface[w] && t <= CROSSING_AT_END);
-            if !(at_surface_end || on_surface[u] && on_surface[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
-                add_node(&mut plan, c.edge, c.x);
+        let mut kinks = features::kinks(&bg, lines, (0..flags.len()).filter(|&v| flags[v]), min_quality);
+        let nv = bg.mesh.points.len();
+        let on = |g: usize| g >= nv || flags[g];
+        let (plan, split) = loop {
+            let cuts = without_kink_edges(&all_cuts, &kinks);
+            let mut plan = Plan::default();
+            for c in &cuts.cuts {
+                let [u, v] = bg.topology.edges[c.edge];
+                let len2 = dist2(&bg.mesh.points[u], &bg.mesh.points[v]);
+                let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| flags[w] && t <= CROSSING_AT_END);
+                if !(at_surface_end || flags[u] && flags[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
+                    add_node(&mut plan, c.edge, c.x);
+                }
             }
-        }
-        for &(e, x) in &kinks {
-            add_node(&mut plan, e, x);
-        }
+            for &(e, x) in &kinks {
+                add_node(&mut plan, e, x);
+            }
+            let pos = |g: usize| plan.pos(&bg, g);
+            let parts_at = PartsAt::new(surface, parts);
+            let flat_test = FlatTest { on_surface: &on, corners: &[], parts: Some(&parts_at), pos: &pos, surface };
+            let split = subdivide_cells(&bg, &plan, &flat_test);
+            let refused = refused_kinks(&bg, &plan, &split, &kinks, min_quality);
+            if refused.is_empty() {
+                break (plan, split);
+            }
+            extra.refused_kinks += refused.len();
+            kinks.retain(|k| !refused.contains(&k.0));
+        };
         extra.kinks += kinks.len();
         if plan.new_points.is_empty() {
             break;
         }
-        let nv = bg.mesh.points.len();
-        let on = |g: usize| g >= nv || flags[g];
-        let pos = |g: usize| plan.pos(&bg, g);
-        let flat_test = FlatTest { on_surface: &on, corners: &[], pos: &pos, surface };
-        let split = subdivide_cells(&bg, &plan, &flat_test);
         let next = assemble(&bg, &plan, &split);
         out.new_to_old_cell = next.new_to_old_cell.iter().map(|&c| out.new_to_old_cell[c]).collect();
         out.mesh = next.mesh;
@@ -826,11 +897,46 @@ fn cut_crossings_near_features<const D: usize>(
     Ok(extra)
 }
 
-/// Removes the cuts (and second cuts) of the edges that take a kink of a feature line instead.
-fn drop_cuts_on<const D: usize>(cuts: &mut CutSet<D>, kinks: &[(usize, [f64; D])]) {
+/// `cuts` without the cuts (and second cuts) of the edges that take a kink of a feature line
+/// instead.
+fn without_kink_edges<const D: usize>(cuts: &CutSet<D>, kinks: &[(usize, [f64; D])]) -> CutSet<D> {
     let edges: HashSet<usize> = kinks.iter().map(|k| k.0).collect();
-    cuts.cuts.retain(|c| !edges.contains(&c.edge));
-    cuts.second_cuts.retain(|c| !edges.contains(&c.edge));
+    let mut out = cuts.clone();
+    out.cuts.retain(|c| !edges.contains(&c.edge));
+    out.second_cuts.retain(|c| !edges.contains(&c.edge));
+    out
+}
+
+/// The edges of `kinks` whose node leaves a child cell of `split` inverted, or of quality below
+/// `min_quality` where the node on the edge's chord would not: [`features::kinks`] checks the
+/// cells around the edge halved at the kink alone, but a cell cut on another edge too, or
+/// holding two kink edges, is split further. Those kinks are refused (their edges cut again as
+/// found).
+fn refused_kinks<const D: usize>(bg: &Background<D>, plan: &Plan<D>, split: &Split, kinks: &[(usize, [f64; D])], min_quality: f64) -> HashSet<usize> {
+    let nv = bg.mesh.points.len();
+    // Adapted-mesh vertex of each kink -> (its edge, the nearest point of the edge's chord).
+    let kink_at: HashMap<usize, (usize, [f64; D])> = kinks
+        .iter()
+        .filter_map(|&(e, x)| {
+            let [a, b] = bg.topology.edges[e].map(|v| bg.mesh.points[v]);
+            plan.new_node.get(&e).map(|&k| (nv + k, (e, geom::lerp(&a, &b, geom::closest_on_segment(&x, &a, &b)))))
+        })
+        .collect();
+    let mut refused = HashSet::new();
+    for kid in split.cells.iter().flat_map(|(_, ids, _)| ids) {
+        let at: Vec<(usize, (usize, [f64; D]))> = kid[..=D].iter().filter_map(|g| kink_at.get(g).map(|k| (*g, *k))).collect();
+        if at.is_empty() {
+            continue;
+        }
+        let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
+        let on_chords: Vec<[f64; D]> = kid[..=D].iter().map(|&g| at.iter().find(|k| k.0 == g).map_or(plan.pos(bg, g), |k| k.1 .1)).collect();
+        let quality = simplex_quality(&v);
+        let at_fault = simplex_measure(&v) <= 0.0 || quality < min_quality && simplex_quality(&on_chords) >= min_quality;
+        if at_fault {
+            refused.extend(at.iter().map(|k| k.1 .0));
+        }
+    }
+    refused
 }
 
 /// A crossing this close (relative to its edge) to an end of the edge on gamma_s is that end
@@ -847,6 +953,7 @@ struct Extra {
     passes: usize,
     cuts: usize,
     kinks: usize,
+    refused_kinks: usize,
     min_quality: f64,
 }
 
@@ -883,7 +990,7 @@ fn build_gamma_f<const D: usize>(
     keys.sort_unstable();
     let mut located: HashMap<usize, SurfacePoint<D>> = HashMap::new();
     let mut locate = |v: usize| *located.entry(v).or_insert_with(|| surface.project(&mesh.points[v]).expect("non-empty surface"));
-    let mut vertex_parts: HashMap<usize, Vec<usize>> = HashMap::new();
+    let parts_at = PartsAt::new(surface, parts);
     let mut out_facets = Vec::new();
     let mut rejected = 0;
     for key in keys {
@@ -896,16 +1003,11 @@ fn build_gamma_f<const D: usize>(
         let diam2 = (0..D).flat_map(|i| (0..D).map(move |j| (i, j))).map(|(i, j)| dist2(&pts[i], &pts[j])).fold(0.0, f64::max);
         let Some(sp) = surface.project(&centroid) else { continue };
         let spans_a_feature = D == 3
-            && (!in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
-                || has_features && {
-                    let tol = PARTS_REL_TOL * diam2.sqrt();
-                    let mut at = verts
-                        .iter()
-                        .map(|&v| vertex_parts.entry(v).or_insert_with(|| features::parts_at(surface, parts, &mesh.points[v], tol)).clone());
-                    let first = at.next().unwrap_or_default();
-                    let rest: Vec<Vec<usize>> = at.collect();
-                    !first.iter().any(|p| rest.iter().all(|r| r.contains(p)))
-                });
+            && if has_features {
+                !parts_at.on_one_part(&verts, |v| mesh.points[v])
+            } else {
+                !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
+            };
         if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 || spans_a_feature {
             rejected += 1;
             continue;
