@@ -657,9 +657,12 @@ struct FlatTest<'a, const D: usize> {
 /// wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
 /// from the plane of the gamma_s piece nearest the cell's centroid (in 3D, cells between a
 /// block's two faces beside the chain of its edge; in 2D, a cell cut twice by a bar's tip face
-/// with its third vertex on the bottom face). A cell with vertices on a block's edge that lies
-/// along one face is flat: a face moved near a plane of the grid gave such cells, with facets
-/// on gamma_f on both sides (a 3D block swinging in fluid, t = 2.6).
+/// with its third vertex on the bottom face). With feature lines the plane test is replaced by
+/// the gamma_f rule's distance: the centroid within [`GAMMA_F_REL_TOL`] times the diameter of
+/// gamma_s (the plane test let thin cells along a curved face pass as not flat, and their
+/// facets on both sides went to gamma_f). A cell with vertices on a block's edge that lies along
+/// one face is flat: a face moved near a plane of the grid gave such cells (a 3D block swinging
+/// in fluid, t = 2.6 and 3.8).
 fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
     let vertices = &kid[..kid.iter().position(|&g| g == usize::MAX).unwrap_or(4)];
     if !vertices.iter().all(|&g| (t.on_surface)(g)) {
@@ -676,7 +679,13 @@ fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
     let centroid: [f64; D] = std::array::from_fn(|d| p.iter().map(|x| x[d]).sum::<f64>() / p.len() as f64);
     let Some(sp) = t.surface.project(&centroid) else { return true };
     let diameter = p.iter().flat_map(|a| p.iter().map(move |b| dist2(a, b))).fold(0.0, f64::max).sqrt();
-    in_piece_plane(t.surface, sp.piece, &p, GAMMA_F_REL_TOL * diameter)
+    if t.parts.is_some() {
+        // Along one curved face: near it as a gamma_f facet is (the plane test refuses the
+        // cells of a face curved by more than the tolerance over their diameter).
+        sp.distance <= GAMMA_F_REL_TOL * diameter
+    } else {
+        in_piece_plane(t.surface, sp.piece, &p, GAMMA_F_REL_TOL * diameter)
+    }
 }
 
 /// Do all `points` lie within `tol` of the line (2D) or plane (3D) of gamma_s piece `piece`?
