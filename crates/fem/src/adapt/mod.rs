@@ -62,7 +62,8 @@
 //!   also, where gamma_s has feature lines, its vertices on one smooth part of gamma_s
 //!   ([`features::smooth_parts`]: a vertex on a block's edge is on both faces; this rejects a
 //!   triangle across a block's edge, whose centroid lies near both faces, and one inside the
-//!   block's wedge that is nearly parallel to one face, with a vertex on the other), and where
+//!   block's wedge that is nearly parallel to one face, with a vertex on the other; vertices
+//!   sharing two parts lie all on one feature line: a sliver along it, rejected too), and where
 //!   it has none (a smooth gamma_s, or pieces given without shared corners), its vertices within
 //!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid
 //!   (that test also refuses chords of faces curved more than that, such as a sheared block's
@@ -124,6 +125,12 @@ impl<'a, const D: usize> PartsAt<'a, D> {
 
     /// Do `vertices` (at `pos`) lie on one smooth part?
     fn on_one_part(&self, vertices: &[usize], pos: impl Fn(usize) -> [f64; D]) -> bool {
+        self.shared_parts(vertices, pos) > 0
+    }
+
+    /// On how many smooth parts do all `vertices` (at `pos`) lie? None: they span a feature
+    /// line; one: they lie on one face; two or more: all lie on one feature line.
+    fn shared_parts(&self, vertices: &[usize], pos: impl Fn(usize) -> [f64; D]) -> usize {
         let mut found = self.found.borrow_mut();
         let mut at = |v: usize| {
             found
@@ -137,7 +144,7 @@ impl<'a, const D: usize> PartsAt<'a, D> {
         };
         let first = at(vertices[0]);
         let rest: Vec<Vec<usize>> = vertices[1..].iter().map(|&v| at(v)).collect();
-        first.iter().any(|p| rest.iter().all(|r| r.contains(p)))
+        first.iter().filter(|p| rest.iter().all(|r| r.contains(p))).count()
     }
 }
 
@@ -1013,7 +1020,9 @@ fn build_gamma_f<const D: usize>(
         let Some(sp) = surface.project(&centroid) else { continue };
         let spans_a_feature = D == 3
             && if has_features {
-                !parts_at.on_one_part(&verts, |v| mesh.points[v])
+                // On no part: across a feature line; on two: along one (a sliver between a
+                // chain edge, a chord of the bent line, and a vertex on the line beside it).
+                parts_at.shared_parts(&verts, |v| mesh.points[v]) != 1
             } else {
                 !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
             };
