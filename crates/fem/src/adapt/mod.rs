@@ -63,15 +63,18 @@
 //!   ([`features::smooth_parts`]: a vertex on a block's edge is on both faces; this rejects a
 //!   triangle across a block's edge, whose centroid lies near both faces, and one inside the
 //!   block's wedge that is nearly parallel to one face, with a vertex on the other; vertices
-//!   sharing two parts lie all on one feature line: a sliver along it, rejected too), and where
+//!   sharing two parts lie all on one feature line: a sliver along it, rejected too; a closed
+//!   line's own triangles, such as a cap's rim, would be too), and where
 //!   it has none (a smooth gamma_s, or pieces given without shared corners), its vertices within
 //!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid
 //!   (that test also refuses chords of faces curved more than that, such as a sheared block's
 //!   sides near the floor, so it is not used where the parts tell the edges); rejected ones are
 //!   counted (`rejected_facets`).
-//! * **Flat cells**: a cell whose vertices all lie on gamma_s, within `GAMMA_F_REL_TOL` times its
-//!   diameter of the plane of the piece nearest its centroid, and none at a corner or on a
-//!   feature line of step 0. A cell spanning a solid's corner or edge is not flat: it fills it.
+//! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
+//!   feature lines (3D): its vertices share a smooth part and its centroid lies within
+//!   `GAMMA_F_REL_TOL` times its diameter of gamma_s. Without: its vertices lie within that
+//!   distance of the plane of the piece nearest its centroid, and none at a corner placed in
+//!   step 0. A cell spanning a solid's corner or edge is not flat: it fills it.
 //! * **Quadratic geometry**: a mesh with 6/10-node cells is adapted through its vertex mesh; its
 //!   curved boundary geometry is not carried into the adapted (linear) mesh.
 //! * **Region interfaces** inside the fluid mesh are not protected against moves (only the
@@ -275,10 +278,12 @@ pub struct AdaptStats {
     /// edge between them (counted in `new_nodes` too; see `features::kinks`).
     pub feature_kinks: usize,
     /// Kinks refused because a child cell holding one, split on another edge too, would be
-    /// inverted or poor (their edges cut as found; see `refused_kinks`).
+    /// inverted or poor (their edges left unsplit; see `refused_kinks`). Counted in every pass
+    /// that finds them: a kink can be counted more than once, and in `feature_kinks` too where a
+    /// later pass takes it.
     pub refused_kinks: usize,
-    /// Passes of steps 2-3 (1 + the number of rounds of undone moves), plus the 3D passes that
-    /// cut again next to feature lines.
+    /// Passes of steps 2-3 (1 + the number of rounds of undone moves or refused kinks), plus
+    /// the 3D passes that cut again next to feature lines.
     pub passes: usize,
 }
 
@@ -356,6 +361,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     // Without feature lines gamma_s is one part (pieces given without shared corners would
     // otherwise be a part each).
     let parts = if lines.is_empty() { vec![0; surface.num_pieces()] } else { features::smooth_parts(surface) };
+    let has_parts = parts.iter().any(|&p| p != 0);
     let mut pinned: HashSet<usize> = HashSet::new();
     let mut dropped: HashSet<usize> = HashSet::new();
     let mut passes = 0;
@@ -370,8 +376,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         let on_surface = |g: usize| g >= nv || plan.moved.contains_key(&g) || cuts.touched.binary_search(&g).is_ok();
         let pos = |g: usize| plan.pos(bg, g);
         let parts_at = PartsAt::new(surface, &parts);
-        let flat_test =
-            FlatTest { on_surface: &on_surface, corners: &corner_vertices, parts: (!lines.is_empty()).then_some(&parts_at), pos: &pos, surface };
+        let flat_test = FlatTest { on_surface: &on_surface, corners: &corner_vertices, parts: has_parts.then_some(&parts_at), pos: &pos, surface };
         let split = subdivide_cells(bg, &plan, &flat_test);
         let bad = refused_by_cells(bg, surface, &plan, &split, opts.min_move_quality, &flat_test);
         let (np, nd) = (pinned.len(), dropped.len());
@@ -660,7 +665,7 @@ struct FlatTest<'a, const D: usize> {
 /// Is the cell with vertices `kid` flat: all its vertices on gamma_s, along one smooth part of
 /// it? A cell that fills a solid's corner or wedge, its facets on the sides that meet there, is
 /// not: where gamma_s has feature lines (3D), its vertices share no smooth part ([`PartsAt`]);
-/// without (2D), it has a vertex placed at a corner in step 0. Nor is a cell that spans such a
+/// without (2D, or 3D without feature lines), it has a vertex placed at a corner in step 0. Nor is a cell that spans such a
 /// wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
 /// from the plane of the gamma_s piece nearest the cell's centroid (in 3D, cells between a
 /// block's two faces beside the chain of its edge; in 2D, a cell cut twice by a bar's tip face
@@ -926,8 +931,8 @@ fn without_kink_edges<const D: usize>(cuts: &CutSet<D>, kinks: &[(usize, [f64; D
 /// The edges of `kinks` whose node leaves a child cell of `split` inverted, or of quality below
 /// `min_quality` where the node on the edge's chord would not: [`features::kinks`] checks the
 /// cells around the edge halved at the kink alone, but a cell cut on another edge too, or
-/// holding two kink edges, is split further. Those kinks are refused (their edges cut again as
-/// found).
+/// holding two kink edges, is split further. Those kinks are refused (their edges left
+/// unsplit).
 fn refused_kinks<const D: usize>(bg: &Background<D>, plan: &Plan<D>, split: &Split, kinks: &[(usize, [f64; D])], min_quality: f64) -> HashSet<usize> {
     let nv = bg.mesh.points.len();
     // Adapted-mesh vertex of each kink -> (its edge, the nearest point of the edge's chord).
@@ -1021,7 +1026,8 @@ fn build_gamma_f<const D: usize>(
         let spans_a_feature = D == 3
             && if has_features {
                 // On no part: across a feature line; on two: along one (a sliver between a
-                // chain edge, a chord of the bent line, and a vertex on the line beside it).
+                // chain edge, a chord of the bent line, and a vertex on the line beside it; a
+                // closed line's triangles, such as a cap's rim, would be refused too).
                 parts_at.shared_parts(&verts, |v| mesh.points[v]) != 1
             } else {
                 !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
