@@ -38,11 +38,11 @@ pub enum CoveredFluid {
 }
 
 impl CoveredFluid {
-    /// `adapted` with the enclosed cells removed if so chosen.
-    pub fn apply<const D: usize>(self, adapted: Adapted<D>) -> Result<Adapted<D>, AdaptError> {
+    /// `adapted` (adapted to `surface`) with the enclosed cells removed if so chosen.
+    pub fn apply<const D: usize>(self, adapted: Adapted<D>, surface: &Surface<D>) -> Result<Adapted<D>, AdaptError> {
         match self {
             CoveredFluid::Kept => Ok(adapted),
-            CoveredFluid::Removed => remove_enclosed(adapted),
+            CoveredFluid::Removed => remove_enclosed(adapted, surface),
         }
     }
 }
@@ -66,7 +66,7 @@ impl<const D: usize> AdaptedFluid<D> {
         options: &AdaptOptions,
         covered: CoveredFluid,
     ) -> Result<Self, AdaptError> {
-        let mut adapted = covered.apply(adapt_with(background, &surface, options)?)?;
+        let mut adapted = covered.apply(adapt_with(background, &surface, options)?, &surface)?;
         fdfsi_fem::adapt::tag_gamma_f(&mut adapted.mesh, &adapted.gamma_f);
         Ok(AdaptedFluid { original, solid, surface, adapted })
     }

@@ -145,14 +145,14 @@ fn covered_fluid_removed_needs_gamma_f_to_enclose_the_solid() {
 }
 
 /// Adapts `fluid` to `surface` with the covered cells removed and checks that gamma_f encloses
-/// the bar: the removal succeeds, removes cells, and gamma_f has gamma_s's length (chords of the
-/// curved bar: to 1e-4).
+/// the bar: the removal succeeds from the facet rules alone (no cell told by its side), removes
+/// cells, and gamma_f has gamma_s's length (chords of the curved bar: to 1e-4).
 fn assert_encloses(bg: &fdfsi::fem::adapt::Background<2>, surface: &fdfsi::fem::adapt::Surface<2>, label: &str) {
     use fdfsi::fem::adapt::{adapt_with, remove_enclosed, AdaptOptions};
-    let adapted = remove_enclosed(adapt_with(bg, surface, &AdaptOptions::new(0.2)).unwrap()).unwrap_or_else(|e| panic!("{label}: {e}"));
+    let adapted = remove_enclosed(adapt_with(bg, surface, &AdaptOptions::new(0.2)).unwrap(), surface).unwrap_or_else(|e| panic!("{label}: {e}"));
     let gamma_f = adapted.gamma_f_measure();
     assert!((gamma_f - surface.measure()).abs() < 1e-4 * surface.measure(), "{label}: gamma_f {gamma_f} against gamma_s {}", surface.measure());
-    assert!(adapted.stats.removed_cells > 0, "{label}");
+    assert!(adapted.stats.removed_cells > 0 && adapted.stats.cells_by_side == 0, "{label}: {:?}", adapted.stats);
 }
 
 /// The original fluid mesh `meshes/NAME.msh`, prepared for adaptation.
@@ -480,8 +480,8 @@ fn turned_3d_blocks_are_enclosed_with_their_edges_and_corners() {
         verify_adapted(&fluid, &adapted, &surface).unwrap_or_else(|e| panic!("{label}: {e}"));
         let ratio = adapted.gamma_f_measure() / surface.measure();
         assert!((ratio - 1.0).abs() < 1e-9, "{label}: gamma_f / gamma_s = {ratio} ({:?})", adapted.stats);
-        let removed = remove_enclosed(adapted).unwrap_or_else(|e| panic!("{label}: {e}"));
-        assert!(removed.stats.removed_cells > 0, "{label}");
+        let removed = remove_enclosed(adapted, &surface).unwrap_or_else(|e| panic!("{label}: {e}"));
+        assert!(removed.stats.removed_cells > 0 && removed.stats.cells_by_side == 0, "{label}: {:?}", removed.stats);
     }
 }
 
@@ -562,9 +562,47 @@ fn a_swung_3d_block_with_curved_faces_is_enclosed() {
         verify_adapted(&fluid, &adapted, &surface).unwrap_or_else(|e| panic!("{data}: {e}"));
         let ratio = adapted.gamma_f_measure() / surface.measure();
         assert!((ratio - 1.0).abs() < 5e-3, "{data}: gamma_f / gamma_s = {ratio}");
-        let removed = remove_enclosed(adapted).unwrap_or_else(|e| panic!("{data}: {e}"));
-        assert!(removed.stats.removed_cells > 0 && removed.stats.feature_kinks > 0, "{data}: {:?}", removed.stats);
+        let removed = remove_enclosed(adapted, &surface).unwrap_or_else(|e| panic!("{data}: {e}"));
+        assert!(
+            removed.stats.removed_cells > 0 && removed.stats.feature_kinks > 0 && removed.stats.cells_by_side == 0,
+            "{data}: {:?}",
+            removed.stats
+        );
     }
+}
+
+/// The swung block of [`a_swung_3d_block_with_curved_faces_is_enclosed`] at t = 0.6, where the
+/// run without step cuts stopped: on the top edge a node of the top face (0.00023 off the edge
+/// line) and one of the side face lie 2.5e-4 apart, and the sliver cell between them has no
+/// facet that passes the gamma_f rule (its facets across the edge share no smooth part), so
+/// the facet rules leave a hole. The mesh follows gamma_s there all the same: the removal tells
+/// the cells by their side of gamma_s and rebuilds gamma_f between them. gamma_f then has
+/// gamma_s's area (chords: measured 99.98 %, held at 0.5 %), and the fluid left and the
+/// solid fill the box (the solid's volume from gamma_s, its floor at z = 0 adding nothing to
+/// `(1/3) int x . n`: measured to 7.0e-5, held at 5e-4).
+#[test]
+fn a_hole_the_facet_rules_leave_is_closed_by_the_sides_of_gamma_s() {
+    use fdfsi::fem::adapt::{adapt_with, remove_enclosed, verify_adapted, AdaptOptions, Background};
+    let fluid = fdfsi::fem::generate::box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 8, 8, 8);
+    let surface = saved_gamma_s::<3>("block-3d-swung-gamma-s-t0.6.csv");
+    let adapted = adapt_with(&Background::new(&fluid).unwrap(), &surface, &AdaptOptions::new(0.2)).unwrap();
+    verify_adapted(&fluid, &adapted, &surface).unwrap();
+    let removed = remove_enclosed(adapted, &surface).unwrap();
+    assert!(removed.stats.cells_by_side > 0, "{:?}", removed.stats);
+    removed.mesh.check().unwrap();
+    let ratio = removed.gamma_f_measure() / surface.measure();
+    let solid_volume: f64 = (0..surface.num_pieces())
+        .map(|i| {
+            let c = surface.corners(i);
+            let (u, v) = ([0, 1, 2].map(|d| c[1][d] - c[0][d]), [0, 1, 2].map(|d| c[2][d] - c[0][d]));
+            let area_normal = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            (0..3).map(|d| (c[0][d] + c[1][d] + c[2][d]) / 3.0 * area_normal[d] / 2.0).sum::<f64>() / 3.0
+        })
+        .sum();
+    let fluid_volume: f64 = (0..removed.mesh.num_cells()).map(|c| removed.mesh.signed_vertex_measure(c)).sum();
+    println!("gamma_f / gamma_s = {ratio}, fluid + solid = {} (solid {solid_volume})", fluid_volume + solid_volume);
+    assert!((ratio - 1.0).abs() < 5e-3, "gamma_f / gamma_s = {ratio}");
+    assert!((fluid_volume + solid_volume - 1.0).abs() < 5e-4, "fluid {fluid_volume} + solid {solid_volume}");
 }
 
 /// [`a_compressible_solid_enclosed_by_gamma_f_changes_its_area_as_without_fluid`] in 3D: the

@@ -635,7 +635,7 @@ impl<const D: usize> FsiDiscretization<D> {
     pub fn build(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern) -> Result<Self, FsiError> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
-        let adapted = model.covered_fluid.apply(adapt_with(&model.background, &surface, &model.problem.adapt)?)?;
+        let adapted = model.covered_fluid.apply(adapt_with(&model.background, &surface, &model.problem.adapt)?, &surface)?;
         let adapt_seconds = clock.elapsed().as_secs_f64();
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));

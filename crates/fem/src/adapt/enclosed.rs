@@ -9,9 +9,19 @@
 //! reaches the fluid side of gamma_f, gamma_f does not enclose the solid (a slender solid
 //! coupled on one face, or a gap where gamma_s meets a wall) and nothing is removed: that is an
 //! error ([`AdaptError::NotEnclosed`]), since the covered fluid cannot be told apart.
+//!
+//! Unless gamma_s itself is closed (with the domain boundary) and the adapted mesh follows it
+//! where the facet rules left the hole (a 3D edge bent or crossed so that a facet on it spans
+//! two faces, a sliver along a feature line): then the cells are told apart by the side of
+//! gamma_s they lie on instead ([`Surface::side`] at the centroids of the cells touching
+//! gamma_s, a flood fill from those for the others), and gamma_f is rebuilt as the facets
+//! between the two sides, each checked to lie on gamma_s as a gamma_f facet must
+//! ([`AdaptStats::cells_by_side`](super::AdaptStats::cells_by_side) counts the cells so told).
+//! An open gamma_s has no sides that the domain closes: the flood fills meet, and the error
+//! stands.
 
-use super::{AdaptError, Adapted, GammaFacet};
-use crate::mesh::{BoundaryFacet, NO_CELL};
+use super::{dist2, AdaptError, Adapted, GammaFacet, Surface, GAMMA_F_REL_TOL};
+use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
 use std::collections::{HashMap, HashSet};
 
 /// The adapted mesh without the cells gamma_f encloses (see the module documentation): cells,
@@ -19,12 +29,26 @@ use std::collections::{HashMap, HashSet};
 /// only (its solid side [`NO_CELL`]; facets with fluid on neither side, where the solid lies on
 /// the domain boundary, dropped), [`super::AdaptStats::removed_cells`] set. The mesh no longer
 /// fills the original domain, so [`super::verify_adapted`]'s measure check does not apply.
-pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>) -> Result<Adapted<D>, AdaptError> {
-    let enclosed = enclosed_cells(&adapted)?;
+/// `surface` is the gamma_s `adapted` was adapted to.
+pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>) -> Result<Adapted<D>, AdaptError> {
+    let facets = FacetCells::new(&adapted.mesh);
+    let (enclosed, rebuilt) = match enclosed_cells(&adapted, &facets) {
+        Ok(enclosed) => (enclosed, None),
+        Err(AdaptError::NotEnclosed(_)) => {
+            let BySide { solid, gamma_f, told } = cells_by_side(&adapted, &facets, surface)?;
+            (solid, Some((gamma_f, told)))
+        }
+        Err(e) => return Err(e),
+    };
     if enclosed.is_empty() {
         return Ok(adapted);
     }
-    let Adapted { mesh, new_to_old_cell, on_surface, gamma_f, mut stats } = adapted;
+    let Adapted { mesh, new_to_old_cell, on_surface, mut gamma_f, mut stats } = adapted;
+    if let Some((rebuilt, told)) = rebuilt {
+        gamma_f = rebuilt;
+        stats.cells_by_side = told;
+        stats.coupling_facets = gamma_f.len();
+    }
     let nc = mesh.num_cells();
     let npc = mesh.nodes_per_cell();
     let mut new_cell = vec![usize::MAX; nc];
@@ -70,24 +94,45 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>) -> Result<Adapted<D>
     Ok(Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, stats })
 }
 
-/// The cells on the solid side of gamma_f, by flood fill (see the module documentation).
-fn enclosed_cells<const D: usize>(adapted: &Adapted<D>) -> Result<HashSet<usize>, AdaptError> {
-    let mesh = &adapted.mesh;
-    let ct = mesh.cell_type;
-    let key = |c: usize, j: usize| -> [usize; 3] {
-        let mut k = [usize::MAX; 3];
-        for (i, &l) in ct.facet(j).iter().enumerate() {
-            k[i] = mesh.cell(c)[l];
+/// The facets of a mesh: sorted vertex key -> the `(cell, local facet)` on each side.
+struct FacetCells {
+    cells: HashMap<[usize; 3], Vec<(usize, usize)>>,
+}
+
+impl FacetCells {
+    fn new<const D: usize>(mesh: &Mesh<D>) -> Self {
+        let mut cells: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::new();
+        for c in 0..mesh.num_cells() {
+            for j in 0..mesh.cell_type.num_facets() {
+                cells.entry(facet_key(mesh, c, j)).or_default().push((c, j));
+            }
         }
-        k[..D].sort_unstable();
-        k
-    };
-    let mut facet_cells: HashMap<[usize; 3], Vec<usize>> = HashMap::new();
-    for c in 0..mesh.num_cells() {
-        for j in 0..ct.num_facets() {
-            facet_cells.entry(key(c, j)).or_default().push(c);
-        }
+        FacetCells { cells }
     }
+
+    /// The cells sharing facet `j` of cell `c` with it.
+    fn neighbours<const D: usize>(&self, mesh: &Mesh<D>, c: usize, j: usize) -> impl Iterator<Item = usize> + '_ {
+        self.cells[&facet_key(mesh, c, j)].iter().map(|s| s.0).filter(move |&n| n != c)
+    }
+}
+
+/// The vertices of facet `j` of cell `c`, sorted (unused slots `usize::MAX`).
+fn facet_key<const D: usize>(mesh: &Mesh<D>, c: usize, j: usize) -> [usize; 3] {
+    let mut k = [usize::MAX; 3];
+    for (i, &l) in mesh.cell_type.facet(j).iter().enumerate() {
+        k[i] = mesh.cell(c)[l];
+    }
+    k[..D].sort_unstable();
+    k
+}
+
+fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
+    std::array::from_fn(|d| points.iter().map(|&p| mesh.points[p][d]).sum::<f64>() / points.len() as f64)
+}
+
+/// The cells on the solid side of gamma_f, by flood fill (see the module documentation).
+fn enclosed_cells<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells) -> Result<HashSet<usize>, AdaptError> {
+    let mesh = &adapted.mesh;
     let mut barrier: HashSet<[usize; 3]> = HashSet::new();
     let mut fluid_side: HashSet<usize> = HashSet::new();
     let mut stack: Vec<usize> = Vec::new();
@@ -109,18 +154,125 @@ fn enclosed_cells<const D: usize>(adapted: &Adapted<D>) -> Result<HashSet<usize>
             continue;
         }
         if fluid_side.contains(&c) {
-            let v = mesh.cell_vertices(c);
-            let centroid = (0..D).map(|d| v.iter().map(|&p| mesh.points[p][d]).sum::<f64>() / v.len() as f64).collect();
-            return Err(AdaptError::NotEnclosed(centroid));
+            return Err(AdaptError::NotEnclosed(centroid(mesh, mesh.cell_vertices(c)).to_vec()));
         }
-        for j in 0..ct.num_facets() {
-            let k = key(c, j);
-            if !barrier.contains(&k) {
-                stack.extend(facet_cells[&k].iter().copied().filter(|n| !enclosed.contains(n)));
+        for j in 0..mesh.cell_type.num_facets() {
+            if !barrier.contains(&facet_key(mesh, c, j)) {
+                stack.extend(facets.neighbours(mesh, c, j).filter(|n| !enclosed.contains(n)));
             }
         }
     }
     Ok(enclosed)
+}
+
+/// Does cell `c`, with a vertex on gamma_s, lie on the solid side ([`Surface::side`]
+/// negative)? Its vertices off gamma_s tell (`vertex_side` caches their sides): a cell of a mesh
+/// that follows gamma_s lies on one side, and the vertex is farther from gamma_s than its
+/// centroid may be (a thin cell along a face curved away from the solid, three vertices on it,
+/// has its centroid outside a chord that bulges out beyond the face). A cell with vertices on
+/// both sides crosses gamma_s: `None`. Where all its vertices lie on gamma_s (within round-off
+/// of the cell's size), its centroid tells: a cell filling a solid's edge lies inside, a flat
+/// cell along a face either way.
+fn on_solid_side<const D: usize>(
+    mesh: &Mesh<D>,
+    c: usize,
+    on_surface: &[bool],
+    surface: &Surface<D>,
+    vertex_side: &mut HashMap<usize, f64>,
+) -> Option<bool> {
+    let vertices = mesh.cell_vertices(c);
+    let pts: Vec<[f64; D]> = vertices.iter().map(|&v| mesh.points[v]).collect();
+    let round_off = 1e-9 * pts.iter().flat_map(|p| pts.iter().map(move |q| dist2(p, q))).fold(0.0, f64::max).sqrt();
+    let mut sides = vertices
+        .iter()
+        .filter(|&&v| !on_surface[v])
+        .map(|&v| *vertex_side.entry(v).or_insert_with(|| surface.side(&mesh.points[v]).unwrap_or(0.0)))
+        .filter(|s| s.abs() > round_off);
+    match sides.next() {
+        Some(first) => sides.all(|s| (s < 0.0) == (first < 0.0)).then_some(first < 0.0),
+        None => Some(surface.side(&centroid(mesh, vertices)).is_some_and(|s| s < 0.0)),
+    }
+}
+
+/// The cells on the solid side told by the side of gamma_s they lie on, and gamma_f rebuilt
+/// between them ([`cells_by_side`]).
+struct BySide<const D: usize> {
+    solid: HashSet<usize>,
+    gamma_f: Vec<GammaFacet<D>>,
+    /// Cells told by [`Surface::side`] (those with a vertex on gamma_s).
+    told: usize,
+}
+
+/// Where gamma_f is open (see the module documentation): a cell with a vertex on gamma_s lies
+/// on the side of gamma_s its other vertices, or where it has none its centroid, lie on
+/// ([`on_solid_side`]); a cell with no vertex on gamma_s lies wholly on one side and takes the
+/// side of the cells it connects to (flood fill through the cells with no vertex on gamma_s;
+/// cells it does not reach are fluid: far from gamma_s its nearest point does not tell, as
+/// beyond the open end of a bar's gamma_s, where the domain boundary closes it). gamma_f is the facets between the two sides, seen from the solid
+/// side first (its normal out of the solid). Fails ([`AdaptError::NotEnclosed`], at a cell
+/// beside the spot) where the fill reaches a cell from both sides or a facet between the sides
+/// does not lie on gamma_s: a vertex off it, or the centroid farther than [`GAMMA_F_REL_TOL`]
+/// times the facet's diameter from it (the gamma_f rule's distance), or a cell has vertices on
+/// both sides. There the adapted mesh does not follow gamma_s, or gamma_s is open.
+fn cells_by_side<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells, surface: &Surface<D>) -> Result<BySide<D>, AdaptError> {
+    let mesh = &adapted.mesh;
+    let nc = mesh.num_cells();
+    let at_cell = |c: usize| AdaptError::NotEnclosed(centroid(mesh, mesh.cell_vertices(c)).to_vec());
+    let touches = |c: usize| mesh.cell_vertices(c).iter().any(|&v| adapted.on_surface[v]);
+    let mut solid_side: Vec<Option<bool>> = vec![None; nc];
+    let mut told = 0;
+    let mut vertex_side: HashMap<usize, f64> = HashMap::new();
+    for c in (0..nc).filter(|&c| touches(c)) {
+        solid_side[c] = Some(on_solid_side(mesh, c, &adapted.on_surface, surface, &mut vertex_side).ok_or_else(|| at_cell(c))?);
+        told += 1;
+    }
+    let mut stack: Vec<usize> = (0..nc).filter(|&c| solid_side[c].is_some()).collect();
+    while let Some(c) = stack.pop() {
+        let side = solid_side[c];
+        for j in 0..mesh.cell_type.num_facets() {
+            for n in facets.neighbours(mesh, c, j) {
+                match solid_side[n] {
+                    None => {
+                        solid_side[n] = side;
+                        stack.push(n);
+                    }
+                    Some(s) if Some(s) != side && !touches(n) => return Err(at_cell(n)),
+                    _ => {}
+                }
+            }
+        }
+    }
+    let on_solid_side = |c: usize| solid_side[c] == Some(true);
+    let mut keys: Vec<&[usize; 3]> = facets.cells.keys().collect();
+    keys.sort_unstable();
+    let mut gamma_f = Vec::new();
+    for key in keys {
+        let sides = &facets.cells[key];
+        let [a, b] = sides[..] else { continue };
+        if on_solid_side(a.0) == on_solid_side(b.0) {
+            continue;
+        }
+        let (inner, outer) = if on_solid_side(a.0) { (a, b) } else { (b, a) };
+        let fv = mesh.cell_type.facet(inner.1);
+        let mut vertices: [usize; D] = std::array::from_fn(|k| mesh.cell(inner.0)[fv[k]]);
+        let pts = vertices.map(|v| mesh.points[v]);
+        let middle = centroid(mesh, &vertices);
+        let diameter2 = pts.iter().flat_map(|p| pts.iter().map(move |q| dist2(p, q))).fold(0.0, f64::max);
+        let on_gamma_s = vertices.iter().all(|&v| adapted.on_surface[v])
+            && surface.project(&middle).is_some_and(|sp| sp.distance.powi(2) <= GAMMA_F_REL_TOL.powi(2) * diameter2);
+        if !on_gamma_s {
+            return Err(at_cell(outer.0));
+        }
+        // Its normal out of the solid-side cell.
+        let inside = centroid(mesh, mesh.cell_vertices(inner.0));
+        if super::geom::dot(&super::surface::piece_normal(&pts), &super::sub(&middle, &inside)) < 0.0 {
+            vertices.swap(0, 1);
+        }
+        let location = vertices.map(|v| surface.project(&mesh.points[v]).expect("gamma_s has pieces"));
+        gamma_f.push(GammaFacet { vertices, sides: [inner, outer], location });
+    }
+    let solid = (0..nc).filter(|&c| on_solid_side(c)).collect();
+    Ok(BySide { solid, gamma_f, told })
 }
 
 #[cfg(test)]
@@ -138,11 +290,12 @@ mod tests {
         // A square not aligned with the 7 x 7 mesh, counter-clockwise (outward normals).
         let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
         let square = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69], [0.33, 0.69]];
-        let a = adapt(&m, &Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap(), 0.2).unwrap();
+        let s = Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let a = adapt(&m, &s, 0.2).unwrap();
         assert_eq!(a.stats.corner_nodes, 4);
         assert!((a.gamma_f_measure() - 4.0 * 0.38).abs() < 1e-14, "{}", a.gamma_f_measure());
         let cells = a.mesh.num_cells();
-        let r = remove_enclosed(a).unwrap();
+        let r = remove_enclosed(a, &s).unwrap();
         r.mesh.check().unwrap();
         assert_eq!(r.stats.removed_cells, cells - r.mesh.num_cells());
         assert!((area(&r.mesh) - (1.0 - 0.38 * 0.38)).abs() < 1e-14, "{}", area(&r.mesh));
@@ -156,13 +309,54 @@ mod tests {
         assert_eq!(r.on_surface.iter().filter(|&&f| f).count(), r.gamma_f.len(), "a closed chain: as many vertices as facets");
     }
 
+    /// The square of [`removes_exactly_the_square_a_closed_surface_encloses`] with one facet
+    /// taken out of gamma_f, as where the facet rules miss one: the cells are told by their side
+    /// of gamma_s, and gamma_f is whole again, oriented out of the square.
+    #[test]
+    fn a_hole_in_gamma_f_is_closed_by_the_sides_of_gamma_s() {
+        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
+        let square = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69], [0.33, 0.69]];
+        let s = Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let mut a = adapt(&m, &s, 0.2).unwrap();
+        let facets = a.gamma_f.len();
+        a.gamma_f.remove(3);
+        let r = remove_enclosed(a, &s).unwrap();
+        r.mesh.check().unwrap();
+        assert!(r.stats.cells_by_side > 0);
+        assert_eq!((r.gamma_f.len(), r.stats.coupling_facets), (facets, facets));
+        assert!((area(&r.mesh) - (1.0 - 0.38 * 0.38)).abs() < 1e-14, "{}", area(&r.mesh));
+        assert!((r.gamma_f_measure() - 4.0 * 0.38).abs() < 1e-14);
+        for g in &r.gamma_f {
+            assert!(g.sides[0] == NO_CELL && g.sides[1] != NO_CELL);
+            let [a, b] = g.vertices.map(|v| r.mesh.points[v]);
+            let normal = crate::adapt::surface::piece_normal(&[a, b]);
+            let out = [0.5 * (a[0] + b[0]) - 0.52, 0.5 * (a[1] + b[1]) - 0.5];
+            assert!(normal[0] * out[0] + normal[1] * out[1] > 0.0, "{g:?}");
+            assert!(g.location.iter().all(|l| l.distance < 1e-14), "{g:?}");
+        }
+    }
+
+    /// Where the adapted mesh does not follow gamma_s (here: a vertex of gamma_f's hole taken off
+    /// gamma_s), a facet between the two sides is not on it: the hole stays an error.
+    #[test]
+    fn a_facet_between_the_sides_off_gamma_s_leaves_the_hole() {
+        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
+        let square = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69], [0.33, 0.69]];
+        let s = Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let mut a = adapt(&m, &s, 0.2).unwrap();
+        let hole = a.gamma_f.remove(3);
+        a.on_surface[hole.vertices[0]] = false;
+        assert!(matches!(remove_enclosed(a, &s), Err(AdaptError::NotEnclosed(_))));
+    }
+
     #[test]
     fn a_side_on_the_domain_boundary_is_not_wetted() {
         // A block standing on the floor, gamma_s all four sides (its bottom on the floor).
         let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
         let block = vec![[0.33, 0.0], [0.71, 0.0], [0.71, 0.69], [0.33, 0.69]];
-        let a = adapt(&m, &Surface::from_pieces(block, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap(), 0.2).unwrap();
-        let r = remove_enclosed(a).unwrap();
+        let s = Surface::from_pieces(block, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let a = adapt(&m, &s, 0.2).unwrap();
+        let r = remove_enclosed(a, &s).unwrap();
         r.mesh.check().unwrap();
         assert!((r.gamma_f_measure() - (0.38 + 2.0 * 0.69)).abs() < 1e-14, "{}", r.gamma_f_measure());
         assert!((area(&r.mesh) - (1.0 - 0.38 * 0.69)).abs() < 1e-14);
@@ -172,7 +366,8 @@ mod tests {
     fn an_open_surface_is_not_enclosed() {
         let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
         let open = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69]];
-        let a = adapt(&m, &Surface::from_polyline(open).unwrap(), 0.2).unwrap();
-        assert!(matches!(remove_enclosed(a), Err(AdaptError::NotEnclosed(_))));
+        let s = Surface::from_polyline(open).unwrap();
+        let a = adapt(&m, &s, 0.2).unwrap();
+        assert!(matches!(remove_enclosed(a, &s), Err(AdaptError::NotEnclosed(_))));
     }
 }

@@ -69,7 +69,9 @@
 //!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid
 //!   (that test also refuses chords of faces curved more than that, such as a sheared block's
 //!   sides near the floor, so it is not used where the parts tell the edges); rejected ones are
-//!   counted (`rejected_facets`).
+//!   counted (`rejected_facets`). Where these rules leave a hole in a closed gamma_f that the
+//!   mesh can close, [`remove_enclosed`] rebuilds it from the sides of gamma_s the cells lie on
+//!   (`cells_by_side`).
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
 //!   feature lines (3D): its vertices share a smooth part and its centroid lies within
 //!   `GAMMA_F_REL_TOL` times its diameter of gamma_s. Without: its vertices lie within that
@@ -244,6 +246,10 @@ pub struct AdaptStats {
     pub unplaced_corners: usize,
     /// Cells enclosed by gamma_f and removed ([`remove_enclosed`]).
     pub removed_cells: usize,
+    /// Cells told inside or outside the solid by the side of gamma_s they lie on, where the
+    /// facet rules left gamma_f open and [`remove_enclosed`] rebuilt it between the two sides
+    /// (0 where gamma_f enclosed the solid).
+    pub cells_by_side: usize,
     /// Smallest quality (1 = equilateral) of the cells that were split or touch a moved node
     /// (1 when there are none).
     pub min_quality: f64,

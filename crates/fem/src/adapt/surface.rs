@@ -11,7 +11,7 @@
 //! are its piecewise-linear interpolant through the geometry nodes, and the link is the linear
 //! interpolation of `eta` on each piece: exact at the nodes, `O(h^2)` away from them.
 
-use super::geom::{closest_on_piece, dist2, piece_point, sub};
+use super::geom::{closest_on_piece, dist2, dot, piece_point, sub};
 use super::AdaptError;
 use crate::element::ReferenceCell;
 use crate::mesh::{GeometryOrder, Mesh};
@@ -167,6 +167,32 @@ impl<const D: usize> Surface<D> {
         Some(SurfacePoint { piece: pb.index, bary, x: p, distance: dist2(x, &p).sqrt() })
     }
 
+    /// Which side of gamma_s `x` lies on: `(x - p) . n` for its nearest point `p` and the unit
+    /// normal `n` there, positive on the side the normals point to (outside a solid whose
+    /// pieces are oriented outward), `None` for an empty surface. Where several pieces are
+    /// nearest (`p` on an edge or a corner they share), the one whose plane `x` lies farthest
+    /// from decides: facing an edge, `x - p` lies in the cone of the pieces' normals, so that
+    /// piece's normal has the sign of the edge's.
+    pub fn side(&self, x: &[f64; D]) -> Option<f64> {
+        let scale = 1.0 + x.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let mut nearest = self.tree.nearest_neighbor_iter_with_distance_2(*x);
+        let (first, d2_min) = nearest.next()?;
+        let signed = |pb: &PieceBox<D>| {
+            let p = piece_point(&pb.corners, &closest_on_piece(x, &pb.corners));
+            dot(&sub(x, &p), &piece_normal(&pb.corners))
+        };
+        let mut best = signed(first);
+        // Pieces as near as the nearest up to round-off share its point p.
+        let tie = d2_min * (1.0 + 1e-9) + (1e-12 * scale).powi(2);
+        for (pb, _) in nearest.take_while(|&(_, d2)| d2 <= tie) {
+            let s = signed(pb);
+            if s.abs() > best.abs() {
+                best = s;
+            }
+        }
+        Some(best)
+    }
+
     /// The solid cell and its reference coordinates of a point of gamma_s (see the module
     /// documentation for the accuracy on curved facets).
     pub fn solid_point(&self, sp: &SurfacePoint<D>) -> (usize, [f64; D]) {
@@ -289,6 +315,34 @@ mod tests {
         // Bilinear map of the (affine) cell at xi.
         let x = [v[0][0] + xi[0] * (v[1][0] - v[0][0]), v[0][1] + xi[1] * (v[3][1] - v[0][1])];
         assert!((x[0] - 0.3).abs() < 1e-14 && (x[1] - 1.0).abs() < 1e-14);
+    }
+
+    /// Inside a closed surface `side` is negative, outside positive, also where the nearest
+    /// point is an edge or a corner of it. At the sharp tip of a triangle the nearer piece alone
+    /// would not do: outside the tip, beside it, the point lies behind the plane of one of the
+    /// two segments that meet there.
+    #[test]
+    fn side_tells_inside_from_outside_at_faces_edges_and_corners() {
+        let p = |i: usize| [(i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64];
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [1, 3, 7, 5], [3, 2, 6, 7], [2, 0, 4, 6]];
+        let pieces: Vec<[usize; 3]> = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        let cube = Surface::from_pieces((0..8).map(p).collect(), pieces).unwrap();
+        for i in 0..cube.num_pieces() {
+            let c = cube.corners(i);
+            let middle: [f64; 3] = std::array::from_fn(|d| (c[0][d] + c[1][d] + c[2][d]) / 3.0 - 0.5);
+            assert!(dot(&cube.normal(i), &middle) > 0.0, "piece {i} points outward");
+        }
+        let side = |x: [f64; 3]| cube.side(&x).unwrap();
+        assert!((side([0.5, 0.4, 0.9]) + 0.1).abs() < 1e-14, "inside, below the top");
+        assert!((side([0.9, 0.5, 0.9]) + 0.1).abs() < 1e-14, "inside, as near two faces");
+        assert!((side([1.2, 0.5, 1.1]) - 0.2).abs() < 1e-14, "outside, facing an edge");
+        assert!((side([1.1, 1.2, 1.3]) - 0.3).abs() < 1e-14, "outside, facing a corner");
+        assert!(side([0.5, 0.5, 0.5]) < 0.0 && side([0.5, 0.5, 1.0 + 1e-9]) > 0.0);
+        let spike = Surface::from_pieces(vec![[0.0, 0.0], [1.0, 0.0], [0.5, 5.0]], vec![[0, 1], [1, 2], [2, 0]]).unwrap();
+        let beside_the_tip = [0.59, 5.02];
+        assert!(dot(&spike.normal(2), &sub(&beside_the_tip, &[0.5, 5.0])) < 0.0, "behind the plane of one segment");
+        assert!(spike.side(&beside_the_tip).unwrap() > 0.0);
+        assert!(spike.side(&[0.5, 4.9]).unwrap() < 0.0);
     }
 
     #[test]
