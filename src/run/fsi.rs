@@ -178,6 +178,12 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
             "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} corner nodes, {} covered cells removed; {} coupling points, max distance to gamma_s {:.2e}",
             a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, a.corner_nodes, a.removed_cells, r.coupling_points, r.max_coupling_distance
         ));
+        if a.cells_by_side > 0 {
+            obs.detail(&format!(
+                "  gamma_f had a hole the mesh closes: rebuilt between the cells on either side of gamma_s ({} cells told by their side)",
+                a.cells_by_side
+            ));
+        }
         if a.unplaced_corners > 0 {
             obs.log(&format!(
                 "step {}: {} corners of gamma_s could not be made fluid vertices (no vertex near them can move there): gamma_f cuts them off; refine the fluid mesh there",
