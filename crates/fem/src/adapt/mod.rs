@@ -69,8 +69,8 @@
 //!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid
 //!   (that test also refuses chords of faces curved more than that, such as a sheared block's
 //!   sides near the floor, so it is not used where the parts tell the edges); rejected ones are
-//!   counted (`rejected_facets`). Where these rules leave a hole in a closed gamma_f that the
-//!   mesh can close, [`remove_enclosed`] rebuilds it from the sides of gamma_s the cells lie on
+//!   counted (`rejected_facets`). Where these rules leave a hole in gamma_f around a closed
+//!   gamma_s that the mesh can close, [`remove_enclosed`] rebuilds it from the sides of gamma_s the cells lie on
 //!   (`cells_by_side`).
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
 //!   feature lines (3D): its vertices share a smooth part and its centroid lies within
@@ -248,7 +248,8 @@ pub struct AdaptStats {
     pub removed_cells: usize,
     /// Cells told inside or outside the solid by the side of gamma_s they lie on, where the
     /// facet rules left gamma_f open and [`remove_enclosed`] rebuilt it between the two sides
-    /// (0 where gamma_f enclosed the solid).
+    /// (0 where gamma_f enclosed the solid; `rejected_facets` and `degenerate_cases` still
+    /// count the facet rules' attempt).
     pub cells_by_side: usize,
     /// Smallest quality (1 = equilateral) of the cells that were split or touch a moved node
     /// (1 when there are none).
@@ -297,7 +298,8 @@ pub struct AdaptStats {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GammaFacet<const D: usize> {
     /// Mesh vertices, ordered so that their right-hand normal (2D: the tangent turned clockwise)
-    /// points like the normal of the gamma_s piece nearest the facet's centroid.
+    /// points like the normal of the gamma_s piece nearest the facet's centroid (facets rebuilt
+    /// by [`remove_enclosed`]: out of the solid, like the normals of a closed gamma_s).
     pub vertices: [usize; D],
     /// `(cell, local facet)` on the minus side (the normal points out of it) and on the plus
     /// side; [`NO_CELL`] where gamma_f lies on the domain boundary or the cells on that side were

@@ -170,9 +170,12 @@ impl<const D: usize> Surface<D> {
     /// Which side of gamma_s `x` lies on: `(x - p) . n` for its nearest point `p` and the unit
     /// normal `n` there, positive on the side the normals point to (outside a solid whose
     /// pieces are oriented outward), `None` for an empty surface. Where several pieces are
-    /// nearest (`p` on an edge or a corner they share), the one whose plane `x` lies farthest
-    /// from decides: facing an edge, `x - p` lies in the cone of the pieces' normals, so that
-    /// piece's normal has the sign of the edge's.
+    /// nearest (`p` on an edge or a corner they share, or `x` as near two pieces at different
+    /// points), the one whose plane `x` lies farthest from decides: facing an edge (or a 2D
+    /// corner), `x - p` lies in the cone of the two pieces' normals, so that piece's normal has
+    /// the sign of the edge's. Facing a 3D corner where three or more pieces meet that rule can
+    /// fail when their normals differ by more than about 110 degrees (a sharp spike; the
+    /// angle-weighted pseudonormal would not); a block's corners are far from that.
     pub fn side(&self, x: &[f64; D]) -> Option<f64> {
         let scale = 1.0 + x.iter().fold(0.0f64, |m, c| m.max(c.abs()));
         let mut nearest = self.tree.nearest_neighbor_iter_with_distance_2(*x);
@@ -182,7 +185,7 @@ impl<const D: usize> Surface<D> {
             dot(&sub(x, &p), &piece_normal(&pb.corners))
         };
         let mut best = signed(first);
-        // Pieces as near as the nearest up to round-off share its point p.
+        // Pieces as near as the nearest up to round-off.
         let tie = d2_min * (1.0 + 1e-9) + (1e-12 * scale).powi(2);
         for (pb, _) in nearest.take_while(|&(_, d2)| d2 <= tie) {
             let s = signed(pb);
