@@ -39,4 +39,32 @@ fn main() {
     println!("cargo:rustc-env=FDFSI_GIT_COMMIT={commit}");
     println!("cargo:rustc-env=FDFSI_GIT_MODIFIED={modified}");
     println!("cargo:rustc-env=FDFSI_BUILD_PROFILE={}", std::env::var("PROFILE").unwrap_or_else(|_| "unknown".into()));
+    println!("cargo::rustc-check-cfg=cfg(petsc_int64)");
+    #[cfg(feature = "petsc")]
+    petsc::link();
+}
+
+/// The `petsc` feature: links the system's PETSc (found by pkg-config as `PETSc`) and tells the
+/// FFI (`src/solve/petsc/ffi.rs`) its integer width (`cfg(petsc_int64)` for a build with 64-bit
+/// indices). Only real (not complex) PETSc built on Open MPI (whose `MPI_Comm` is a pointer) is
+/// supported: Debian's `petsc-dev`.
+#[cfg(feature = "petsc")]
+mod petsc {
+    pub fn link() {
+        let lib = pkg_config::Config::new()
+            .probe("PETSc")
+            .unwrap_or_else(|e| panic!("the petsc feature needs the system's PETSc (Debian: apt install petsc-dev): {e}"));
+        let conf = lib
+            .include_paths
+            .iter()
+            .map(|dir| dir.join("petscconf.h"))
+            .find_map(|path| std::fs::read_to_string(path).ok())
+            .expect("petscconf.h in PETSc's include path");
+        let defined = |name: &str| conf.lines().any(|l| l.split_whitespace().take(2).eq(["#define", name]));
+        assert!(!defined("PETSC_USE_COMPLEX"), "the petsc feature needs a real PETSc build, not a complex one");
+        assert!(defined("PETSC_HAVE_OMPI_MAJOR_VERSION"), "the petsc feature needs PETSc built on Open MPI (Debian's petsc-dev)");
+        if defined("PETSC_USE_64BIT_INDICES") {
+            println!("cargo:rustc-cfg=petsc_int64");
+        }
+    }
 }

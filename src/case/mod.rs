@@ -551,6 +551,19 @@ pub struct SolverSpec {
     pub newton: NewtonOptions,
     #[serde(default)]
     pub linear: LinearSpec,
+    /// `[solver.petsc]`: the options of `method = "petsc"`.
+    #[serde(default)]
+    pub petsc: PetscSpec,
+}
+
+/// Options of `[solver.linear] method = "petsc"` (`[solver.petsc]`; the `petsc` cargo feature).
+#[derive(Clone, Debug, Default, Deserialize, Serialize, PartialEq)]
+#[serde(default, deny_unknown_fields)]
+pub struct PetscSpec {
+    /// PETSc options for fdfsi's `KSP` (prefix `fdfsi_`), added after the defaults (a direct
+    /// solve by MUMPS: `-fdfsi_ksp_type preonly -fdfsi_pc_type lu
+    /// -fdfsi_pc_factor_mat_solver_type mumps`), e.g. `"-fdfsi_mat_mumps_icntl_14 50"`.
+    pub options: String,
 }
 
 /// The linear solver of each Newton iteration (`[solver.linear] method`).
@@ -570,6 +583,10 @@ pub enum LinearMethod {
     /// against 0.7 s).
     #[default]
     AugmentedLagrangian,
+    /// PETSc's `KSP` on the whole system (an fdfsi built with the `petsc` cargo feature):
+    /// by default a direct solve by MUMPS, anything else by `[solver.petsc] options`
+    /// (`crate::solve::petsc`).
+    Petsc,
 }
 
 /// Options of the linear solver (`[solver.linear]`).
@@ -665,9 +682,40 @@ impl SolverSpec {
         match self.linear.method {
             LinearMethod::Direct => Box::new(FaerLu::new(self.linear.lu_options())),
             LinearMethod::AugmentedLagrangian => Box::new(AugmentedLagrangian::new(self.linear.al_options(time_dependent, formulation))),
+            LinearMethod::Petsc => petsc_solver(&self.petsc),
         }
     }
 }
+
+#[cfg(feature = "petsc")]
+fn petsc_solver(spec: &PetscSpec) -> Box<dyn LinearSolver> {
+    Box::new(crate::solve::petsc::PetscSolver::new(&spec.options, LinearSolverOptions::default().fail_tolerance))
+}
+
+/// Without the `petsc` feature: a solver whose every factorisation fails, saying how to get one
+/// (a validated case never asks for it: [`Case::validate`] refuses `method = "petsc"` there).
+#[cfg(not(feature = "petsc"))]
+fn petsc_solver(_spec: &PetscSpec) -> Box<dyn LinearSolver> {
+    use crate::solve::linear::{LinearSolveError, SolveStats};
+    use fdfsi_fem::sparse::CscMatrix;
+    struct WithoutPetsc;
+    impl LinearSolver for WithoutPetsc {
+        fn factorize(&mut self, _a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
+            Err(LinearSolveError::Petsc(WITHOUT_PETSC.into()))
+        }
+        fn solve_in_place(&self, _a: &CscMatrix<'_>, _rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+            Err(LinearSolveError::Petsc(WITHOUT_PETSC.into()))
+        }
+        fn symbolic_factorizations(&self) -> usize {
+            0
+        }
+    }
+    Box::new(WithoutPetsc)
+}
+
+/// Why `method = "petsc"` fails in a build without the feature.
+pub const WITHOUT_PETSC: &str =
+    "this fdfsi was built without the petsc feature: install PETSc (Debian: apt install petsc-dev) and build with cargo build --release --features petsc";
 
 /// What to write besides the fields.
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]

@@ -466,4 +466,7 @@ fn solver(c: &Case, p: &mut Problems) {
     if l.krylov_max_iterations == 0 {
         p.push("solver.linear: krylov_max_iterations must be at least 1 (default 60)");
     }
+    if l.method == super::LinearMethod::Petsc && !cfg!(feature = "petsc") {
+        p.push(format!("solver.linear: method = \"petsc\": {}", super::WITHOUT_PETSC));
+    }
 }

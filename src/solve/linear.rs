@@ -43,6 +43,9 @@ pub enum LinearSolveError {
     KrylovNotConverged { iterations: usize, residual: f64, tolerance: f64 },
     #[error("the linear solve produced a non-finite value (NaN or infinity)")]
     NonFinite,
+    /// A PETSc call failed or its solve diverged (the `petsc` feature, `solve::petsc`).
+    #[error("PETSc: {0}")]
+    Petsc(String),
 }
 
 /// Options of the linear solve.

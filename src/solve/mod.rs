@@ -7,3 +7,5 @@ pub mod krylov;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+#[cfg(feature = "petsc")]
+pub mod petsc;

@@ -1,0 +1,119 @@
+//! The `petsc` feature's solver against fdfsi's own factorisation on identical systems
+//! (`cargo test --release --features petsc --test petsc`; needs the system's PETSc).
+#![cfg(feature = "petsc")]
+
+use fdfsi::case::Case;
+use fdfsi::discretize::flow::{FlowDiscretization, FlowProblem, SteadySystem};
+use fdfsi::physics::fluid::Formulation;
+use fdfsi::solve::linear::{FaerLu, LinearSolveError, LinearSolver, LinearSolverOptions};
+use fdfsi::solve::petsc::PetscSolver;
+use fdfsi_fem::generate::box_tetrahedra;
+use fdfsi_fem::gmsh::{read_msh, AnyMesh};
+use fdfsi_fem::sparse::CscMatrix;
+use std::path::Path;
+
+/// Two Newton iterations of the steady problem on `disc`, each linear system solved by fdfsi's
+/// LU and by `petsc`: the solutions agree to `tol` (relative to their largest entry), PETSc's
+/// residual is below 1e-10, and the second system (new values, same pattern) reuses the first
+/// one's set-up (one symbolic factorisation).
+fn compare<const D: usize>(label: &str, disc: &FlowDiscretization<D>, problem: &FlowProblem<D>, petsc: &mut PetscSolver, tol: f64) -> usize {
+    let (system, mut x) = SteadySystem::new(disc, problem).expect("dirichlet dofs");
+    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut rhs = vec![0.0; x.len()];
+    let mut lu = FaerLu::new(LinearSolverOptions::default());
+    let mut iterations = 0;
+    for newton in 0..2 {
+        system.assemble(&x, &mut k, &mut rhs).expect("assembly");
+        lu.factorize(&k).unwrap();
+        let mut ours = rhs.clone();
+        lu.solve_in_place(&k, &mut ours).unwrap();
+        petsc.factorize(&k).unwrap_or_else(|e| panic!("{label}: {e}"));
+        let mut theirs = rhs.clone();
+        let stats = petsc.solve_in_place(&k, &mut theirs).unwrap_or_else(|e| panic!("{label}: {e}"));
+        let scale = ours.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let diff = ours.iter().zip(&theirs).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        println!("{label}, Newton {newton}: {} unknowns, max difference {:.2e} of {scale:.2e}, PETSc residual {:.2e}", x.len(), diff, stats.residual);
+        assert!(diff <= tol * scale, "{label}: the solutions differ by {diff:e} (largest entry {scale:e})");
+        assert!(stats.residual < 1e-10, "{label}: residual {}", stats.residual);
+        iterations += stats.krylov_iterations;
+        x.iter_mut().zip(&ours).for_each(|(a, b)| *a += b);
+    }
+    assert_eq!(petsc.symbolic_factorizations(), 1, "{label}: one set-up per pattern");
+    iterations
+}
+
+/// Schaefer-Turek 2D-1 (Navier-Stokes, P2+/P1disc, 36 596 unknowns) and the 3D Stokes
+/// verification problem (4^3 cubes): MUMPS through PETSc gives fdfsi's solutions; a Krylov
+/// method chosen by options (GMRES preconditioned by MUMPS's LU) too, in at least one
+/// iteration. One test, since PETSc's options database is process-wide.
+#[test]
+fn petsc_solves_the_systems_fdfsi_factorises() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
+    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
+    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
+    let disc = FlowDiscretization::build(mesh, Formulation::Plane).unwrap();
+    let direct = compare("Schaefer-Turek 2D-1, MUMPS", &disc, &problem, &mut PetscSolver::new("", 1e-8), 1e-9);
+    assert_eq!(direct, 0, "a direct solve reports no Krylov iterations");
+    let gmres = "-fdfsi_ksp_type gmres -fdfsi_ksp_rtol 1e-13";
+    let krylov = compare("Schaefer-Turek 2D-1, GMRES + MUMPS", &disc, &problem, &mut PetscSolver::new(gmres, 1e-8), 1e-9);
+    assert!(krylov >= 2, "GMRES iterates: {krylov}");
+    let problem = fdfsi::verify::stokes_3d_problem();
+    let disc = FlowDiscretization::build(box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 4, 4, 4), Formulation::ThreeD).unwrap();
+    compare("3D Stokes, MUMPS", &disc, &problem, &mut PetscSolver::new("", 1e-8), 1e-9);
+}
+
+/// A singular system or an unknown option is an error naming PETSc, not a crash; a solver made
+/// after them works.
+#[test]
+fn petsc_errors_are_errors() {
+    let pattern = fdfsi_fem::sparse::Pattern::from_cells(2, 1, |_, dofs| {
+        dofs.clear();
+        dofs.extend([0, 1])
+    });
+    let mut singular = CscMatrix::zeros(&pattern);
+    singular.values.iter_mut().for_each(|v| *v = 1.0);
+    let mut solver = PetscSolver::new("", 1e-8);
+    let e = solver.factorize(&singular).and_then(|_| solver.solve_in_place(&singular, &mut [1.0, 2.0])).unwrap_err();
+    println!("singular: {e}");
+    assert!(matches!(&e, LinearSolveError::Petsc(m) if m.contains("diverged")), "{e}");
+    let mut regular = singular.clone();
+    regular.values = vec![2.0, 1.0, 1.0, 2.0];
+    let e = PetscSolver::new("-fdfsi_ksp_type no-such-method", 1e-8).factorize(&regular).unwrap_err();
+    println!("bad option: {e}");
+    assert!(matches!(&e, LinearSolveError::Petsc(m) if m.contains("KSPSetFromOptions")), "{e}");
+    let mut solver = PetscSolver::new("", 1e-8);
+    solver.factorize(&regular).unwrap();
+    let mut x = [1.0, 2.0];
+    solver.solve_in_place(&regular, &mut x).unwrap();
+    assert!((x[0] - 0.0).abs() < 1e-15 && (x[1] - 1.0).abs() < 1e-15, "{x:?}");
+}
+
+/// Runs with `[solver.linear] method = "petsc"` (MUMPS through PETSc) give the direct solve's
+/// quantities to 1e-9 relative: Schaefer-Turek 2D-1 (steady Navier-Stokes) and model problem 2
+/// (2D FSI, 12 steps: the adapted mesh, so the pattern, changes from step to step).
+#[test]
+fn runs_with_petsc_match_the_direct_solve() {
+    use fdfsi::case::LinearMethod;
+    use fdfsi::run::{run_case, RunOptions};
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    for name in ["schaefer-turek-2d1", "model-problem-2"] {
+        let run = |method: LinearMethod| {
+            let mut case = Case::read(&dir.join(format!("{name}.toml"))).unwrap();
+            case.solver.linear.method = method;
+            case.validate(name).unwrap();
+            let out = std::env::temp_dir().join(format!("fdfsi-test-petsc-{name}-{method:?}-{}", std::process::id()));
+            let summary = run_case(&case, &RunOptions::new(out.clone(), dir.clone()), &mut |_: &str| {}).unwrap();
+            let _ = std::fs::remove_dir_all(&out);
+            summary
+        };
+        let (direct, petsc) = (run(LinearMethod::Direct), run(LinearMethod::Petsc));
+        assert_eq!(petsc.steps, direct.steps, "{name}");
+        assert!(!direct.quantities.is_empty());
+        for (q, v) in &direct.quantities {
+            let w = petsc.quantities[q];
+            println!("{name}: {q} direct {v:.12e}, PETSc {w:.12e}");
+            assert!((w - v).abs() <= 1e-9 * v.abs().max(1e-12), "{name}: {q}: direct {v}, PETSc {w}");
+        }
+    }
+}
