@@ -46,22 +46,27 @@ fn main() {
 
 /// The `petsc` feature: links the system's PETSc (found by pkg-config as `PETSc`) and tells the
 /// FFI (`src/solve/petsc/ffi.rs`) its integer width (`cfg(petsc_int64)` for a build with 64-bit
-/// indices). Only real (not complex) PETSc built on Open MPI (whose `MPI_Comm` is a pointer) is
-/// supported: Debian's `petsc-dev`.
+/// indices); links Open MPI too (found as `ompi-c`). Only real double-precision PETSc built on
+/// Open MPI (whose `MPI_Comm` is a pointer) is supported: Debian's `petsc-dev`.
 #[cfg(feature = "petsc")]
 mod petsc {
     pub fn link() {
         let lib = pkg_config::Config::new()
             .probe("PETSc")
             .unwrap_or_else(|e| panic!("the petsc feature needs the system's PETSc (Debian: apt install petsc-dev): {e}"));
-        let conf = lib
+        // Open MPI itself, for MPI_Init_thread and MPI_COMM_SELF.
+        pkg_config::Config::new()
+            .probe("ompi-c")
+            .unwrap_or_else(|e| panic!("the petsc feature needs Open MPI's ompi-c.pc (Debian: libopenmpi-dev): {e}"));
+        let (path, conf) = lib
             .include_paths
             .iter()
             .map(|dir| dir.join("petscconf.h"))
-            .find_map(|path| std::fs::read_to_string(path).ok())
+            .find_map(|path| std::fs::read_to_string(&path).ok().map(|text| (path, text)))
             .expect("petscconf.h in PETSc's include path");
+        println!("cargo:rerun-if-changed={}", path.display());
         let defined = |name: &str| conf.lines().any(|l| l.split_whitespace().take(2).eq(["#define", name]));
-        assert!(!defined("PETSC_USE_COMPLEX"), "the petsc feature needs a real PETSc build, not a complex one");
+        assert!(!defined("PETSC_USE_COMPLEX") && defined("PETSC_USE_REAL_DOUBLE"), "the petsc feature needs a real double-precision PETSc build");
         assert!(defined("PETSC_HAVE_OMPI_MAJOR_VERSION"), "the petsc feature needs PETSc built on Open MPI (Debian's petsc-dev)");
         if defined("PETSC_USE_64BIT_INDICES") {
             println!("cargo:rustc-cfg=petsc_int64");

@@ -5,7 +5,8 @@
 //!
 //! Types: `PetscInt` is 32-bit unless PETSc was built with 64-bit indices (`cfg(petsc_int64)`,
 //! set by `build.rs`); `PetscScalar` is `f64` (a real build: `build.rs` refuses a complex one);
-//! `MPI_Comm` is Open MPI's, a pointer (`build.rs` checks PETSc was built on Open MPI).
+//! `MPI_Comm` is Open MPI's, a pointer (`build.rs` checks PETSc was built on Open MPI, and links
+//! Open MPI for the two calls of its own made here: the thread level and `MPI_COMM_SELF`).
 
 use std::ffi::{c_char, c_int, c_void};
 
@@ -24,14 +25,36 @@ pub type Mat = *mut c_void;
 pub type Vec = *mut c_void;
 pub type Ksp = *mut c_void;
 
+pub type Pc = *mut c_void;
+
 /// `KSP_CONVERGED_ITS`: `preonly` (a direct solve) reports this after its one application.
 pub const KSP_CONVERGED_ITS: c_int = 4;
+/// Open MPI's `MPI_THREAD_SERIALIZED` (`mpi.h`: `SINGLE, FUNNELED, SERIALIZED, MULTIPLE`).
+pub const MPI_THREAD_SERIALIZED: c_int = 2;
 
-#[link(name = "petsc_real")]
+/// Open MPI's predefined communicator objects (`struct ompi_predefined_communicator_t`, opaque
+/// here): `MPI_COMM_SELF` is the address of `ompi_mpi_comm_self`.
+#[repr(C)]
+pub struct OmpiCommunicator {
+    _private: [u8; 0],
+}
+
 extern "C" {
-    pub static PETSC_COMM_WORLD: MpiComm;
+    static ompi_mpi_comm_self: OmpiCommunicator;
+    pub fn MPI_Initialized(flag: *mut c_int) -> c_int;
+    pub fn MPI_Init_thread(argc: *mut c_int, argv: *mut *mut *mut c_char, required: c_int, provided: *mut c_int) -> c_int;
+}
 
+/// `MPI_COMM_SELF`: each process's own communicator, the one a sequential matrix lives on.
+pub fn comm_self() -> MpiComm {
+    // Only the address of the extern static is taken, never its contents.
+    std::ptr::addr_of!(ompi_mpi_comm_self) as MpiComm
+}
+
+extern "C" {
     pub fn PetscInitializeNoArguments() -> PetscErrorCode;
+    /// `options` null: the global database; `value` null for a flag.
+    pub fn PetscOptionsSetValue(options: *mut c_void, name: *const c_char, value: *const c_char) -> PetscErrorCode;
     pub fn PetscInitialized(done: *mut PetscBool) -> PetscErrorCode;
     pub fn PetscErrorMessage(code: c_int, text: *mut *const c_char, specific: *mut *mut c_char) -> PetscErrorCode;
     /// `options` null: the global database.
@@ -65,4 +88,7 @@ extern "C" {
     pub fn KSPGetIterationNumber(ksp: Ksp, iterations: *mut PetscInt) -> PetscErrorCode;
     pub fn KSPGetConvergedReason(ksp: Ksp, reason: *mut c_int) -> PetscErrorCode;
     pub fn KSPDestroy(ksp: *mut Ksp) -> PetscErrorCode;
+    pub fn KSPGetPC(ksp: Ksp, pc: *mut Pc) -> PetscErrorCode;
+    /// `PCFailedReason`: `PC_NOERROR = 0`, negative or positive codes for failures.
+    pub fn PCGetFailedReason(pc: Pc, reason: *mut c_int) -> PetscErrorCode;
 }

@@ -4,14 +4,17 @@
 //! at every factorisation), configured through PETSc's options database under the prefix
 //! [`OPTIONS_PREFIX`]: by default a direct solve by MUMPS ([`DEFAULT_OPTIONS`]), anything else
 //! by options, as FEniCSx users are used to (`-fdfsi_ksp_type gmres -fdfsi_pc_type ilu`,
-//! `-fdfsi_mat_mumps_icntl_14 50`, `-fdfsi_ksp_view`). One process (`PETSC_COMM_WORLD` of size
-//! 1): the distributed engine (several ranks, `mpirun`) is still to come.
+//! `-fdfsi_mat_mumps_icntl_14 50`, `-fdfsi_ksp_view`). Sequential matrices on `MPI_COMM_SELF`:
+//! the distributed engine (several ranks, `mpirun`) is still to come.
 //!
-//! PETSc is initialised on first use (`PetscInitializeNoArguments`) and not finalised (its
-//! state lives as long as the process). It is not thread-safe: every call into it holds one
-//! process-wide lock. Its options database is process-wide too: each new system clears it and
-//! sets its solver's options ([`DEFAULT_OPTIONS`], then its own) before its `KSP` reads them,
-//! so each `KSP` gets exactly its solver's options.
+//! PETSc is initialised on first use and not finalised (its state lives as long as the
+//! process): MPI first at the thread level `MPI_THREAD_SERIALIZED` (solvers on several threads
+//! take turns), then PETSc without its signal handlers (`-no_signal_handler`: Rust's own stay).
+//! PETSc is not thread-safe: every call into it holds one process-wide lock. Its options
+//! database is process-wide too: every locked section that lets PETSc read options (set-up,
+//! factorisation, solve) first clears it and sets its solver's options ([`DEFAULT_OPTIONS`],
+//! then its own), so each `KSP` sees exactly its solver's options (and none from
+//! `PETSC_OPTIONS` or `.petscrc`).
 
 mod ffi;
 
@@ -41,15 +44,17 @@ fn check(code: ffi::PetscErrorCode, call: &str) -> Result<(), LinearSolveError> 
     if code == 0 {
         return Ok(());
     }
-    let mut text: *const std::ffi::c_char = null();
-    // SAFETY: PetscErrorMessage writes a pointer to a static string (or leaves it null).
+    let (mut text, mut specific): (*const std::ffi::c_char, *mut std::ffi::c_char) = (null(), null_mut());
+    // SAFETY: PetscErrorMessage writes pointers to PETSc's own strings (or leaves them null).
     let message = unsafe {
-        ffi::PetscErrorMessage(code, &mut text, null_mut());
-        if text.is_null() {
-            String::new()
-        } else {
-            CStr::from_ptr(text).to_string_lossy().into_owned()
-        }
+        ffi::PetscErrorMessage(code, &mut text, &mut specific);
+        [text, specific.cast_const()]
+            .iter()
+            .filter(|p| !p.is_null())
+            .map(|&p| CStr::from_ptr(p).to_string_lossy().trim().to_string())
+            .filter(|m| !m.is_empty())
+            .collect::<Vec<_>>()
+            .join(": ")
     };
     Err(LinearSolveError::Petsc(format!("{call}: {message} (PETSc error {code})")))
 }
@@ -58,11 +63,17 @@ fn check(code: ffi::PetscErrorCode, call: &str) -> Result<(), LinearSolveError> 
 fn initialize() -> Result<(), LinearSolveError> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
-        let mut done: ffi::PetscBool = 0;
-        // SAFETY: plain calls without pointers kept by PETSc.
+        let (mut mpi, mut provided, mut petsc): (c_int, c_int, ffi::PetscBool) = (0, 0, 0);
+        let flag = CString::new("-no_signal_handler").expect("no NUL");
+        // SAFETY: plain calls; null argc/argv are allowed by MPI_Init_thread.
         unsafe {
-            check(ffi::PetscInitialized(&mut done), "PetscInitialized").map_err(|e| e.to_string())?;
-            if done == 0 {
+            ffi::MPI_Initialized(&mut mpi);
+            if mpi == 0 && ffi::MPI_Init_thread(null_mut(), null_mut(), ffi::MPI_THREAD_SERIALIZED, &mut provided) != 0 {
+                return Err("MPI_Init_thread failed".to_string());
+            }
+            check(ffi::PetscInitialized(&mut petsc), "PetscInitialized").map_err(|e| e.to_string())?;
+            if petsc == 0 {
+                check(ffi::PetscOptionsSetValue(null_mut(), flag.as_ptr(), null()), "PetscOptionsSetValue").map_err(|e| e.to_string())?;
                 check(ffi::PetscInitializeNoArguments(), "PetscInitializeNoArguments").map_err(|e| e.to_string())?;
             }
         }
@@ -114,15 +125,26 @@ impl LinearSolver for PetscSolver {
         }
         let system = self.system.as_mut().expect("set above");
         let _petsc = lock();
+        set_options(&self.options)?;
         system.factorize(&a.values)
     }
 
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
         let system = self.system.as_ref().ok_or_else(|| LinearSolveError::Petsc("solve before factorize".into()))?;
+        if rhs.len() != system.n() || a.pattern.n != system.n() {
+            return Err(LinearSolveError::Petsc(format!(
+                "a system of {} unknowns (right-hand side of {}) given to a solver set up for {}",
+                a.pattern.n,
+                rhs.len(),
+                system.n()
+            )));
+        }
         let b = rhs.to_vec();
         let iterations = {
             let _petsc = lock();
-            system.solve(&b, rhs)?
+            set_options(&self.options)?;
+            // PETSc may scale its right-hand side in place (`-ksp_diagonal_scale`): its own copy.
+            system.solve(&mut b.clone(), rhs)?
         };
         let mut ax = vec![0.0; b.len()];
         a.mul_vec(rhs, &mut ax);
@@ -188,6 +210,8 @@ impl PetscSystem {
         let n = pattern.n;
         let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {} entries exceed PETSc's integer range", pattern.nnz()));
         let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
+        let size = int(n)?;
+        int(pattern.nnz())?;
         let mut row_ptr = vec![0; n + 1];
         for &i in &pattern.row_idx {
             row_ptr[i + 1] += 1;
@@ -216,13 +240,13 @@ impl PetscSystem {
             values: vec![0.0; pattern.nnz()],
             handles: Handles { mat: null_mut(), b: null_mut(), x: null_mut(), ksp: null_mut() },
         };
-        let n = int(n)?;
+        let n = size;
         let prefix = CString::new(OPTIONS_PREFIX).expect("no NUL");
         let h = &mut system.handles;
         // SAFETY: the arrays handed to PETSc live in `system` (their heap buffers do not move)
         // until the objects that use them are destroyed; the handles start null.
         let created = unsafe {
-            let comm = ffi::PETSC_COMM_WORLD;
+            let comm = ffi::comm_self();
             let (rows, cols, vals) = (system.row_ptr.as_mut_ptr(), system.col_idx.as_mut_ptr(), system.values.as_mut_ptr());
             check(ffi::MatCreateSeqAIJWithArrays(comm, n, n, rows, cols, vals, &mut h.mat), "MatCreateSeqAIJWithArrays")
                 .and_then(|_| check(ffi::VecCreateSeqWithArray(comm, 1, n, null(), &mut h.b), "VecCreateSeqWithArray"))
@@ -253,13 +277,18 @@ impl PetscSystem {
         self.col_ptr == pattern.col_ptr && self.row_idx == pattern.row_idx
     }
 
+    /// Number of unknowns.
+    fn n(&self) -> usize {
+        self.col_ptr.len() - 1
+    }
+
     /// Copies `values` (in CSC order) into the matrix and sets the `KSP` up: for the default
     /// options, MUMPS's factorisation (the caller holds the lock).
     fn factorize(&mut self, values: &[f64]) -> Result<(), LinearSolveError> {
         for (&v, &at) in values.iter().zip(&self.csr_of_csc) {
             self.values[at] = v;
         }
-        let mut array = null_mut();
+        let (mut array, mut pc, mut failed) = (null_mut(), null_mut(), 0);
         // SAFETY: the matrix is valid; getting and restoring its array (ours) marks its values
         // changed, so the set-up factorises again.
         let h = &self.handles;
@@ -267,24 +296,36 @@ impl PetscSystem {
             check(ffi::MatSeqAIJGetArray(h.mat, &mut array), "MatSeqAIJGetArray")?;
             check(ffi::MatSeqAIJRestoreArray(h.mat, &mut array), "MatSeqAIJRestoreArray")?;
             check(ffi::KSPSetOperators(h.ksp, h.mat, h.mat), "KSPSetOperators")?;
-            check(ffi::KSPSetUp(h.ksp), "KSPSetUp (the factorisation)")
+            check(ffi::KSPSetFromOptions(h.ksp), "KSPSetFromOptions")?;
+            check(ffi::KSPSetUp(h.ksp), "KSPSetUp (the factorisation)")?;
+            check(ffi::KSPGetPC(h.ksp, &mut pc), "KSPGetPC")?;
+            check(ffi::PCGetFailedReason(pc, &mut failed), "PCGetFailedReason")?;
         }
+        if failed != 0 {
+            return Err(LinearSolveError::Numeric(format!(
+                "PETSc's preconditioner set-up failed (PCFailedReason {failed}; for the default MUMPS LU: a singular matrix)"
+            )));
+        }
+        Ok(())
     }
 
     /// Solves for `x` with right-hand side `b`; returns PETSc's iteration count (the caller holds
     /// the lock).
-    fn solve(&self, b: &[f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
+    fn solve(&self, b: &mut [f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
         let (mut iterations, mut reason): (PetscInt, c_int) = (0, 0);
-        // SAFETY: `b` and `x` have the system's size and outlive the solve; the vectors are reset
-        // to no array before returning.
+        // SAFETY: `b` and `x` have the system's size (checked by the caller) and outlive the
+        // solve; whatever was placed is reset to no array before returning.
         let h = &self.handles;
         unsafe {
-            check(ffi::VecPlaceArray(h.b, b.as_ptr()), "VecPlaceArray")?;
-            check(ffi::VecPlaceArray(h.x, x.as_mut_ptr()), "VecPlaceArray")?;
+            check(ffi::VecPlaceArray(h.b, b.as_mut_ptr()), "VecPlaceArray")?;
+            if let Err(e) = check(ffi::VecPlaceArray(h.x, x.as_mut_ptr()), "VecPlaceArray") {
+                ffi::VecResetArray(h.b);
+                return Err(e);
+            }
             let solved = check(ffi::KSPSolve(h.ksp, h.b, h.x), "KSPSolve");
-            check(ffi::VecResetArray(h.b), "VecResetArray")?;
-            check(ffi::VecResetArray(h.x), "VecResetArray")?;
+            let reset = [ffi::VecResetArray(h.b), ffi::VecResetArray(h.x)];
             solved?;
+            reset.iter().try_for_each(|&code| check(code, "VecResetArray"))?;
             check(ffi::KSPGetIterationNumber(h.ksp, &mut iterations), "KSPGetIterationNumber")?;
             check(ffi::KSPGetConvergedReason(h.ksp, &mut reason), "KSPGetConvergedReason")?;
         }
@@ -299,10 +340,11 @@ impl PetscSystem {
 
 impl Drop for PetscSystem {
     fn drop(&mut self) {
+        let h = &self.handles;
+        if [h.mat, h.b, h.x, h.ksp].iter().all(|p| p.is_null()) {
+            return;
+        }
         let _petsc = lock();
         self.handles.destroy();
     }
 }
-
-// SAFETY: the handles are only used under the process-wide lock.
-unsafe impl Send for Handles {}
