@@ -303,16 +303,21 @@ mod tests {
     use crate::adapt::{adapt, Surface};
     use crate::generate::{rectangle_triangles, DiagonalPattern};
 
+    /// The 7 x 7 unit square and, counter-clockwise (outward normals), the rectangle
+    /// `[0.33, 0.71] x [y0, y1]`, not aligned with the mesh (on the floor for `y0 = 0`).
+    fn square([y0, y1]: [f64; 2]) -> (crate::mesh::Mesh<2>, Surface<2>) {
+        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
+        let corners = vec![[0.33, y0], [0.71, y0], [0.71, y1], [0.33, y1]];
+        (m, Surface::from_pieces(corners, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap())
+    }
+
     fn area(mesh: &crate::mesh::Mesh<2>) -> f64 {
         (0..mesh.num_cells()).map(|c| mesh.signed_vertex_measure(c)).sum()
     }
 
     #[test]
     fn removes_exactly_the_square_a_closed_surface_encloses() {
-        // A square not aligned with the 7 x 7 mesh, counter-clockwise (outward normals).
-        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
-        let square = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69], [0.33, 0.69]];
-        let s = Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let (m, s) = square([0.31, 0.69]);
         let a = adapt(&m, &s, 0.2).unwrap();
         assert_eq!(a.stats.corner_nodes, 4);
         assert!((a.gamma_f_measure() - 4.0 * 0.38).abs() < 1e-14, "{}", a.gamma_f_measure());
@@ -336,9 +341,7 @@ mod tests {
     /// of gamma_s, and gamma_f is whole again, oriented out of the square.
     #[test]
     fn a_hole_in_gamma_f_is_closed_by_the_sides_of_gamma_s() {
-        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
-        let square = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69], [0.33, 0.69]];
-        let s = Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let (m, s) = square([0.31, 0.69]);
         let mut a = adapt(&m, &s, 0.2).unwrap();
         let facets = a.gamma_f.len();
         a.gamma_f.remove(3);
@@ -364,9 +367,7 @@ mod tests {
     /// then lie 0.3-0.4 of their length off gamma_s).
     #[test]
     fn a_facet_between_the_sides_off_gamma_s_leaves_the_hole() {
-        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
-        let square = vec![[0.33, 0.31], [0.71, 0.31], [0.71, 0.69], [0.33, 0.69]];
-        let s = Surface::from_pieces(square, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let (m, s) = square([0.31, 0.69]);
         for moved in [false, true] {
             let mut a = adapt(&m, &s, 0.2).unwrap();
             let hole = a.gamma_f.remove(3);
@@ -386,9 +387,7 @@ mod tests {
     /// sides close it, and the side on the floor stays dry.
     #[test]
     fn a_hole_beside_the_domain_boundary_is_closed_by_the_sides() {
-        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
-        let block = vec![[0.33, 0.0], [0.71, 0.0], [0.71, 0.69], [0.33, 0.69]];
-        let s = Surface::from_pieces(block, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let (m, s) = square([0.0, 0.69]);
         let mut a = adapt(&m, &s, 0.2).unwrap();
         let hole = a.gamma_f.iter().position(|g| g.sides.iter().all(|&c| c != NO_CELL)).unwrap();
         a.gamma_f.remove(hole);
@@ -402,9 +401,7 @@ mod tests {
     #[test]
     fn a_side_on_the_domain_boundary_is_not_wetted() {
         // A block standing on the floor, gamma_s all four sides (its bottom on the floor).
-        let m = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 7, 7, DiagonalPattern::Alternating);
-        let block = vec![[0.33, 0.0], [0.71, 0.0], [0.71, 0.69], [0.33, 0.69]];
-        let s = Surface::from_pieces(block, vec![[0, 1], [1, 2], [2, 3], [3, 0]]).unwrap();
+        let (m, s) = square([0.0, 0.69]);
         let a = adapt(&m, &s, 0.2).unwrap();
         let r = remove_enclosed(a, &s).unwrap();
         r.mesh.check().unwrap();
