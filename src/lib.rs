@@ -47,7 +47,8 @@
 //!    residual and Jacobian by [`discretize::fsi::FsiDiscretization::assemble`] from the element
 //!    kernels ([`physics::fluid`], [`physics::solid`], [`physics::coupling`]), each linear system
 //!    by sparse LU ([`solve::linear`]) or FGMRES with the augmented-Lagrangian preconditioner
-//!    ([`solve::augmented`]); the time scheme's weights from [`discretize::time_scheme`].
+//!    ([`solve::augmented`]), or by PETSc's `KSP` in a build with the `petsc` feature
+//!    (`solve::petsc`); the time scheme's weights from [`discretize::time_scheme`].
 //! 6. **Update**: the solid's displacement, deformation gradient and velocity at `t_{n+1}`
 //!    (updated Lagrangian), and the fluid kept for the next transfer.
 //!
