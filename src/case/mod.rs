@@ -562,7 +562,9 @@ pub struct SolverSpec {
 pub struct PetscSpec {
     /// PETSc options for fdfsi's `KSP` (prefix `fdfsi_`), added after the defaults (a direct
     /// solve by MUMPS: `-fdfsi_ksp_type preonly -fdfsi_pc_type lu
-    /// -fdfsi_pc_factor_mat_solver_type mumps`), e.g. `"-fdfsi_mat_mumps_icntl_14 50"`.
+    /// -fdfsi_pc_factor_mat_solver_type mumps`), e.g. `"-fdfsi_mat_mumps_icntl_14 50"`. An
+    /// iterative method chosen here must reach `|b - A x| <= 1e-6 |b|` in every solve (fdfsi's
+    /// check; PETSc's default `-ksp_rtol` is 1e-5).
     pub options: String,
 }
 
