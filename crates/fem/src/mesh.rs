@@ -380,11 +380,18 @@ impl Topology {
         self.facet_cells.iter().filter(|fc| fc[1] == NO_CELL).map(|fc| fc[0]).collect()
     }
 
+    /// The facet (index into [`Topology::facet_cells`]) that is local facet `f` of cell `c`.
+    pub fn facet(&self, cell_type: ReferenceCell, c: usize, f: usize) -> usize {
+        if cell_type.dim() == 3 {
+            self.cell_faces[c * cell_type.num_facets() + f]
+        } else {
+            self.cell_edges[c * cell_type.edges().len() + f]
+        }
+    }
+
     /// Cell across local facet `f` of cell `c`, if any.
     pub fn neighbour(&self, cell_type: ReferenceCell, c: usize, f: usize) -> Option<usize> {
-        let id =
-            if cell_type.dim() == 3 { self.cell_faces[c * cell_type.num_facets() + f] } else { self.cell_edges[c * cell_type.edges().len() + f] };
-        let [a, b] = self.facet_cells[id];
+        let [a, b] = self.facet_cells[self.facet(cell_type, c, f)];
         if a.0 == c {
             (b != NO_CELL).then_some(b.0)
         } else {

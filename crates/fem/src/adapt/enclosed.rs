@@ -26,7 +26,7 @@
 use super::geom::{dot, sub};
 use super::surface::piece_normal;
 use super::{dist2, AdaptError, Adapted, GammaFacet, Surface, GAMMA_F_REL_TOL};
-use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
+use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
 use std::collections::{HashMap, HashSet};
 
 /// The adapted mesh without the cells gamma_f encloses (see the module documentation): cells,
@@ -36,10 +36,10 @@ use std::collections::{HashMap, HashSet};
 /// fills the original domain, so [`super::verify_adapted`]'s measure check does not apply.
 /// `surface` is the gamma_s `adapted` was adapted to.
 pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>) -> Result<Adapted<D>, AdaptError> {
-    let facets = FacetCells::new(&adapted.mesh);
-    let (enclosed, rebuilt) = match enclosed_cells(&adapted, &facets) {
+    let topology = Topology::build(&adapted.mesh);
+    let (enclosed, rebuilt) = match enclosed_cells(&adapted, &topology) {
         Ok(enclosed) => (enclosed, None),
-        Err(leak @ AdaptError::NotEnclosed(_)) => match cells_by_side(&adapted, &facets, surface) {
+        Err(leak @ AdaptError::NotEnclosed(_)) => match cells_by_side(&adapted, &topology, surface) {
             Some(BySide { solid, gamma_f, told }) if !solid.is_empty() => (solid, Some((gamma_f, told))),
             _ => return Err(leak),
         },
@@ -99,53 +99,21 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>
     Ok(Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, stats })
 }
 
-/// The facets of a mesh: sorted vertex key -> the `(cell, local facet)` on each side.
-struct FacetCells {
-    cells: HashMap<[usize; 3], Vec<(usize, usize)>>,
-}
-
-impl FacetCells {
-    fn new<const D: usize>(mesh: &Mesh<D>) -> Self {
-        let mut cells: HashMap<[usize; 3], Vec<(usize, usize)>> = HashMap::new();
-        for c in 0..mesh.num_cells() {
-            for j in 0..mesh.cell_type.num_facets() {
-                cells.entry(facet_key(mesh, c, j)).or_default().push((c, j));
-            }
-        }
-        FacetCells { cells }
-    }
-
-    /// The cells sharing facet `j` of cell `c` with it.
-    fn neighbours<const D: usize>(&self, mesh: &Mesh<D>, c: usize, j: usize) -> impl Iterator<Item = usize> + '_ {
-        self.cells[&facet_key(mesh, c, j)].iter().map(|s| s.0).filter(move |&n| n != c)
-    }
-}
-
-/// The vertices of facet `j` of cell `c`, sorted (unused slots `usize::MAX`).
-fn facet_key<const D: usize>(mesh: &Mesh<D>, c: usize, j: usize) -> [usize; 3] {
-    let mut k = [usize::MAX; 3];
-    for (i, &l) in mesh.cell_type.facet(j).iter().enumerate() {
-        k[i] = mesh.cell(c)[l];
-    }
-    k[..D].sort_unstable();
-    k
-}
-
 fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
     std::array::from_fn(|d| points.iter().map(|&p| mesh.points[p][d]).sum::<f64>() / points.len() as f64)
 }
 
 /// The cells on the solid side of gamma_f, by flood fill (see the module documentation).
-fn enclosed_cells<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells) -> Result<HashSet<usize>, AdaptError> {
+fn enclosed_cells<const D: usize>(adapted: &Adapted<D>, topology: &Topology) -> Result<HashSet<usize>, AdaptError> {
     let mesh = &adapted.mesh;
-    let mut barrier: HashSet<[usize; 3]> = HashSet::new();
+    let ct = mesh.cell_type;
+    let mut barrier: HashSet<usize> = HashSet::new();
     let mut fluid_side: HashSet<usize> = HashSet::new();
     let mut stack: Vec<usize> = Vec::new();
     for g in &adapted.gamma_f {
-        let mut k = [usize::MAX; 3];
-        k[..D].copy_from_slice(&g.vertices);
-        k[..D].sort_unstable();
-        barrier.insert(k);
+        if let Some(&(c, j)) = g.sides.iter().find(|&&s| s != NO_CELL) {
+            barrier.insert(topology.facet(ct, c, j));
+        }
         if g.sides[0] != NO_CELL {
             stack.push(g.sides[0].0);
         }
@@ -161,9 +129,9 @@ fn enclosed_cells<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells) -> 
         if fluid_side.contains(&c) {
             return Err(AdaptError::NotEnclosed(centroid(mesh, mesh.cell_vertices(c)).to_vec()));
         }
-        for j in 0..mesh.cell_type.num_facets() {
-            if !barrier.contains(&facet_key(mesh, c, j)) {
-                stack.extend(facets.neighbours(mesh, c, j).filter(|n| !enclosed.contains(n)));
+        for j in 0..ct.num_facets() {
+            if !barrier.contains(&topology.facet(ct, c, j)) {
+                stack.extend(topology.neighbour(ct, c, j).filter(|n| !enclosed.contains(n)));
             }
         }
     }
@@ -213,8 +181,7 @@ fn lies_on_gamma_s<const D: usize>(mesh: &Mesh<D>, vertices: &[usize], on_surfac
 /// Facet `j` of cell `c`'s vertices, ordered so that their right-hand normal points away from
 /// `x` (a point on one side of the facet).
 fn facing_away_from<const D: usize>(mesh: &Mesh<D>, (c, j): (usize, usize), x: &[f64; D]) -> [usize; D] {
-    let fv = mesh.cell_type.facet(j);
-    let mut vertices: [usize; D] = std::array::from_fn(|k| mesh.cell(c)[fv[k]]);
+    let mut vertices: [usize; D] = std::array::from_fn(|k| mesh.cell(c)[mesh.cell_type.facet(j)[k]]);
     let pts = vertices.map(|v| mesh.points[v]);
     if dot(&piece_normal(&pts), &sub(&centroid(mesh, &vertices), x)) < 0.0 {
         vertices.swap(0, 1);
@@ -242,8 +209,9 @@ struct BySide<const D: usize> {
 /// fill reaches a cell from both sides, a cell has vertices on both sides, or a facet between
 /// the sides does not lie on gamma_s ([`lies_on_gamma_s`]): there the adapted mesh does not
 /// follow gamma_s, or gamma_s is open.
-fn cells_by_side<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells, surface: &Surface<D>) -> Option<BySide<D>> {
+fn cells_by_side<const D: usize>(adapted: &Adapted<D>, topology: &Topology, surface: &Surface<D>) -> Option<BySide<D>> {
     let mesh = &adapted.mesh;
+    let ct = mesh.cell_type;
     let nc = mesh.num_cells();
     let touches = |c: usize| mesh.cell_vertices(c).iter().any(|&v| adapted.on_surface[v]);
     let mut solid_side: Vec<Option<bool>> = vec![None; nc];
@@ -256,8 +224,8 @@ fn cells_by_side<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells, surf
     let mut stack: Vec<usize> = (0..nc).filter(|&c| solid_side[c].is_some()).collect();
     while let Some(c) = stack.pop() {
         let side = solid_side[c];
-        for j in 0..mesh.cell_type.num_facets() {
-            for n in facets.neighbours(mesh, c, j) {
+        for j in 0..ct.num_facets() {
+            if let Some(n) = topology.neighbour(ct, c, j) {
                 match solid_side[n] {
                     None => {
                         solid_side[n] = side;
@@ -270,25 +238,25 @@ fn cells_by_side<const D: usize>(adapted: &Adapted<D>, facets: &FacetCells, surf
         }
     }
     let is_solid = |c: usize| solid_side[c] == Some(true);
-    let mut keys: Vec<&[usize; 3]> = facets.cells.keys().collect();
-    keys.sort_unstable();
     let mut gamma_f = Vec::new();
-    for key in keys {
-        let vertices = &key[..D];
-        let (sides, vertices) = match facets.cells[key][..] {
-            [a, b] if is_solid(a.0) != is_solid(b.0) => {
-                let (inner, outer) = if is_solid(a.0) { (a, b) } else { (b, a) };
-                if !lies_on_gamma_s(mesh, vertices, &adapted.on_surface, surface) {
-                    return None;
-                }
-                ([inner, outer], facing_away_from(mesh, inner, &centroid(mesh, mesh.cell_vertices(inner.0))))
+    for &[a, b] in &topology.facet_cells {
+        let vertices: [usize; D] = std::array::from_fn(|k| mesh.cell(a.0)[ct.facet(a.1)[k]]);
+        let (sides, vertices) = if b == NO_CELL {
+            // On the domain boundary: wetted where the solid lies outside the domain.
+            if is_solid(a.0) || !lies_on_gamma_s(mesh, &vertices, &adapted.on_surface, surface) {
+                continue;
             }
-            [fluid] if !is_solid(fluid.0) && lies_on_gamma_s(mesh, vertices, &adapted.on_surface, surface) => {
-                let mut into_the_fluid = facing_away_from(mesh, fluid, &centroid(mesh, mesh.cell_vertices(fluid.0)));
-                into_the_fluid.swap(0, 1);
-                ([NO_CELL, fluid], into_the_fluid)
+            let mut into_the_fluid = facing_away_from(mesh, a, &centroid(mesh, mesh.cell_vertices(a.0)));
+            into_the_fluid.swap(0, 1);
+            ([NO_CELL, a], into_the_fluid)
+        } else if is_solid(a.0) != is_solid(b.0) {
+            let (inner, outer) = if is_solid(a.0) { (a, b) } else { (b, a) };
+            if !lies_on_gamma_s(mesh, &vertices, &adapted.on_surface, surface) {
+                return None;
             }
-            _ => continue,
+            ([inner, outer], facing_away_from(mesh, inner, &centroid(mesh, mesh.cell_vertices(inner.0))))
+        } else {
+            continue;
         };
         let location = vertices.map(|v| surface.project(&mesh.points[v]).expect("gamma_s has pieces"));
         gamma_f.push(GammaFacet { vertices, sides, location });
