@@ -1085,7 +1085,8 @@ fn faer_view<'a>(a: &'a CscMatrix<'_>) -> SparseColMatRef<'a, usize, f64> {
     SparseColMatRef::new(sym, &a.values)
 }
 
-fn norm(v: &[f64]) -> f64 {
+/// Euclidean norm.
+pub(super) fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 

@@ -18,7 +18,7 @@
 
 mod ffi;
 
-use super::linear::{LinearSolveError, LinearSolver, SolveStats};
+use super::linear::{norm, LinearSolveError, LinearSolver, SolveStats};
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use ffi::PetscInt;
 use std::ffi::{c_int, CStr, CString};
@@ -119,7 +119,6 @@ impl LinearSolver for PetscSolver {
             self.system = None;
             let _petsc = lock();
             initialize()?;
-            set_options(&self.options)?;
             self.system = Some(PetscSystem::new(a.pattern)?);
             self.symbolic += 1;
         }
@@ -146,11 +145,11 @@ impl LinearSolver for PetscSolver {
             // PETSc may scale its right-hand side in place (`-ksp_diagonal_scale`): its own copy.
             system.solve(&mut b.clone(), rhs)?
         };
-        let mut ax = vec![0.0; b.len()];
-        a.mul_vec(rhs, &mut ax);
-        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-        let b_norm = norm(&mut b.iter().copied());
-        let residual = norm(&mut ax.iter().zip(&b).map(|(ax, b)| b - ax)) / if b_norm > 0.0 { b_norm } else { 1.0 };
+        let mut r = vec![0.0; b.len()];
+        a.mul_vec(rhs, &mut r);
+        r.iter_mut().zip(&b).for_each(|(ax, b)| *ax = b - *ax);
+        let b_norm = norm(&b);
+        let residual = norm(&r) / if b_norm > 0.0 { b_norm } else { 1.0 };
         if !residual.is_finite() || rhs.iter().any(|x| !x.is_finite()) {
             return Err(LinearSolveError::NonFinite);
         }
@@ -204,8 +203,8 @@ impl Handles {
 
 impl PetscSystem {
     /// The CSR copy of `pattern` (rows in increasing column order, as PETSc requires), the
-    /// matrix over it and the `KSP` set up from the options database (the caller holds the
-    /// lock).
+    /// matrix over it and the `KSP` on it, its options read at each factorisation (the caller
+    /// holds the lock).
     fn new(pattern: &Pattern) -> Result<Self, LinearSolveError> {
         let n = pattern.n;
         let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {} entries exceed PETSc's integer range", pattern.nnz()));
@@ -254,7 +253,6 @@ impl PetscSystem {
                 .and_then(|_| check(ffi::KSPCreate(comm, &mut h.ksp), "KSPCreate"))
                 .and_then(|_| check(ffi::KSPSetOptionsPrefix(h.ksp, prefix.as_ptr()), "KSPSetOptionsPrefix"))
                 .and_then(|_| check(ffi::KSPSetOperators(h.ksp, h.mat, h.mat), "KSPSetOperators"))
-                .and_then(|_| check(ffi::KSPSetFromOptions(h.ksp), "KSPSetFromOptions"))
         };
         match created {
             Ok(()) => Ok(system),
@@ -282,8 +280,9 @@ impl PetscSystem {
         self.col_ptr.len() - 1
     }
 
-    /// Copies `values` (in CSC order) into the matrix and sets the `KSP` up: for the default
-    /// options, MUMPS's factorisation (the caller holds the lock).
+    /// Copies `values` (in CSC order) into the matrix and sets the `KSP` up from the options
+    /// database: for the default options, MUMPS's factorisation (the caller holds the lock and
+    /// has set the solver's options).
     fn factorize(&mut self, values: &[f64]) -> Result<(), LinearSolveError> {
         for (&v, &at) in values.iter().zip(&self.csr_of_csc) {
             self.values[at] = v;
