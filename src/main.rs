@@ -197,6 +197,174 @@ fn error_report(e: &anyhow::Error) -> String {
     report
 }
 
+/// This process among the processes `mpirun` started (Open MPI's `OMPI_COMM_WORLD_SIZE` tells
+/// it did): `fdfsi run` on several ranks solves each Newton system through PETSc on all of them
+/// (`[solver.linear] method = "petsc"`, the `petsc` feature) and does everything else on every
+/// rank alike (the meshes, the adaptation and the assembly are replicated); rank 0 writes the
+/// results and the log, each other rank writes its copy into a private folder `OUT/.rankN`,
+/// removed at the end. Ctrl-C stops such a run at once (mpirun ends every rank): checkpoints
+/// (`--checkpoint-every`) are the way to resume it.
+struct Ranks {
+    rank: usize,
+    size: usize,
+    /// Started by mpirun: MPI is ended (or the run aborted on every rank) at the end.
+    #[cfg_attr(not(feature = "petsc"), allow(dead_code, reason = "MPI comes with the petsc feature"))]
+    launched: bool,
+}
+
+impl Ranks {
+    fn of_launch() -> Result<Ranks> {
+        let Some(size) = std::env::var("OMPI_COMM_WORLD_SIZE").ok().and_then(|s| s.parse::<usize>().ok()) else {
+            return Ok(Ranks { rank: 0, size: 1, launched: false });
+        };
+        #[cfg(feature = "petsc")]
+        {
+            let world = fdfsi::solve::petsc::world()?;
+            if world.size != size {
+                bail!("mpirun started {size} ranks, but MPI_COMM_WORLD has {}: is this fdfsi's MPI the one mpirun belongs to?", world.size);
+            }
+            Ok(Ranks { rank: world.rank, size: world.size, launched: true })
+        }
+        #[cfg(not(feature = "petsc"))]
+        match size {
+            1 => Ok(Ranks { rank: 0, size: 1, launched: false }),
+            _ => bail!(
+                "started by mpirun on {size} ranks, but this fdfsi was built without the `petsc` feature: every rank would run the whole case; build it with `cargo build --release --features petsc`"
+            ),
+        }
+    }
+
+    /// On several ranks the linear solves must be PETSc's (any other method would solve the
+    /// whole system on every rank).
+    fn check_method(&self, case: &Case) -> Result<()> {
+        if self.size > 1 && case.solver.linear.method != fdfsi::case::LinearMethod::Petsc {
+            bail!(
+                "running on {} MPI ranks: set `method = \"petsc\"` in the case's [solver.linear] table (its method {} would solve the whole system on every rank)",
+                self.size,
+                serde_json::to_string(&case.solver.linear.method).unwrap_or_default()
+            );
+        }
+        Ok(())
+    }
+
+    /// On a rank other than 0: points `options` at a private folder `OUT/.rankN` (with a copy
+    /// of what a resumed run reads from the results folder) and returns it, to be removed at the
+    /// end.
+    fn private_out_dir(&self, options: &mut RunOptions) -> Result<Option<PathBuf>> {
+        if self.rank == 0 {
+            return Ok(None);
+        }
+        let dir = options.out_dir.join(format!(".rank{}", self.rank));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        if options.resume.is_some() {
+            for name in ["checkpoint.json", "history.csv", "solution.pvd"] {
+                let from = options.out_dir.join(name);
+                if from.exists() {
+                    std::fs::copy(&from, dir.join(name)).with_context(|| format!("copying {} to {}", from.display(), dir.display()))?;
+                }
+            }
+        }
+        options.out_dir = dir.clone();
+        Ok(Some(dir))
+    }
+
+    /// `result`, or on several ranks its error printed (after the rank, but for rank 0) and
+    /// every rank ended: a rank that failed alone would leave the others waiting for it.
+    fn unless_failed<T>(&self, result: Result<T>) -> Result<T> {
+        #[cfg(feature = "petsc")]
+        if let (Err(e), true) = (&result, self.launched) {
+            let rank = if self.rank > 0 { format!("rank {}: ", self.rank) } else { String::new() };
+            eprintln!("{rank}{}", error_report(e));
+            fdfsi::solve::petsc::abort(1);
+        }
+        result
+    }
+
+    /// Ends MPI after a run that mpirun started.
+    fn finish(&self) {
+        #[cfg(feature = "petsc")]
+        if self.launched {
+            fdfsi::solve::petsc::finalize();
+        }
+    }
+}
+
+/// What `fdfsi run` was asked (without `--export-system`).
+struct RunRequest {
+    case: Option<String>,
+    out: PathBuf,
+    checkpoint_every: Option<u64>,
+    resume: Option<PathBuf>,
+    start_from: Option<PathBuf>,
+}
+
+/// `fdfsi run`: on this rank of `ranks`, logging unless `quiet`.
+fn run(request: RunRequest, ranks: &Ranks, quiet: bool, verbose: bool) -> Result<()> {
+    let RunRequest { case, out, checkpoint_every, resume, start_from } = request;
+    let log = |line: &str| {
+        if !quiet {
+            eprintln!("{line}");
+        }
+    };
+    let (case, mut options, label) = match resume {
+        Some(dir) => {
+            let (case, options) = RunOptions::resume(&dir)?;
+            let label = format!("{} (resumed)", dir.display());
+            (case, options, label)
+        }
+        None => {
+            let (case, case_dir, label) = load_case(case.as_deref())?;
+            (case, RunOptions::new(out, case_dir), label)
+        }
+    };
+    ranks.check_method(&case)?;
+    options.ranks = ranks.size;
+    options.checkpoint_every = checkpoint_every.map(|n| n as usize);
+    options.start_from = start_from.map(fdfsi::run::StartFrom::read).transpose()?;
+    if ranks.size == 1 {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        ctrlc::set_handler(move || {
+            if flag.swap(true, Ordering::SeqCst) {
+                std::process::exit(130); // a second Ctrl-C stops at once
+            }
+            eprintln!("\nstopping after this step (Ctrl-C again to stop now) ...");
+        })
+        .context("installing the Ctrl-C handler")?;
+        options.stop = Some(stop);
+    }
+    log(&format!("case: {label}: {}", case.title));
+    let results = options.out_dir.clone();
+    let private = ranks.private_out_dir(&mut options)?;
+    let mut observer = CliObserver { quiet, verbose, bar: None, terminal: std::io::stderr().is_terminal() };
+    let result = run_case(&case, &options, &mut observer);
+    if let Some(dir) = private {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    let summary = match result {
+        Err(e @ fdfsi::run::RunError::Interrupted { .. }) => {
+            eprintln!("{e}");
+            std::process::exit(130);
+        }
+        other => other.with_context(|| format!("running {label}"))?,
+    };
+    let t = &summary.timings;
+    let memory = summary.peak_memory_mib.map(|m| format!(", peak memory {m:.0} MiB")).unwrap_or_default();
+    let on = if ranks.size > 1 { format!(" on {} ranks", ranks.size) } else { String::new() };
+    log(&format!(
+        "done{on} in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s{memory}); results in {}",
+        t.total,
+        t.adapt,
+        t.assemble,
+        t.factorize,
+        t.solve,
+        t.output,
+        results.display()
+    ));
+    Ok(())
+}
+
 fn run_command() -> Result<()> {
     let cli = Cli::parse();
     // Solver internals (the reuse of factorisations, their cost) log through `tracing`, off unless
@@ -217,50 +385,10 @@ fn run_command() -> Result<()> {
             fdfsi::run::export::export_system(&case, &case_dir, &dir, &mut |line: &str| log(line))?;
         }
         Command::Run { case, out, checkpoint_every, resume, start_from, export_system: None } => {
-            let (case, mut options, label) = match resume {
-                Some(dir) => {
-                    let (case, options) = RunOptions::resume(&dir)?;
-                    let label = format!("{} (resumed)", dir.display());
-                    (case, options, label)
-                }
-                None => {
-                    let (case, case_dir, label) = load_case(case.as_deref())?;
-                    (case, RunOptions::new(out, case_dir), label)
-                }
-            };
-            options.checkpoint_every = checkpoint_every.map(|n| n as usize);
-            options.start_from = start_from.map(fdfsi::run::StartFrom::read).transpose()?;
-            let stop = Arc::new(AtomicBool::new(false));
-            let flag = stop.clone();
-            ctrlc::set_handler(move || {
-                if flag.swap(true, Ordering::SeqCst) {
-                    std::process::exit(130); // a second Ctrl-C stops at once
-                }
-                eprintln!("\nstopping after this step (Ctrl-C again to stop now) ...");
-            })
-            .context("installing the Ctrl-C handler")?;
-            options.stop = Some(stop);
-            log(&format!("case: {label}: {}", case.title));
-            let mut observer = CliObserver { quiet, verbose, bar: None, terminal: std::io::stderr().is_terminal() };
-            let summary = match run_case(&case, &options, &mut observer) {
-                Err(e @ fdfsi::run::RunError::Interrupted { .. }) => {
-                    eprintln!("{e}");
-                    std::process::exit(130);
-                }
-                other => other.with_context(|| format!("running {label}"))?,
-            };
-            let t = &summary.timings;
-            let memory = summary.peak_memory_mib.map(|m| format!(", peak memory {m:.0} MiB")).unwrap_or_default();
-            log(&format!(
-                "done in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s{memory}); results in {}",
-                t.total,
-                t.adapt,
-                t.assemble,
-                t.factorize,
-                t.solve,
-                t.output,
-                options.out_dir.display()
-            ));
+            let ranks = Ranks::of_launch()?;
+            let request = RunRequest { case, out, checkpoint_every, resume, start_from };
+            ranks.unless_failed(run(request, &ranks, quiet || ranks.rank > 0, verbose && ranks.rank == 0))?;
+            ranks.finish();
         }
         Command::Check { case } => {
             let (c, dir, label) = load_case(Some(&case))?;

@@ -64,6 +64,37 @@ fn petsc_solves_the_systems_fdfsi_factorises() {
     compare("3D Stokes, MUMPS", &disc, &problem, &mut PetscSolver::new("", 1e-8), 1e-9);
 }
 
+/// With `-fdfsi_pc_type fieldsplit` the preconditioner gets the system's two fields, primal and
+/// multiplier, from its saddle-point split (`solve::petsc::FIELDS`; without them PETSc refuses
+/// a field split of a matrix with no block size): a Schur-complement factorisation (the velocity
+/// block by MUMPS, the Schur complement `-B A^-1 B'` by GMRES to 1e-6, preconditioned by an LU of
+/// `selfp`, `-B diag(A)^-1 B'`) inside FGMRES solves Schaefer-Turek 2D-1's Jacobians to fdfsi's
+/// LU solutions.
+#[test]
+fn a_fieldsplit_preconditioner_gets_the_saddle_point_fields() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
+    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
+    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
+    let disc = FlowDiscretization::build(mesh, Formulation::Plane).unwrap();
+    let options = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-12 -fdfsi_ksp_max_it 50 -fdfsi_pc_type fieldsplit \
+        -fdfsi_pc_fieldsplit_type schur -fdfsi_pc_fieldsplit_schur_fact_type full -fdfsi_pc_fieldsplit_schur_precondition selfp \
+        -fdfsi_fieldsplit_primal_ksp_type preonly -fdfsi_fieldsplit_primal_pc_type lu -fdfsi_fieldsplit_primal_pc_factor_mat_solver_type mumps \
+        -fdfsi_fieldsplit_multiplier_ksp_type gmres -fdfsi_fieldsplit_multiplier_ksp_rtol 1e-6 -fdfsi_fieldsplit_multiplier_ksp_gmres_restart 200 \
+        -fdfsi_fieldsplit_multiplier_pc_type lu";
+    let mut solver = PetscSolver::new(options, 1e-8);
+    let mut unsplit = PetscSolver::new(options, 1e-8);
+    let mut k = CscMatrix::zeros(&disc.pattern);
+    let (system, x) = SteadySystem::new(&disc, &problem).unwrap();
+    let mut rhs = vec![0.0; x.len()];
+    system.assemble(&x, &mut k, &mut rhs).unwrap();
+    let e = unsplit.factorize(&k).unwrap_err();
+    println!("no split: {e}");
+    solver.set_split(disc.saddle_point_split(Formulation::Plane).unwrap());
+    let iterations = compare("Schaefer-Turek 2D-1, FGMRES + Schur field split", &disc, &problem, &mut solver, 1e-8);
+    assert!(iterations >= 2, "the field split iterates: {iterations}");
+}
+
 /// A singular system, an unknown option or a right-hand side of the wrong length is an error
 /// naming the cause, not a crash; a solver made after them works.
 #[test]

@@ -157,6 +157,9 @@ pub struct RunOptions {
     /// When set (e.g. by a Ctrl-C handler), the run stops after the current step, writes a
     /// checkpoint and returns [`RunError::Interrupted`].
     pub stop: Option<Arc<AtomicBool>>,
+    /// The number of MPI ranks running this case alike (`fdfsi run` under `mpirun`, the linear
+    /// solves shared through PETSc); 0 or 1: one. Recorded in `summary.json` (`ranks`).
+    pub ranks: usize,
 }
 
 impl RunOptions {
@@ -302,6 +305,9 @@ pub struct RunSummary {
     /// its last part). Absent where the system does not report it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peak_memory_mib: Option<f64>,
+    /// The MPI ranks the run ran on ([`RunOptions::ranks`]; 1 without `mpirun`); the other
+    /// numbers, `peak_memory_mib` included, are rank 0's.
+    pub ranks: usize,
     /// The code and case behind the results ([`crate::io::provenance`]); filled by [`run_case`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub provenance: Option<crate::io::provenance::Provenance>,
@@ -364,6 +370,7 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
         summary.timings_per_step = Some(summary.timings.scaled(1.0 / summary.steps as f64));
     }
     summary.peak_memory_mib = peak_resident_mib();
+    summary.ranks = options.ranks.max(1);
     let earlier = options.resume.as_ref().map_or(&[][..], |c| &c.builds);
     let dt = case.time.as_ref().map_or(1.0, |t| t.dt);
     summary.provenance = Some(crate::io::provenance::Provenance::of_run(&case.to_toml(), earlier, options.initial_state(dt)));

@@ -348,6 +348,7 @@ impl Recorded {
             timings: self.timings,
             timings_per_step: None,
             peak_memory_mib: None,
+            ranks: 1,
             provenance: None,
         }
     }

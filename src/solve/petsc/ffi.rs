@@ -26,29 +26,67 @@ pub type Vec = *mut c_void;
 pub type Ksp = *mut c_void;
 
 pub type Pc = *mut c_void;
+pub type Is = *mut c_void;
+
+/// `PETSC_COPY_VALUES` of `PetscCopyMode`.
+pub const PETSC_COPY_VALUES: c_int = 0;
 
 /// `KSP_CONVERGED_ITS`: `preonly` (a direct solve) reports this after its one application.
 pub const KSP_CONVERGED_ITS: c_int = 4;
 /// Open MPI's `MPI_THREAD_SERIALIZED` (`mpi.h`: `SINGLE, FUNNELED, SERIALIZED, MULTIPLE`).
 pub const MPI_THREAD_SERIALIZED: c_int = 2;
+/// `INSERT_VALUES` of PETSc's `InsertMode` (`NOT_SET_VALUES, INSERT_VALUES, ...`).
+pub const INSERT_VALUES: c_int = 1;
+/// `MAT_FINAL_ASSEMBLY` of `MatAssemblyType`.
+pub const MAT_FINAL_ASSEMBLY: c_int = 0;
+/// `MAT_NO_OFF_PROC_ENTRIES` of `MatOption`: each rank sets only its own rows, so assembly
+/// sends nothing.
+pub const MAT_NO_OFF_PROC_ENTRIES: c_int = 17;
+/// Open MPI's `MPI_IN_PLACE` (`(void *) 1`).
+pub const MPI_IN_PLACE: *const c_void = std::ptr::without_provenance(1);
 
-/// Open MPI's predefined communicator objects (`struct ompi_predefined_communicator_t`, opaque
-/// here): `MPI_COMM_SELF` is the address of `ompi_mpi_comm_self`.
+/// Open MPI's predefined objects (`struct ompi_predefined_communicator_t`, `..._datatype_t`;
+/// opaque here): `MPI_COMM_WORLD` is the address of `ompi_mpi_comm_world`, `MPI_DOUBLE` of
+/// `ompi_mpi_double`.
 #[repr(C)]
-pub struct OmpiCommunicator {
+pub struct OmpiObject {
     _private: [u8; 0],
 }
 
 extern "C" {
-    static ompi_mpi_comm_self: OmpiCommunicator;
+    static ompi_mpi_comm_world: OmpiObject;
+    static ompi_mpi_double: OmpiObject;
     pub fn MPI_Initialized(flag: *mut c_int) -> c_int;
+    pub fn MPI_Finalized(flag: *mut c_int) -> c_int;
     pub fn MPI_Init_thread(argc: *mut c_int, argv: *mut *mut *mut c_char, required: c_int, provided: *mut c_int) -> c_int;
+    pub fn MPI_Finalize() -> c_int;
+    pub fn MPI_Abort(comm: MpiComm, code: c_int) -> c_int;
+    pub fn MPI_Comm_rank(comm: MpiComm, rank: *mut c_int) -> c_int;
+    pub fn MPI_Comm_size(comm: MpiComm, size: *mut c_int) -> c_int;
+    pub fn MPI_Allgatherv(
+        send: *const c_void,
+        send_count: c_int,
+        send_type: MpiDatatype,
+        receive: *mut c_void,
+        receive_counts: *const c_int,
+        displacements: *const c_int,
+        receive_type: MpiDatatype,
+        comm: MpiComm,
+    ) -> c_int;
 }
 
-/// `MPI_COMM_SELF`: each process's own communicator, the one a sequential matrix lives on.
-pub fn comm_self() -> MpiComm {
-    // Only the address of the extern static is taken, never its contents.
-    std::ptr::addr_of!(ompi_mpi_comm_self) as MpiComm
+/// Open MPI's `MPI_Datatype` (a pointer).
+pub type MpiDatatype = *mut c_void;
+
+/// `MPI_COMM_WORLD`: all the ranks `mpirun` started (one alone without it).
+pub fn comm_world() -> MpiComm {
+    // Only the addresses of the extern statics are taken, never their contents.
+    std::ptr::addr_of!(ompi_mpi_comm_world) as MpiComm
+}
+
+/// `MPI_DOUBLE`.
+pub fn mpi_double() -> MpiDatatype {
+    std::ptr::addr_of!(ompi_mpi_double) as MpiDatatype
 }
 
 extern "C" {
@@ -61,20 +99,38 @@ extern "C" {
     pub fn PetscOptionsInsertString(options: *mut c_void, text: *const c_char) -> PetscErrorCode;
     pub fn PetscOptionsClear(options: *mut c_void) -> PetscErrorCode;
 
-    pub fn MatCreateSeqAIJWithArrays(
-        comm: MpiComm,
-        rows: PetscInt,
-        cols: PetscInt,
-        row_ptr: *mut PetscInt,
-        col_idx: *mut PetscInt,
-        values: *mut f64,
-        mat: *mut Mat,
+    pub fn PetscFinalize() -> PetscErrorCode;
+
+    pub fn MatCreate(comm: MpiComm, mat: *mut Mat) -> PetscErrorCode;
+    pub fn MatSetSizes(mat: Mat, local_rows: PetscInt, local_cols: PetscInt, rows: PetscInt, cols: PetscInt) -> PetscErrorCode;
+    /// `kind`: a `MatType` string (`"aij"`).
+    pub fn MatSetType(mat: Mat, kind: *const c_char) -> PetscErrorCode;
+    /// The matrix's rows on this rank in CSR (global column indices); a no-op unless the
+    /// matrix is sequential (resp. parallel) AIJ.
+    pub fn MatSeqAIJSetPreallocationCSR(mat: Mat, row_ptr: *const PetscInt, col_idx: *const PetscInt, values: *const f64) -> PetscErrorCode;
+    pub fn MatMPIAIJSetPreallocationCSR(mat: Mat, row_ptr: *const PetscInt, col_idx: *const PetscInt, values: *const f64) -> PetscErrorCode;
+    pub fn MatSetOption(mat: Mat, option: c_int, flag: PetscBool) -> PetscErrorCode;
+    pub fn MatSetValues(
+        mat: Mat,
+        num_rows: PetscInt,
+        rows: *const PetscInt,
+        num_cols: PetscInt,
+        cols: *const PetscInt,
+        values: *const f64,
+        mode: c_int,
     ) -> PetscErrorCode;
-    pub fn MatSeqAIJGetArray(mat: Mat, values: *mut *mut f64) -> PetscErrorCode;
-    pub fn MatSeqAIJRestoreArray(mat: Mat, values: *mut *mut f64) -> PetscErrorCode;
+    pub fn MatAssemblyBegin(mat: Mat, kind: c_int) -> PetscErrorCode;
+    pub fn MatAssemblyEnd(mat: Mat, kind: c_int) -> PetscErrorCode;
     pub fn MatDestroy(mat: *mut Mat) -> PetscErrorCode;
 
-    pub fn VecCreateSeqWithArray(comm: MpiComm, block_size: PetscInt, n: PetscInt, values: *const f64, vec: *mut Vec) -> PetscErrorCode;
+    pub fn VecCreateMPIWithArray(
+        comm: MpiComm,
+        block_size: PetscInt,
+        local: PetscInt,
+        global: PetscInt,
+        values: *const f64,
+        vec: *mut Vec,
+    ) -> PetscErrorCode;
     pub fn VecPlaceArray(vec: Vec, values: *const f64) -> PetscErrorCode;
     pub fn VecResetArray(vec: Vec) -> PetscErrorCode;
     pub fn VecDestroy(vec: *mut Vec) -> PetscErrorCode;
@@ -89,6 +145,10 @@ extern "C" {
     pub fn KSPGetConvergedReason(ksp: Ksp, reason: *mut c_int) -> PetscErrorCode;
     pub fn KSPDestroy(ksp: *mut Ksp) -> PetscErrorCode;
     pub fn KSPGetPC(ksp: Ksp, pc: *mut Pc) -> PetscErrorCode;
+    pub fn ISCreateGeneral(comm: MpiComm, n: PetscInt, indices: *const PetscInt, mode: c_int, is: *mut Is) -> PetscErrorCode;
+    pub fn ISDestroy(is: *mut Is) -> PetscErrorCode;
+    /// A no-op unless the preconditioner is `fieldsplit`.
+    pub fn PCFieldSplitSetIS(pc: Pc, name: *const c_char, is: Is) -> PetscErrorCode;
     /// `PCFailedReason`: `PC_NOERROR = 0`, negative or positive codes for failures.
     pub fn PCGetFailedReason(pc: Pc, reason: *mut c_int) -> PetscErrorCode;
 }

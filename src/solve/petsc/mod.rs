@@ -1,13 +1,21 @@
 //! Linear solves through the system's PETSc (cargo feature `petsc`; Debian: `apt install
-//! petsc-dev`): the first piece of the MPI + PETSc engine. [`PetscSolver`] hands each system to
-//! a PETSc `KSP` (`MatCreateSeqAIJWithArrays` over a CSR copy of the pattern, values copied in
-//! at every factorisation), configured through PETSc's options database under the prefix
+//! petsc-dev`): the MPI + PETSc engine. [`PetscSolver`] hands each system to a PETSc `KSP` on
+//! `MPI_COMM_WORLD`, configured through PETSc's options database under the prefix
 //! [`OPTIONS_PREFIX`]: by default a direct solve by MUMPS ([`DEFAULT_OPTIONS`]), anything else
 //! by options, as FEniCSx users are used to (`-fdfsi_ksp_type gmres -fdfsi_pc_type ilu`,
-//! `-fdfsi_mat_mumps_icntl_14 50`, `-fdfsi_ksp_view`). Sequential matrices on `MPI_COMM_SELF`:
-//! the distributed engine (several ranks, `mpirun`) is still to come.
+//! `-fdfsi_mat_mumps_icntl_14 50`, `-fdfsi_ksp_view`).
 //!
-//! PETSc is initialised on first use and not finalised (its state lives as long as the
+//! One process (no `mpirun`, or `mpirun -n 1`): a sequential AIJ matrix. Several (`mpirun -n
+//! N fdfsi run`): every rank holds the same system (the run is replicated up to the linear
+//! solve) and each gives PETSc its [`owned_rows`], a contiguous block of the layout's numbering,
+//! as its rows of a distributed AIJ matrix (preallocated from the pattern, so setting values
+//! sends nothing); the right-hand side and solution vectors are placed over each rank's part of
+//! the caller's arrays, and after the solve every rank gathers the whole solution
+//! (`MPI_Allgatherv`), so the Newton update is the same on all. [`world`] tells a process its
+//! rank; [`finalize`] and [`abort`] end MPI.
+//!
+//! PETSc is initialised on first use and finalised only by [`finalize`] (which `fdfsi run`
+//! calls at the end of a run that `mpirun` started; otherwise its state lives as long as the
 //! process): MPI first at the thread level `MPI_THREAD_SERIALIZED` (solvers on several threads
 //! take turns), then PETSc without its signal handlers (`-no_signal_handler`: Rust's own stay).
 //! PETSc is not thread-safe: every call into it holds one process-wide lock. Its options
@@ -18,15 +26,25 @@
 
 mod ffi;
 
+use super::augmented::SaddlePointSplit;
 use super::linear::{norm, LinearSolveError, LinearSolver, SolveStats};
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use ffi::PetscInt;
 use std::ffi::{c_int, CStr, CString};
+use std::ops::Range;
 use std::ptr::{null, null_mut};
 use std::sync::{Mutex, MutexGuard, OnceLock};
 
 /// The options prefix of fdfsi's `KSP`: `-fdfsi_ksp_type`, `-fdfsi_pc_type`, ...
 pub const OPTIONS_PREFIX: &str = "fdfsi_";
+
+/// The fields a `fieldsplit` preconditioner (`-fdfsi_pc_type fieldsplit`) gets, from the
+/// system's [`SaddlePointSplit`]: the primal unknowns (velocities, displacements, the few of no
+/// block) and the multipliers (fluid pressure, solid pressure, coupling multiplier), in this
+/// order; their solvers take the prefixes `-fdfsi_fieldsplit_primal_` and
+/// `-fdfsi_fieldsplit_multiplier_` (`-fdfsi_pc_fieldsplit_type schur` makes the second the
+/// Schur complement's).
+pub const FIELDS: [&str; 2] = ["primal", "multiplier"];
 
 /// The options [`PetscSolver`] starts from: a direct solve (`preonly` with an LU
 /// preconditioner) by MUMPS, which pivots, as the saddle-point systems need.
@@ -59,11 +77,59 @@ fn check(code: ffi::PetscErrorCode, call: &str) -> Result<(), LinearSolveError> 
     Err(LinearSolveError::Petsc(format!("{call}: {message} (PETSc error {code})")))
 }
 
-/// Initialises PETSc once per process (the caller holds the lock).
-fn initialize() -> Result<(), LinearSolveError> {
-    static DONE: OnceLock<Result<(), String>> = OnceLock::new();
+/// This process among the MPI ranks of `MPI_COMM_WORLD` (those `mpirun` started; one alone
+/// without it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct World {
+    /// This process's rank, `0..size`.
+    pub rank: usize,
+    /// The number of ranks.
+    pub size: usize,
+}
+
+impl World {
+    /// Fills all of `x` on every rank from each rank's [`owned_rows`] (the caller holds the lock;
+    /// collective).
+    fn all_gather(&self, x: &mut [f64]) -> Result<(), LinearSolveError> {
+        if self.size == 1 {
+            return Ok(());
+        }
+        let ranges: Vec<Range<usize>> = (0..self.size).map(|rank| owned_rows(x.len(), World { rank, size: self.size })).collect();
+        let int = |v: usize| c_int::try_from(v).map_err(|_| LinearSolveError::Petsc(format!("{v} values exceed MPI's count range")));
+        let counts = ranges.iter().map(|r| int(r.len())).collect::<Result<Vec<_>, _>>()?;
+        let starts = ranges.iter().map(|r| int(r.start)).collect::<Result<Vec<_>, _>>()?;
+        // SAFETY: `x` holds every rank's rows (counts and displacements within it); in place,
+        // the send arguments are ignored.
+        let code = unsafe {
+            let double = ffi::mpi_double();
+            ffi::MPI_Allgatherv(ffi::MPI_IN_PLACE, 0, double, x.as_mut_ptr().cast(), counts.as_ptr(), starts.as_ptr(), double, ffi::comm_world())
+        };
+        if code != 0 {
+            return Err(LinearSolveError::Petsc(format!("MPI_Allgatherv failed (MPI error {code})")));
+        }
+        Ok(())
+    }
+}
+
+/// The rows of a system of `n` unknowns that `world.rank` owns: contiguous, `n / size` or one
+/// more each, in rank order (the unknowns' numbering is the system layout's; see
+/// [`crate::discretize::layout`]).
+pub fn owned_rows(n: usize, world: World) -> Range<usize> {
+    n * world.rank / world.size..n * (world.rank + 1) / world.size
+}
+
+/// Whether [`finalize`] ran: PETSc cannot start again.
+static FINALIZED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Initialises MPI and PETSc once per process (the caller holds the lock); returns this rank.
+fn initialize() -> Result<World, LinearSolveError> {
+    static DONE: OnceLock<Result<World, String>> = OnceLock::new();
+    if FINALIZED.load(std::sync::atomic::Ordering::SeqCst) {
+        return Err(LinearSolveError::Petsc("PETSc was finalised (solve::petsc::finalize)".into()));
+    }
     DONE.get_or_init(|| {
         let (mut mpi, mut provided, mut petsc): (c_int, c_int, ffi::PetscBool) = (0, 0, 0);
+        let (mut rank, mut size): (c_int, c_int) = (0, 1);
         let flag = CString::new("-no_signal_handler").expect("no NUL");
         // SAFETY: plain calls; null argc/argv are allowed by MPI_Init_thread.
         unsafe {
@@ -76,11 +142,55 @@ fn initialize() -> Result<(), LinearSolveError> {
                 check(ffi::PetscOptionsSetValue(null_mut(), flag.as_ptr(), null()), "PetscOptionsSetValue").map_err(|e| e.to_string())?;
                 check(ffi::PetscInitializeNoArguments(), "PetscInitializeNoArguments").map_err(|e| e.to_string())?;
             }
+            if ffi::MPI_Comm_rank(ffi::comm_world(), &mut rank) != 0 || ffi::MPI_Comm_size(ffi::comm_world(), &mut size) != 0 {
+                return Err("MPI_Comm_rank or MPI_Comm_size failed".to_string());
+            }
         }
-        Ok(())
+        Ok(World { rank: rank as usize, size: size as usize })
     })
     .clone()
     .map_err(LinearSolveError::Petsc)
+}
+
+/// This process's rank and the number of ranks, initialising MPI and PETSc if they are not yet.
+pub fn world() -> Result<World, LinearSolveError> {
+    let _petsc = lock();
+    initialize()
+}
+
+/// Ends PETSc and MPI, if they were started (after which no [`PetscSolver`] works): a process
+/// that `mpirun` started calls this before it exits, after its solvers are dropped.
+pub fn finalize() {
+    let _petsc = lock();
+    if FINALIZED.swap(true, std::sync::atomic::Ordering::SeqCst) {
+        return;
+    }
+    let (mut petsc, mut mpi, mut ended): (ffi::PetscBool, c_int, c_int) = (0, 0, 0);
+    // SAFETY: plain calls, each only when what it ends was started and not yet ended.
+    unsafe {
+        if ffi::PetscInitialized(&mut petsc) == 0 && petsc != 0 {
+            ffi::PetscFinalize();
+        }
+        ffi::MPI_Initialized(&mut mpi);
+        ffi::MPI_Finalized(&mut ended);
+        if mpi != 0 && ended == 0 {
+            ffi::MPI_Finalize();
+        }
+    }
+}
+
+/// Ends every rank with exit `code` (`MPI_Abort`): for an error on some ranks only, which would
+/// leave the others waiting in their next collective call. Returns only if MPI is not running.
+pub fn abort(code: i32) {
+    let (mut mpi, mut ended): (c_int, c_int) = (0, 0);
+    // SAFETY: plain calls; MPI_Abort only while MPI runs.
+    unsafe {
+        ffi::MPI_Initialized(&mut mpi);
+        ffi::MPI_Finalized(&mut ended);
+        if mpi != 0 && ended == 0 {
+            ffi::MPI_Abort(ffi::comm_world(), code);
+        }
+    }
 }
 
 /// Sets PETSc's options database to [`DEFAULT_OPTIONS`] and then `options` (`-name value
@@ -95,10 +205,14 @@ fn set_options(options: &str) -> Result<(), LinearSolveError> {
     }
 }
 
-/// A [`LinearSolver`] by PETSc (see the module documentation).
+/// A [`LinearSolver`] by PETSc (see the module documentation). On several ranks, every rank
+/// calls it alike with the same system: each call is collective.
 pub struct PetscSolver {
     /// Options added after [`DEFAULT_OPTIONS`] (so they override them).
     options: String,
+    /// Which unknowns are multipliers (the [`SaddlePointSplit`] of [`LinearSolver::set_split`]):
+    /// the fields of a `fieldsplit` preconditioner ([`FIELDS`]).
+    multipliers: Option<Vec<bool>>,
     /// Relative residual `|b - A x| / |b|` above which a solve fails.
     fail_tolerance: f64,
     system: Option<PetscSystem>,
@@ -109,7 +223,7 @@ impl PetscSolver {
     /// A solver with PETSc `options` (`-fdfsi_...`, added after [`DEFAULT_OPTIONS`]) that fails
     /// a solve whose relative residual exceeds `fail_tolerance`.
     pub fn new(options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver { options: options.to_string(), fail_tolerance, system: None, symbolic: 0 }
+        PetscSolver { options: options.to_string(), multipliers: None, fail_tolerance, system: None, symbolic: 0 }
     }
 }
 
@@ -118,8 +232,8 @@ impl LinearSolver for PetscSolver {
         if !self.system.as_ref().is_some_and(|s| s.is_for(a.pattern)) {
             self.system = None;
             let _petsc = lock();
-            initialize()?;
-            self.system = Some(PetscSystem::new(a.pattern)?);
+            let world = initialize()?;
+            self.system = Some(PetscSystem::new(a.pattern, world, self.multipliers.as_deref())?);
             self.symbolic += 1;
         }
         let system = self.system.as_mut().expect("set above");
@@ -162,20 +276,42 @@ impl LinearSolver for PetscSolver {
     fn symbolic_factorizations(&self) -> usize {
         self.symbolic
     }
+
+    /// Keeps the split's multipliers for the fields of a `fieldsplit` preconditioner; a system
+    /// set up with other fields is set up again.
+    fn set_split(&mut self, split: SaddlePointSplit) {
+        let n = split.multipliers.iter().flat_map(|b| b.dofs.iter().map(|&d| d + 1)).max().unwrap_or(0);
+        let mut multipliers = vec![false; n];
+        for &d in split.multipliers.iter().flat_map(|b| &b.dofs) {
+            multipliers[d] = true;
+        }
+        if self.multipliers.as_ref() != Some(&multipliers) {
+            self.multipliers = Some(multipliers);
+            self.system = None;
+        }
+    }
 }
 
-/// PETSc's objects for one pattern: the matrix over CSR arrays of ours (PETSc uses them in
-/// place, so they live as long as it), the right-hand side and solution vectors (placed over
-/// the caller's arrays for each solve) and the `KSP`.
+/// PETSc's objects for one pattern: the matrix (this rank's rows, [`owned_rows`], of the AIJ
+/// matrix on `MPI_COMM_WORLD`: sequential on one rank, distributed on several), the right-hand
+/// side and solution vectors (placed over this rank's part of the caller's arrays for each
+/// solve) and the `KSP`.
 struct PetscSystem {
     /// The CSC pattern this was built for.
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
-    /// Position in the CSR arrays of each CSC entry.
-    csr_of_csc: Vec<usize>,
+    /// This rank's rows.
+    rows: Range<usize>,
+    /// The CSR arrays of those rows (global column indices) and the CSC position of each entry.
     row_ptr: Vec<PetscInt>,
     col_idx: Vec<PetscInt>,
+    csc_of_csr: Vec<usize>,
     values: Vec<f64>,
+    world: World,
+    /// This rank's rows of each of [`FIELDS`] (none without a split), given to the
+    /// preconditioner at the first factorisation.
+    fields: Option<[Vec<PetscInt>; 2]>,
+    fields_set: bool,
     handles: Handles,
 }
 
@@ -188,8 +324,7 @@ struct Handles {
 }
 
 impl Handles {
-    /// Destroys the objects (the caller holds the lock): the solver first, the matrix (over the
-    /// system's arrays) last.
+    /// Destroys the objects (the caller holds the lock): the solver first, the matrix last.
     fn destroy(&mut self) {
         // SAFETY: each handle is valid or null; PETSc's destroy calls accept null and set it.
         unsafe {
@@ -202,70 +337,85 @@ impl Handles {
 }
 
 impl PetscSystem {
-    /// The CSR copy of `pattern` (rows in increasing column order, as PETSc requires), the
-    /// matrix over it and the `KSP` on it, its options read at each factorisation (the caller
-    /// holds the lock).
-    fn new(pattern: &Pattern) -> Result<Self, LinearSolveError> {
+    /// The CSR copy of this rank's rows of `pattern` (in increasing column order, as PETSc
+    /// requires), the matrix preallocated from it and the `KSP` on it, its options read at each
+    /// factorisation (the caller holds the lock; collective over the ranks).
+    fn new(pattern: &Pattern, world: World, multipliers: Option<&[bool]>) -> Result<Self, LinearSolveError> {
         let n = pattern.n;
         let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {} entries exceed PETSc's integer range", pattern.nnz()));
         let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
         let size = int(n)?;
         int(pattern.nnz())?;
-        let mut row_ptr = vec![0; n + 1];
-        for &i in &pattern.row_idx {
-            row_ptr[i + 1] += 1;
+        let rows = owned_rows(n, world);
+        let mut row_ptr = vec![0; rows.len() + 1];
+        for &i in pattern.row_idx.iter().filter(|i| rows.contains(i)) {
+            row_ptr[i - rows.start + 1] += 1;
         }
-        for i in 0..n {
+        for i in 0..rows.len() {
             row_ptr[i + 1] += row_ptr[i];
         }
         let mut next = row_ptr.clone();
-        let mut col_idx = vec![0; pattern.nnz()];
-        let mut csr_of_csc = vec![0; pattern.nnz()];
+        let nnz = row_ptr[rows.len()];
+        let (mut col_idx, mut csc_of_csr) = (vec![0; nnz], vec![0; nnz]);
         for j in 0..n {
             for k in pattern.col_ptr[j]..pattern.col_ptr[j + 1] {
                 let i = pattern.row_idx[k];
-                csr_of_csc[k] = next[i];
-                col_idx[next[i]] = int(j)?;
-                next[i] += 1;
+                if rows.contains(&i) {
+                    let at = &mut next[i - rows.start];
+                    csc_of_csr[*at] = k;
+                    col_idx[*at] = int(j)?;
+                    *at += 1;
+                }
             }
         }
         let row_ptr = row_ptr.into_iter().map(int).collect::<Result<Vec<_>, _>>()?;
+        let local = int(rows.len())?;
+        let fields = multipliers.map(|m| {
+            let of = |multiplier: bool| rows.clone().filter(|&i| m.get(i).copied().unwrap_or(false) == multiplier).map(|i| i as PetscInt).collect();
+            [of(false), of(true)]
+        });
         let mut system = PetscSystem {
             col_ptr: pattern.col_ptr.clone(),
             row_idx: pattern.row_idx.clone(),
-            csr_of_csc,
+            rows,
             row_ptr,
             col_idx,
-            values: vec![0.0; pattern.nnz()],
+            csc_of_csr,
+            values: vec![0.0; nnz],
+            world,
+            fields,
+            fields_set: false,
             handles: Handles { mat: null_mut(), b: null_mut(), x: null_mut(), ksp: null_mut() },
         };
-        let n = size;
         let prefix = CString::new(OPTIONS_PREFIX).expect("no NUL");
-        let h = &mut system.handles;
-        // SAFETY: the arrays handed to PETSc live in `system` (their heap buffers do not move)
-        // until the objects that use them are destroyed; the handles start null.
+        let aij = CString::new("aij").expect("no NUL");
+        let s = &system;
+        let mut h = Handles { mat: null_mut(), b: null_mut(), x: null_mut(), ksp: null_mut() };
+        // SAFETY: PETSc copies the CSR arrays; the handles start null; the vectors get their
+        // arrays placed for each solve.
         let created = unsafe {
-            let comm = ffi::comm_self();
-            let (rows, cols, vals) = (system.row_ptr.as_mut_ptr(), system.col_idx.as_mut_ptr(), system.values.as_mut_ptr());
-            check(ffi::MatCreateSeqAIJWithArrays(comm, n, n, rows, cols, vals, &mut h.mat), "MatCreateSeqAIJWithArrays")
-                .and_then(|_| check(ffi::VecCreateSeqWithArray(comm, 1, n, null(), &mut h.b), "VecCreateSeqWithArray"))
-                .and_then(|_| check(ffi::VecCreateSeqWithArray(comm, 1, n, null(), &mut h.x), "VecCreateSeqWithArray"))
+            let comm = ffi::comm_world();
+            let (rows, cols, vals) = (s.row_ptr.as_ptr(), s.col_idx.as_ptr(), s.values.as_ptr());
+            check(ffi::MatCreate(comm, &mut h.mat), "MatCreate")
+                .and_then(|_| check(ffi::MatSetSizes(h.mat, local, local, size, size), "MatSetSizes"))
+                .and_then(|_| check(ffi::MatSetType(h.mat, aij.as_ptr()), "MatSetType"))
+                .and_then(|_| check(ffi::MatSeqAIJSetPreallocationCSR(h.mat, rows, cols, vals), "MatSeqAIJSetPreallocationCSR"))
+                .and_then(|_| check(ffi::MatMPIAIJSetPreallocationCSR(h.mat, rows, cols, vals), "MatMPIAIJSetPreallocationCSR"))
+                .and_then(|_| check(ffi::MatSetOption(h.mat, ffi::MAT_NO_OFF_PROC_ENTRIES, 1), "MatSetOption"))
+                .and_then(|_| check(ffi::VecCreateMPIWithArray(comm, 1, local, size, null(), &mut h.b), "VecCreateMPIWithArray"))
+                .and_then(|_| check(ffi::VecCreateMPIWithArray(comm, 1, local, size, null(), &mut h.x), "VecCreateMPIWithArray"))
                 .and_then(|_| check(ffi::KSPCreate(comm, &mut h.ksp), "KSPCreate"))
                 .and_then(|_| check(ffi::KSPSetOptionsPrefix(h.ksp, prefix.as_ptr()), "KSPSetOptionsPrefix"))
                 .and_then(|_| check(ffi::KSPSetOperators(h.ksp, h.mat, h.mat), "KSPSetOperators"))
         };
         match created {
-            Ok(()) => Ok(system),
+            Ok(()) => {
+                system.handles = h;
+                Ok(system)
+            }
             Err(e) => {
-                // Destroyed here, under the caller's lock (`Drop` would take it again); the
-                // arrays are freed, the emptied system forgotten.
-                system.handles.destroy();
-                let arrays = std::mem::take(&mut system.row_ptr);
-                let indices = std::mem::take(&mut system.col_idx);
-                let values = std::mem::take(&mut system.values);
-                let maps = [std::mem::take(&mut system.col_ptr), std::mem::take(&mut system.row_idx), std::mem::take(&mut system.csr_of_csc)];
-                std::mem::forget(system);
-                drop((arrays, indices, values, maps));
+                // Destroyed here, under the caller's lock (`Drop` would take it again).
+                h.destroy();
                 Err(e)
             }
         }
@@ -280,24 +430,36 @@ impl PetscSystem {
         self.col_ptr.len() - 1
     }
 
-    /// Copies `values` (in CSC order) into the matrix and sets the `KSP` up from the options
-    /// database: for the default options, MUMPS's factorisation (the caller holds the lock and
-    /// has set the solver's options).
+    /// Copies this rank's rows of `values` (in CSC order) into the matrix and sets the `KSP` up
+    /// from the options database: for the default options, MUMPS's factorisation (the caller
+    /// holds the lock and has set the solver's options; collective).
     fn factorize(&mut self, values: &[f64]) -> Result<(), LinearSolveError> {
-        for (&v, &at) in values.iter().zip(&self.csr_of_csc) {
-            self.values[at] = v;
+        for (v, &k) in self.values.iter_mut().zip(&self.csc_of_csr) {
+            *v = values[k];
         }
-        let (mut array, mut pc, mut failed) = (null_mut(), null_mut(), 0);
-        // SAFETY: the matrix is valid; getting and restoring its array (ours) marks its values
-        // changed, so the set-up factorises again.
+        let (mut pc, mut failed) = (null_mut(), 0);
         let h = &self.handles;
+        // SAFETY: the matrix is valid and was preallocated with exactly these rows and columns;
+        // each row's slice of the CSR arrays lies within them.
         unsafe {
-            check(ffi::MatSeqAIJGetArray(h.mat, &mut array), "MatSeqAIJGetArray")?;
-            check(ffi::MatSeqAIJRestoreArray(h.mat, &mut array), "MatSeqAIJRestoreArray")?;
+            for (i, row) in self.rows.clone().enumerate() {
+                let (start, end) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
+                let row = row as PetscInt;
+                let (cols, vals) = (self.col_idx[start..].as_ptr(), self.values[start..].as_ptr());
+                check(ffi::MatSetValues(h.mat, 1, &row, (end - start) as PetscInt, cols, vals, ffi::INSERT_VALUES), "MatSetValues")?;
+            }
+            check(ffi::MatAssemblyBegin(h.mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+            check(ffi::MatAssemblyEnd(h.mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
             check(ffi::KSPSetOperators(h.ksp, h.mat, h.mat), "KSPSetOperators")?;
             check(ffi::KSPSetFromOptions(h.ksp), "KSPSetFromOptions")?;
-            check(ffi::KSPSetUp(h.ksp), "KSPSetUp (the factorisation)")?;
             check(ffi::KSPGetPC(h.ksp, &mut pc), "KSPGetPC")?;
+            if !self.fields_set {
+                if let Some(fields) = &self.fields {
+                    set_fields(pc, fields)?;
+                }
+                self.fields_set = true;
+            }
+            check(ffi::KSPSetUp(h.ksp), "KSPSetUp (the factorisation)")?;
             check(ffi::PCGetFailedReason(pc, &mut failed), "PCGetFailedReason")?;
         }
         if failed != 0 {
@@ -308,16 +470,18 @@ impl PetscSystem {
         Ok(())
     }
 
-    /// Solves for `x` with right-hand side `b`; returns PETSc's iteration count (the caller holds
-    /// the lock).
+    /// Solves for `x` (all of it on every rank) with right-hand side `b` (of which this rank
+    /// reads its rows); returns PETSc's iteration count (the caller holds the lock; collective).
     fn solve(&self, b: &mut [f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
         let (mut iterations, mut reason): (PetscInt, c_int) = (0, 0);
-        // SAFETY: `b` and `x` have the system's size (checked by the caller) and outlive the
-        // solve; whatever was placed is reset to no array before returning.
         let h = &self.handles;
+        let lo = self.rows.start;
+        // SAFETY: `b` and `x` have the system's size (checked by the caller), so this rank's rows
+        // lie within them, and outlive the solve; whatever was placed is reset to no array
+        // before returning.
         unsafe {
-            check(ffi::VecPlaceArray(h.b, b.as_mut_ptr()), "VecPlaceArray")?;
-            if let Err(e) = check(ffi::VecPlaceArray(h.x, x.as_mut_ptr()), "VecPlaceArray") {
+            check(ffi::VecPlaceArray(h.b, b.as_mut_ptr().add(lo)), "VecPlaceArray")?;
+            if let Err(e) = check(ffi::VecPlaceArray(h.x, x.as_mut_ptr().add(lo)), "VecPlaceArray") {
                 ffi::VecResetArray(h.b);
                 return Err(e);
             }
@@ -333,8 +497,30 @@ impl PetscSystem {
                 "KSPSolve diverged (KSPConvergedReason {reason}, after {iterations} iterations; -{OPTIONS_PREFIX}ksp_converged_reason tells more)"
             )));
         }
+        self.world.all_gather(x)?;
         Ok(if reason == ffi::KSP_CONVERGED_ITS { 0 } else { iterations as usize })
     }
+}
+
+/// Gives a `fieldsplit` preconditioner `pc` the fields [`FIELDS`] (this rank's rows of each;
+/// a no-op for another preconditioner; the caller holds the lock; collective).
+fn set_fields(pc: ffi::Pc, fields: &[Vec<PetscInt>; 2]) -> Result<(), LinearSolveError> {
+    for (name, rows) in FIELDS.iter().zip(fields) {
+        let name = CString::new(*name).expect("no NUL");
+        let mut is = null_mut();
+        // SAFETY: PETSc copies the indices (PETSC_COPY_VALUES) and keeps its own reference to
+        // the index set, so ours is destroyed here.
+        unsafe {
+            check(
+                ffi::ISCreateGeneral(ffi::comm_world(), rows.len() as PetscInt, rows.as_ptr(), ffi::PETSC_COPY_VALUES, &mut is),
+                "ISCreateGeneral",
+            )?;
+            let set = check(ffi::PCFieldSplitSetIS(pc, name.as_ptr(), is), "PCFieldSplitSetIS");
+            ffi::ISDestroy(&mut is);
+            set?;
+        }
+    }
+    Ok(())
 }
 
 impl Drop for PetscSystem {

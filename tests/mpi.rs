@@ -1,0 +1,141 @@
+//! `mpirun -n 1` and `mpirun -n 2 fdfsi run CASE` (the `petsc` feature: every rank runs the case,
+//! the Newton systems are solved by PETSc on all of them together) reproduce the serial run's
+//! quantities on Schaefer-Turek 2D-1, model problem 3 and the first steps of model problem 4
+//! (`cargo test --release --features petsc --test mpi`; needs the system's PETSc and Open MPI's
+//! `mpirun`).
+#![cfg(feature = "petsc")]
+
+use fdfsi::case::{Case, LinearMethod, MeshSpec, SolidMeshSpec};
+use fdfsi::run::{run_case, RunOptions};
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn cases_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("cases")
+}
+
+/// A fresh folder for this test process.
+fn scratch(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("fdfsi-test-mpi-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// One `mpirun` at a time: each starts a process per rank, and this machine may have few cores.
+static MPIRUN: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Runs `fdfsi run CASE --out DIR` on `ranks` MPI ranks; returns the parsed `summary.json` and the
+/// log (stdout and stderr of all ranks).
+fn mpirun(ranks: usize, case: &Path, out: &Path) -> (Value, String) {
+    let _one = MPIRUN.lock().unwrap_or_else(|e| e.into_inner());
+    let output = Command::new("mpirun")
+        .args(["-n", &ranks.to_string(), "--oversubscribe"])
+        .arg(env!("CARGO_BIN_EXE_fdfsi"))
+        .args(["run", case.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        // Containers and CI often run as root, which mpirun refuses unless told.
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .unwrap_or_else(|e| panic!("mpirun (Open MPI, which the petsc feature links) could not start: {e}"));
+    let log = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "mpirun -n {ranks} fdfsi run {}: {}\n{log}", case.display(), output.status);
+    let summary = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    (summary, log)
+}
+
+fn quantities(summary: &Value) -> BTreeMap<String, f64> {
+    summary["quantities"].as_object().unwrap().iter().map(|(k, v)| (k.clone(), v.as_f64().unwrap())).collect()
+}
+
+/// The case `name` edited by `edit`, run serially (in this process, with the case's own linear
+/// method) and by `mpirun -n 1` and `-n 2` with `method = "petsc"`: the same steps and
+/// quantities, to `tol` relative (plus `floor` absolute, for quantities that are zero up to the
+/// solver tolerance) against the serial run and to round-off between the two MPI runs.
+fn compare(name: &str, tol: f64, floor: f64, edit: impl Fn(&mut Case)) {
+    let dir = scratch(name);
+    let mut case = Case::read(&cases_dir().join(format!("{name}.toml"))).unwrap();
+    edit(&mut case);
+    let serial = run_case(&case, &RunOptions::new(dir.join("serial"), cases_dir()), &mut |_: &str| {}).unwrap();
+    case.solver.linear.method = LinearMethod::Petsc;
+    let file = dir.join("case.toml");
+    std::fs::write(&file, case.to_toml()).unwrap();
+    let (one, _) = mpirun(1, &file, &dir.join("n1"));
+    let (two, log) = mpirun(2, &file, &dir.join("n2"));
+    assert_eq!(two["ranks"], 2, "{name}: summary.json records the ranks");
+    assert!(log.contains("done on 2 ranks"), "{name}: rank 0 logs\n{log}");
+    assert_eq!(log.matches("case: ").count(), 1, "{name}: only rank 0 logs\n{log}");
+    let close = |a: f64, b: f64, tol: f64| (a - b).abs() <= tol * a.abs().max(b.abs()) + floor;
+    for (q, &s) in &serial.quantities {
+        let (a, b) = (quantities(&one)[q], quantities(&two)[q]);
+        println!("{name}: {q}: serial {s:.12e}, mpirun -n 1 {a:.12e}, -n 2 {b:.12e}");
+        assert!(close(a, s, tol) && close(b, s, tol), "{name}: {q}: serial {s}, -n 1 {a}, -n 2 {b}");
+        assert!(close(a, b, 1e-9), "{name}: {q}: -n 1 {a}, -n 2 {b}");
+    }
+    for summary in [&one, &two] {
+        assert_eq!(summary["steps"], serial.steps, "{name}");
+        assert_eq!(summary["dofs"]["total"], serial.dofs["total"], "{name}");
+    }
+    // Rank 0 wrote the results as a serial run does; the other rank's private folder is gone.
+    for file in ["solution.pvd", "history.csv", "case.toml"] {
+        assert!(dir.join("n2").join(file).exists(), "{name}: {file}");
+    }
+    assert!(!dir.join("n2/.rank1").exists(), "{name}: rank 1's private output folder was not removed");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Schaefer-Turek 2D-1 (steady Navier-Stokes) on the coarse mesh (36 596 unknowns): drag, lift
+/// and pressure difference. The serial run's Newton (inexact, its linear solves by the
+/// augmented-Lagrangian FGMRES) stops at |R| <= 1e-10: the coefficients agree to 1e-9
+/// absolute (measured 2.4e-10 for the lift, 2.3e-8 of its value of 1e-2; 2e-11 of the drag).
+#[test]
+fn schaefer_turek_2d1_on_two_ranks_gives_the_serial_quantities() {
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/dfg2d-coarse.msh");
+    compare("schaefer-turek-2d1", 1e-8, 1e-9, |c| c.mesh = Some(MeshSpec::Gmsh { file: mesh.clone() }));
+}
+
+/// Model problem 3 (axisymmetric FSI, 60 steps): the adapted mesh changes with the membrane, so
+/// each rank adapts alike and the system's pattern is new from step to step. The equilibrium
+/// quantities that vanish (downstream pressure, speed, flux: 1e-7 to 1e-8) agree to 1e-11
+/// absolute.
+#[test]
+fn model_problem_3_on_two_ranks_gives_the_serial_quantities() {
+    compare("model-problem-3", 1e-8, 1e-11, |_| {});
+}
+
+/// Model problem 4 (3D FSI) on the coarser mesh of tests/cases.rs, 3 steps. The case's Newton
+/// stops at |R| <= 1e-9 (its serial linear solves: the augmented-Lagrangian FGMRES, inexact):
+/// the forces on gamma_f (about 0.01-0.14) agree to 1e-8 absolute (measured 1.6e-9).
+#[test]
+fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
+    compare("model-problem-4", 1e-8, 1e-8, |c| {
+        c.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
+        let solid = c.solid.as_mut().unwrap();
+        solid.mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
+        c.time.as_mut().unwrap().end = 0.3;
+    });
+}
+
+/// On several ranks a case must solve through PETSc: any other linear method would solve the
+/// whole system on every rank. The run stops before it writes anything.
+#[test]
+fn several_ranks_need_the_petsc_method() {
+    let dir = scratch("method");
+    let out = dir.join("out");
+    let output = Command::new("mpirun")
+        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_fdfsi"), "run"])
+        .arg(cases_dir().join("channel-stokes.toml"))
+        .arg("--out")
+        .arg(&out)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(log.contains("running on 2 MPI ranks: set `method = \"petsc\"`"), "{log}");
+    assert!(!out.exists(), "nothing written");
+    let _ = std::fs::remove_dir_all(&dir);
+}
