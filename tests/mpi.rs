@@ -5,7 +5,7 @@
 //! `mpirun`).
 #![cfg(feature = "petsc")]
 
-use fdfsi::case::{Case, LinearMethod, MeshSpec, SolidMeshSpec};
+use fdfsi::case::{Case, LinearMethod, MeshSpec, PetscMethod, SolidMeshSpec};
 use fdfsi::run::{run_case, RunOptions};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -51,15 +51,16 @@ fn quantities(summary: &Value) -> BTreeMap<String, f64> {
 }
 
 /// The case `name` edited by `edit`, run serially (in this process, with the case's own linear
-/// method) and by `mpirun -n 1` and `-n 2` with `method = "petsc"`: the same steps and
-/// quantities, to `tol` relative (plus `floor` absolute, for quantities that are zero up to the
-/// solver tolerance) against the serial run and to round-off between the two MPI runs.
-fn compare(name: &str, tol: f64, floor: f64, edit: impl Fn(&mut Case)) {
-    let dir = scratch(name);
+/// method) and by `mpirun -n 1` and `-n 2` with `method = "petsc"` and `solver`: the same
+/// steps and quantities, to `tol` relative (plus `floor` absolute, for quantities that are zero
+/// up to the solver tolerance) against the serial run and to 1e-9 between the two MPI runs.
+fn compare(name: &str, solver: PetscMethod, tol: f64, floor: f64, edit: impl Fn(&mut Case)) {
+    let dir = scratch(&format!("{name}-{solver:?}"));
     let mut case = Case::read(&cases_dir().join(format!("{name}.toml"))).unwrap();
     edit(&mut case);
     let serial = run_case(&case, &RunOptions::new(dir.join("serial"), cases_dir()), &mut |_: &str| {}).unwrap();
     case.solver.linear.method = LinearMethod::Petsc;
+    case.solver.petsc.solver = solver;
     let file = dir.join("case.toml");
     std::fs::write(&file, case.to_toml()).unwrap();
     let (one, _) = mpirun(1, &file, &dir.join("n1"));
@@ -86,23 +87,28 @@ fn compare(name: &str, tol: f64, floor: f64, edit: impl Fn(&mut Case)) {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Schaefer-Turek 2D-1 (steady Navier-Stokes) on the coarse mesh (36 596 unknowns): drag, lift
-/// and pressure difference. The serial run's Newton (inexact, its linear solves by the
+/// Schaefer-Turek 2D-1 (steady Navier-Stokes) on the coarse mesh (36 596 unknowns), with MUMPS and
+/// with the augmented Lagrangian through PETSc: drag, lift and pressure difference. The serial run's Newton (inexact, its linear solves by the
 /// augmented-Lagrangian FGMRES) stops at |R| <= 1e-10: the coefficients agree to 1e-9
 /// absolute (measured 2.4e-10 for the lift, 2.3e-8 of its value of 1e-2; 2e-11 of the drag).
 #[test]
 fn schaefer_turek_2d1_on_two_ranks_gives_the_serial_quantities() {
     let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/dfg2d-coarse.msh");
-    compare("schaefer-turek-2d1", 1e-8, 1e-9, |c| c.mesh = Some(MeshSpec::Gmsh { file: mesh.clone() }));
+    for solver in [PetscMethod::Mumps, PetscMethod::AugmentedLagrangian] {
+        compare("schaefer-turek-2d1", solver, 1e-8, 1e-9, |c| c.mesh = Some(MeshSpec::Gmsh { file: mesh.clone() }));
+    }
 }
 
-/// Model problem 3 (axisymmetric FSI, 60 steps): the adapted mesh changes with the membrane, so
+/// Model problem 3 (axisymmetric FSI, 60 steps), with MUMPS and with the augmented Lagrangian
+/// through PETSc: the adapted mesh changes with the membrane, so
 /// each rank adapts alike and the system's pattern is new from step to step. The equilibrium
 /// quantities that vanish (downstream pressure, speed, flux: 1e-7 to 1e-8) agree to 1e-11
 /// absolute.
 #[test]
 fn model_problem_3_on_two_ranks_gives_the_serial_quantities() {
-    compare("model-problem-3", 1e-8, 1e-11, |_| {});
+    for solver in [PetscMethod::Mumps, PetscMethod::AugmentedLagrangian] {
+        compare("model-problem-3", solver, 1e-8, 1e-11, |_| {});
+    }
 }
 
 /// Model problem 4 (3D FSI) on the coarser mesh of tests/cases.rs, 3 steps. The case's Newton
@@ -110,7 +116,7 @@ fn model_problem_3_on_two_ranks_gives_the_serial_quantities() {
 /// the forces on gamma_f (about 0.01-0.14) agree to 1e-8 absolute (measured 1.6e-9).
 #[test]
 fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
-    compare("model-problem-4", 1e-8, 1e-8, |c| {
+    compare("model-problem-4", PetscMethod::Mumps, 1e-8, 1e-8, |c| {
         c.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
         let solid = c.solid.as_mut().unwrap();
         solid.mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };

@@ -566,6 +566,23 @@ pub struct PetscSpec {
     /// iterative method chosen here must reach `|b - A x| <= 1e-6 |b|` in every solve (fdfsi's
     /// check; PETSc's default `-ksp_rtol` is 1e-5).
     pub options: String,
+    /// What PETSc does with each system before `options`.
+    pub solver: PetscMethod,
+}
+
+/// What `method = "petsc"` does with each system (`[solver.petsc] solver`).
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum PetscMethod {
+    /// A direct solve by MUMPS (`crate::solve::petsc::DEFAULT_OPTIONS`).
+    #[default]
+    Mumps,
+    /// FGMRES with the augmented-Lagrangian preconditioner of `method = "augmented-lagrangian"`
+    /// (its `gamma` and placements from `[solver.linear]`) as PETSc's field split, the augmented
+    /// block by MUMPS (`crate::solve::petsc::AUGMENTED_LAGRANGIAN_OPTIONS`). Verified on 2D flow
+    /// and 2D FSI (Schaefer-Turek 2D-1, model problem 3, on 1 and 2 ranks); on 3D FSI (model
+    /// problem 4) FGMRES stalls after the first step, where fdfsi's own AL converges: open.
+    AugmentedLagrangian,
 }
 
 /// The linear solver of each Newton iteration (`[solver.linear] method`).
@@ -684,20 +701,25 @@ impl SolverSpec {
         match self.linear.method {
             LinearMethod::Direct => Box::new(FaerLu::new(self.linear.lu_options())),
             LinearMethod::AugmentedLagrangian => Box::new(AugmentedLagrangian::new(self.linear.al_options(time_dependent, formulation))),
-            LinearMethod::Petsc => petsc_solver(&self.petsc),
+            LinearMethod::Petsc => petsc_solver(&self.petsc, self.linear.al_options(time_dependent, formulation)),
         }
     }
 }
 
 #[cfg(feature = "petsc")]
-fn petsc_solver(spec: &PetscSpec) -> Box<dyn LinearSolver> {
-    Box::new(crate::solve::petsc::PetscSolver::new(&spec.options, LinearSolverOptions::default().fail_tolerance))
+fn petsc_solver(spec: &PetscSpec, al: AlOptions) -> Box<dyn LinearSolver> {
+    use crate::solve::petsc::PetscSolver;
+    let fail = LinearSolverOptions::default().fail_tolerance;
+    match spec.solver {
+        PetscMethod::Mumps => Box::new(PetscSolver::new(&spec.options, fail)),
+        PetscMethod::AugmentedLagrangian => Box::new(PetscSolver::augmented_lagrangian(al, &spec.options, fail)),
+    }
 }
 
 /// Without the `petsc` feature: a solver whose every factorisation fails, saying how to get one
 /// (a validated case never asks for it: [`Case::validate`] refuses `method = "petsc"` there).
 #[cfg(not(feature = "petsc"))]
-fn petsc_solver(_spec: &PetscSpec) -> Box<dyn LinearSolver> {
+fn petsc_solver(_spec: &PetscSpec, _al: AlOptions) -> Box<dyn LinearSolver> {
     use crate::solve::linear::{LinearSolveError, SolveStats};
     use fdfsi_fem::sparse::CscMatrix;
     struct WithoutPetsc;

@@ -366,6 +366,8 @@ pub struct AugmentedLagrangian {
     /// The split's mass matrices changed, its groups did not: the structure's inverse masses
     /// are recomputed before the next use.
     masses_changed: bool,
+    /// The pattern of `T K` for [`AugmentedLagrangian::transformed_system`].
+    transformed: Option<TransformedPattern>,
 }
 
 impl AugmentedLagrangian {
@@ -391,6 +393,7 @@ impl AugmentedLagrangian {
             symbolic_count: 0,
             forcing: 0.0,
             masses_changed: false,
+            transformed: None,
         }
     }
 
@@ -658,6 +661,7 @@ impl AugmentedLagrangian {
         num.factorized = false;
         num.scales.clear();
         self.structure = None;
+        self.transformed = None;
         self.symbolic_count += 1;
         let t = std::time::Instant::now();
         self.structure = Some(self.build_structure(a, key, groups_at)?);
@@ -683,6 +687,88 @@ impl AugmentedLagrangian {
         self.update_structure(a)?;
         let values = self.assemble_augmented(a, &mut self.numeric.borrow_mut());
         Ok(self.structure.as_ref().map(|s| (s.pattern.clone(), values)))
+    }
+
+    /// The transformed system `T K` of `a` with the split given ([`TransformedSystem`]); `None`
+    /// without a split.
+    pub fn transformed_system(&mut self, a: &CscMatrix<'_>) -> Result<Option<TransformedSystem<'_>>, LinearSolveError> {
+        if self.without_split() {
+            return Ok(None);
+        }
+        self.update_structure(a)?;
+        let (augmented, scales) = {
+            let mut num = self.numeric.borrow_mut();
+            let augmented = self.assemble_augmented(a, &mut num);
+            (augmented, num.scales.clone())
+        };
+        let s = self.structure.as_ref().expect("structure");
+        if self.transformed.is_none() {
+            self.transformed = Some(TransformedPattern::new(a.pattern, s));
+        }
+        let t = self.transformed.as_ref().expect("set above");
+        let mut values = vec![0.0; t.pattern.nnz()];
+        let mut k_values = vec![0.0; t.pattern.nnz()];
+        for (v, &pos) in a.values.iter().zip(&t.k_pos) {
+            k_values[pos] = *v;
+        }
+        // K outside `F x F`, then `A_gamma` in it.
+        let p = a.pattern;
+        for j in 0..p.n {
+            let column_in_f = s.f_local[j] != usize::MAX;
+            for k in p.col_ptr[j]..p.col_ptr[j + 1] {
+                if !(column_in_f && s.f_local[p.row_idx[k]] != usize::MAX) {
+                    values[t.k_pos[k]] += a.values[k];
+                }
+            }
+        }
+        for (v, &pos) in augmented.iter().zip(&t.aug_pos) {
+            values[pos] += v;
+        }
+        // (T K)_FQ = B' + sigma gamma_g B'_g M_g^-1 C_g, and S_p's blocks.
+        let mut ops = GroupOperators::default();
+        let mut schur_blocks = Vec::with_capacity(s.groups.len());
+        let mut transform = Vec::new();
+        for (gi, (g, &offset)) in s.groups.iter().zip(&s.minv_offsets).enumerate() {
+            ops.load(a, g, &s.minv[offset..]);
+            let (sigma, gamma_b, eta) = scales[g.block];
+            let gamma_g = gamma_b * g.gamma_scale;
+            let qs = &s.q_dofs[g.start..g.end];
+            let m = qs.len();
+            let minv = &s.minv[offset..offset + m * m];
+            // T - I: sigma gamma_g B'_g M_g^-1.
+            for (ii, &fi) in g.coupled.iter().enumerate() {
+                let bt = &ops.bt[ii * m..(ii + 1) * m];
+                for (b, &q) in qs.iter().enumerate() {
+                    transform.push((s.f_dofs[fi], q, sigma * gamma_g * (0..m).map(|a| bt[a] * minv[a * m + b]).sum::<f64>()));
+                }
+            }
+            // C_g (m x the columns its rows reach, row-major) from K.
+            let columns = &t.group_columns[gi];
+            let nc = columns.len();
+            let c: Vec<f64> = (0..m * nc).map(|k| a.get(qs[k / nc], columns[k % nc])).collect();
+            if c.iter().any(|&v| v != 0.0) {
+                for (ii, &fi) in g.coupled.iter().enumerate() {
+                    let bt = &ops.bt[ii * m..(ii + 1) * m];
+                    // (B'_g M^-1)_ii, then times C_g.
+                    let w: Vec<f64> = (0..m).map(|b| (0..m).map(|a| bt[a] * minv[a * m + b]).sum()).collect();
+                    for (cj, &q) in columns.iter().enumerate() {
+                        let add = sigma * gamma_g * (0..m).map(|b| w[b] * c[b * nc + cj]).sum::<f64>();
+                        if add != 0.0 {
+                            values[t.pattern.find(s.f_dofs[fi], q).expect("merged in")] += add;
+                        }
+                    }
+                }
+            }
+            let mass =
+                invert_dense(minv, m).ok_or_else(|| LinearSolveError::Numeric(format!("singular inverse mass of the group of dof {}", qs[0])))?;
+            let scale = -1.0 / (sigma * (eta + gamma_g));
+            let mut order: Vec<usize> = (0..m).collect();
+            order.sort_unstable_by_key(|&k| qs[k]);
+            let dofs: Vec<usize> = order.iter().map(|&k| qs[k]).collect();
+            let block: Vec<f64> = (0..m * m).map(|k| scale * mass[order[k / m] * m + order[k % m]]).collect();
+            schur_blocks.push((dofs, block));
+        }
+        Ok(Some(TransformedSystem { pattern: &t.pattern, values, k_values, transform, in_schur: &t.in_schur, schur_blocks }))
     }
 
     /// Builds `A_gamma = K_FF + sum_g sigma gamma_g B'_g M_g^-1 B_g` from `a` and factorises it.
@@ -792,6 +878,116 @@ impl AugmentedLagrangian {
         let (mut v, mut y) = (vec![0.0; n], vec![0.0; n]);
         let options = KrylovOptions { max_iterations, rel_tol: self.options.krylov.rel_tol.max(self.forcing), ..self.options.krylov };
         fgmres(|u, out| a.mul_vec(u, out), |r, z| self.precondition(a, num, r, z, &mut v, &mut y), rhs, x, &options)
+    }
+}
+
+/// The AL's transformed system `T K` for a solver outside fdfsi (PETSc's field split,
+/// `solve::petsc`): its pattern (that of `K` with the grad-div couplings of `A_gamma` added, and
+/// the couplings of `B'_g M_g^-1 C_g`), `T K`, `K` and `T - I` on it, the fields and the Schur
+/// block's preconditioning matrix. With `U = [A_gamma, (T K)_FQ; 0, S_p]` (the upper
+/// block-triangular factorisation of `T K`, `S_p^-1 = -sigma (eta_b + gamma_g) M_g^-1` per
+/// group), `P^-1 = U^-1 T` is the preconditioner of the module documentation: a Krylov method
+/// on `K y = b` right-preconditioned by it iterates as [`AugmentedLagrangian`]'s FGMRES, on the
+/// true residual. (Solving `T K y = T b` instead converges on `T r`: `T`'s `gamma`-sized
+/// entries then hide residuals of `K` up to 1e5 times larger, model problem 3.)
+pub struct TransformedSystem<'a> {
+    pub pattern: &'a Pattern,
+    /// `T K` and `K` on the pattern.
+    pub values: Vec<f64>,
+    pub k_values: Vec<f64>,
+    /// `T - I`: `(row, column, value)`, rows primal, columns in the Schur block.
+    pub transform: Vec<(usize, usize, f64)>,
+    /// Whether each unknown is in the Schur block (`Q`: the multipliers there); the others, the
+    /// multipliers kept primal with them, form `A_gamma`.
+    pub in_schur: &'a [bool],
+    /// Per group of the Schur block: its unknowns (increasing) and `S_p`'s dense block on them
+    /// (row-major), `-M_g / (sigma (eta_b + gamma_g))`.
+    pub schur_blocks: Vec<(Vec<usize>, Vec<f64>)>,
+}
+
+/// The pattern of `T K` ([`TransformedSystem`]) and where the values go, per structure (made
+/// again with each new structure).
+struct TransformedPattern {
+    pattern: Pattern,
+    in_schur: Vec<bool>,
+    /// Position in `T K` of each entry of `K` (all of them) and of `A_gamma`.
+    k_pos: Vec<usize>,
+    aug_pos: Vec<usize>,
+    /// Per group, the columns of `C = K_QQ` its rows reach (increasing).
+    group_columns: Vec<Vec<usize>>,
+}
+
+impl TransformedPattern {
+    /// `K`'s pattern `p` with `A_gamma`'s (`s.pattern`, in the `F` numbering) merged in, and
+    /// the entries of `B'_g M_g^-1 C_g` where a group's rows of `C = K_QQ` reach other groups.
+    fn new(p: &Pattern, s: &Structure) -> Self {
+        let n = p.n;
+        let mut in_schur = vec![false; n];
+        let mut group_of = vec![usize::MAX; n];
+        for (gi, g) in s.groups.iter().enumerate() {
+            for &q in &s.q_dofs[g.start..g.end] {
+                in_schur[q] = true;
+                group_of[q] = gi;
+            }
+        }
+        // The columns of `C` each group's rows reach.
+        let mut group_columns: Vec<Vec<usize>> = vec![Vec::new(); s.groups.len()];
+        for &q in &s.q_dofs {
+            for k in p.col_ptr[q]..p.col_ptr[q + 1] {
+                let i = p.row_idx[k];
+                if in_schur[i] && group_columns[group_of[i]].last() != Some(&q) {
+                    group_columns[group_of[i]].push(q);
+                }
+            }
+        }
+        for c in &mut group_columns {
+            c.sort_unstable();
+            c.dedup();
+        }
+        // Extra rows per column `q` of `Q`: the primal unknowns coupled to the groups reaching it.
+        let mut extra: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (gi, g) in s.groups.iter().enumerate() {
+            for &q in &group_columns[gi] {
+                extra[q].extend(g.coupled.iter().map(|&fi| s.f_dofs[fi]));
+            }
+        }
+        let mut col_ptr = vec![0];
+        let mut row_idx = Vec::with_capacity(p.nnz() + s.pattern.nnz() - s.ff_pos.iter().filter(|&&k| k != usize::MAX).count());
+        for j in 0..n {
+            let start = row_idx.len();
+            row_idx.extend_from_slice(&p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]]);
+            let jl = s.f_local[j];
+            if jl != usize::MAX {
+                row_idx.extend(s.pattern.row_idx[s.pattern.col_ptr[jl]..s.pattern.col_ptr[jl + 1]].iter().map(|&il| s.f_dofs[il]));
+            }
+            row_idx.extend_from_slice(&extra[j]);
+            let column = &mut row_idx[start..];
+            column.sort_unstable();
+            let len = {
+                let mut w = 0;
+                for r in 0..column.len() {
+                    if r == 0 || column[r] != column[w - 1] {
+                        column[w] = column[r];
+                        w += 1;
+                    }
+                }
+                w
+            };
+            row_idx.truncate(start + len);
+            col_ptr.push(row_idx.len());
+        }
+        let pattern = Pattern { n, col_ptr, row_idx };
+        let position = |i: usize, j: usize| pattern.find(i, j).expect("merged in");
+        let mut k_pos = Vec::with_capacity(p.nnz());
+        for j in 0..n {
+            k_pos.extend(p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().map(|&i| position(i, j)));
+        }
+        let mut aug_pos = Vec::with_capacity(s.pattern.nnz());
+        for jl in 0..s.pattern.n {
+            let j = s.f_dofs[jl];
+            aug_pos.extend(s.pattern.row_idx[s.pattern.col_ptr[jl]..s.pattern.col_ptr[jl + 1]].iter().map(|&il| position(s.f_dofs[il], j)));
+        }
+        TransformedPattern { pattern, in_schur, k_pos, aug_pos, group_columns }
     }
 }
 
@@ -953,6 +1149,7 @@ impl LinearSolver for AugmentedLagrangian {
             self.masses_changed = true;
         } else {
             self.structure = None;
+            self.transformed = None;
         }
         self.numeric.get_mut().factorized = false;
         self.split = split;

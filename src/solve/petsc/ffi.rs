@@ -28,6 +28,9 @@ pub type Ksp = *mut c_void;
 pub type Pc = *mut c_void;
 pub type Is = *mut c_void;
 
+/// `PC_FIELDSPLIT_SCHUR_PRE_USER` of `PCFieldSplitSchurPreType` (`SELF, SELFP, A11, USER,
+/// FULL`).
+pub const PC_FIELDSPLIT_SCHUR_PRE_USER: c_int = 3;
 /// `PETSC_COPY_VALUES` of `PetscCopyMode`.
 pub const PETSC_COPY_VALUES: c_int = 0;
 
@@ -145,10 +148,29 @@ extern "C" {
     pub fn KSPGetConvergedReason(ksp: Ksp, reason: *mut c_int) -> PetscErrorCode;
     pub fn KSPDestroy(ksp: *mut Ksp) -> PetscErrorCode;
     pub fn KSPGetPC(ksp: Ksp, pc: *mut Pc) -> PetscErrorCode;
+    pub fn PCCreate(comm: MpiComm, pc: *mut Pc) -> PetscErrorCode;
+    pub fn PCSetOperators(pc: Pc, a: Mat, p: Mat) -> PetscErrorCode;
+    pub fn PCSetOptionsPrefix(pc: Pc, prefix: *const c_char) -> PetscErrorCode;
+    pub fn PCSetFromOptions(pc: Pc) -> PetscErrorCode;
+    pub fn PCSetUp(pc: Pc) -> PetscErrorCode;
+    pub fn PCSetUpOnBlocks(pc: Pc) -> PetscErrorCode;
+    pub fn PCApply(pc: Pc, x: Vec, y: Vec) -> PetscErrorCode;
+    pub fn PCDestroy(pc: *mut Pc) -> PetscErrorCode;
+    /// `kind`: a `PCType` string (`"shell"`).
+    pub fn PCSetType(pc: Pc, kind: *const c_char) -> PetscErrorCode;
+    pub fn PCShellSetApply(pc: Pc, apply: extern "C" fn(Pc, Vec, Vec) -> PetscErrorCode) -> PetscErrorCode;
+    pub fn PCShellSetContext(pc: Pc, context: *mut c_void) -> PetscErrorCode;
+    /// `context`: where to write the context pointer.
+    pub fn PCShellGetContext(pc: Pc, context: *mut c_void) -> PetscErrorCode;
+    pub fn MatMult(mat: Mat, x: Vec, y: Vec) -> PetscErrorCode;
+    pub fn VecCreateMPI(comm: MpiComm, local: PetscInt, global: PetscInt, vec: *mut Vec) -> PetscErrorCode;
     pub fn ISCreateGeneral(comm: MpiComm, n: PetscInt, indices: *const PetscInt, mode: c_int, is: *mut Is) -> PetscErrorCode;
     pub fn ISDestroy(is: *mut Is) -> PetscErrorCode;
     /// A no-op unless the preconditioner is `fieldsplit`.
     pub fn PCFieldSplitSetIS(pc: Pc, name: *const c_char, is: Is) -> PetscErrorCode;
+    /// `kind`: a `PCFieldSplitSchurPreType` ([`PC_FIELDSPLIT_SCHUR_PRE_USER`]); the
+    /// preconditioner keeps its own reference to `pre`. A no-op unless it is `fieldsplit`.
+    pub fn PCFieldSplitSetSchurPre(pc: Pc, kind: c_int, pre: Mat) -> PetscErrorCode;
     /// `PCFailedReason`: `PC_NOERROR = 0`, negative or positive codes for failures.
     pub fn PCGetFailedReason(pc: Pc, reason: *mut c_int) -> PetscErrorCode;
 }

@@ -14,6 +14,13 @@
 //! (`MPI_Allgatherv`), so the Newton update is the same on all. [`world`] tells a process its
 //! rank; [`finalize`] and [`abort`] end MPI.
 //!
+//! With a system's saddle-point split ([`LinearSolver::set_split`]) a `fieldsplit`
+//! preconditioner gets the fields [`FIELDS`]. [`PetscSolver::augmented_lagrangian`] runs
+//! fdfsi's augmented-Lagrangian preconditioner in PETSc: FGMRES on the system, its
+//! preconditioner a shell (`apply_augmented_lagrangian`) that applies `T` and then a Schur
+//! field split of `T K` (options prefix [`AL_OPTIONS_PREFIX`]), with the Schur block
+//! preconditioned by the AL's `S_p` ([`crate::solve::augmented::TransformedSystem`]).
+//!
 //! PETSc is initialised on first use and finalised only by [`finalize`] (which `fdfsi run`
 //! calls at the end of a run that `mpirun` started; otherwise its state lives as long as the
 //! process): MPI first at the thread level `MPI_THREAD_SERIALIZED` (solvers on several threads
@@ -26,7 +33,7 @@
 
 mod ffi;
 
-use super::augmented::SaddlePointSplit;
+use super::augmented::{AlOptions, AugmentedLagrangian, SaddlePointSplit, TransformedSystem};
 use super::linear::{norm, LinearSolveError, LinearSolver, SolveStats};
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use ffi::PetscInt;
@@ -49,6 +56,17 @@ pub const FIELDS: [&str; 2] = ["primal", "multiplier"];
 /// The options [`PetscSolver`] starts from: a direct solve (`preonly` with an LU
 /// preconditioner) by MUMPS, which pivots, as the saddle-point systems need.
 pub const DEFAULT_OPTIONS: &str = "-fdfsi_ksp_type preonly -fdfsi_pc_type lu -fdfsi_pc_factor_mat_solver_type mumps";
+
+/// The options [`PetscSolver::augmented_lagrangian`] starts from: FGMRES (right-preconditioned)
+/// to `1e-10` with the field split [`FIELDS`] as an upper block-triangular Schur factorisation,
+/// the primal block `A_gamma` by MUMPS's LU, the Schur block by `S_p` (block diagonal: block
+/// Jacobi per rank, ILU(0) within, exact on its blocks, with no zero-pivot threshold: the
+/// entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on the medium Schaefer-Turek mesh,
+/// below PETSc's absolute default of 2.2e-14); the same preconditioner as `solve::augmented`'s.
+pub const AUGMENTED_LAGRANGIAN_OPTIONS: &str = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-10 -fdfsi_ksp_max_it 200 -fdfsi_ksp_gmres_restart 200 \
+-fdfsi_al_pc_type fieldsplit -fdfsi_al_pc_fieldsplit_type schur -fdfsi_al_pc_fieldsplit_schur_fact_type upper \
+-fdfsi_al_fieldsplit_primal_ksp_type preonly -fdfsi_al_fieldsplit_primal_pc_type lu -fdfsi_al_fieldsplit_primal_pc_factor_mat_solver_type mumps \
+-fdfsi_al_fieldsplit_multiplier_ksp_type preonly -fdfsi_al_fieldsplit_multiplier_pc_type bjacobi -fdfsi_al_fieldsplit_multiplier_sub_pc_factor_zeropivot 0";
 
 /// Every call into PETSc holds this.
 static PETSC: Mutex<()> = Mutex::new(());
@@ -193,11 +211,11 @@ pub fn abort(code: i32) {
     }
 }
 
-/// Sets PETSc's options database to [`DEFAULT_OPTIONS`] and then `options` (`-name value
-/// ...`, overriding them), clearing what was there (the caller holds the lock).
-fn set_options(options: &str) -> Result<(), LinearSolveError> {
-    let text = CString::new(format!("{DEFAULT_OPTIONS} {options}"))
-        .map_err(|_| LinearSolveError::Petsc(format!("options {options:?} contain a NUL byte")))?;
+/// Sets PETSc's options database to `defaults` and then `options` (`-name value ...`,
+/// overriding them), clearing what was there (the caller holds the lock).
+fn set_options(defaults: &str, options: &str) -> Result<(), LinearSolveError> {
+    let text =
+        CString::new(format!("{defaults} {options}")).map_err(|_| LinearSolveError::Petsc(format!("options {options:?} contain a NUL byte")))?;
     // SAFETY: null is the global database; PETSc copies the string.
     unsafe {
         check(ffi::PetscOptionsClear(null_mut()), "PetscOptionsClear")?;
@@ -210,9 +228,14 @@ fn set_options(options: &str) -> Result<(), LinearSolveError> {
 pub struct PetscSolver {
     /// Options added after [`DEFAULT_OPTIONS`] (so they override them).
     options: String,
+    /// [`DEFAULT_OPTIONS`] or [`AUGMENTED_LAGRANGIAN_OPTIONS`].
+    defaults: &'static str,
     /// Which unknowns are multipliers (the [`SaddlePointSplit`] of [`LinearSolver::set_split`]):
     /// the fields of a `fieldsplit` preconditioner ([`FIELDS`]).
     multipliers: Option<Vec<bool>>,
+    /// With [`PetscSolver::augmented_lagrangian`]: what transforms each system for the field
+    /// split.
+    al: Option<AugmentedLagrangian>,
     /// Relative residual `|b - A x| / |b|` above which a solve fails.
     fail_tolerance: f64,
     system: Option<PetscSystem>,
@@ -223,23 +246,50 @@ impl PetscSolver {
     /// A solver with PETSc `options` (`-fdfsi_...`, added after [`DEFAULT_OPTIONS`]) that fails
     /// a solve whose relative residual exceeds `fail_tolerance`.
     pub fn new(options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver { options: options.to_string(), multipliers: None, fail_tolerance, system: None, symbolic: 0 }
+        PetscSolver {
+            options: options.to_string(),
+            defaults: DEFAULT_OPTIONS,
+            multipliers: None,
+            al: None,
+            fail_tolerance,
+            system: None,
+            symbolic: 0,
+        }
+    }
+
+    /// The augmented-Lagrangian preconditioner of `solve::augmented` (with `al`'s weight and
+    /// placements) as PETSc's field split: each system with a split is handed over transformed
+    /// (`T K y = T b`, [`crate::solve::augmented::TransformedSystem`]), with the fields
+    /// [`FIELDS`] (the primal unknowns with the multipliers kept primal, and the multipliers of
+    /// the Schur block) and the Schur block's matrix `S_p`, under [`AUGMENTED_LAGRANGIAN_OPTIONS`]
+    /// and then `options`. A system without a split is solved as by [`PetscSolver::new`].
+    pub fn augmented_lagrangian(al: AlOptions, options: &str, fail_tolerance: f64) -> Self {
+        PetscSolver { defaults: AUGMENTED_LAGRANGIAN_OPTIONS, al: Some(AugmentedLagrangian::new(al)), ..Self::new(options, fail_tolerance) }
     }
 }
 
 impl LinearSolver for PetscSolver {
     fn factorize(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
-        if !self.system.as_ref().is_some_and(|s| s.is_for(a.pattern)) {
+        let transformed = match self.al.as_mut() {
+            Some(al) => al.transformed_system(a)?,
+            None => None,
+        };
+        let (pattern, fields) = match &transformed {
+            Some(t) => (t.pattern, Some(t.in_schur)),
+            None => (a.pattern, self.multipliers.as_deref()),
+        };
+        let augmented = transformed.is_some();
+        if !self.system.as_ref().is_some_and(|s| s.is_for(pattern, fields, augmented)) {
             self.system = None;
             let _petsc = lock();
             let world = initialize()?;
-            self.system = Some(PetscSystem::new(a.pattern, world, self.multipliers.as_deref())?);
+            self.system = Some(PetscSystem::new(pattern, world, fields, augmented)?);
             self.symbolic += 1;
         }
         let system = self.system.as_mut().expect("set above");
         let _petsc = lock();
-        set_options(&self.options)?;
-        system.factorize(&a.values)
+        set_options(self.defaults, &self.options)?;
+        system.factorize(&a.values, transformed.as_ref())
     }
 
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
@@ -253,11 +303,12 @@ impl LinearSolver for PetscSolver {
             )));
         }
         let b = rhs.to_vec();
+        // PETSc may scale its right-hand side in place (`-ksp_diagonal_scale`): its own copy.
+        let mut petsc_b = b.clone();
         let iterations = {
             let _petsc = lock();
-            set_options(&self.options)?;
-            // PETSc may scale its right-hand side in place (`-ksp_diagonal_scale`): its own copy.
-            system.solve(&mut b.clone(), rhs)?
+            set_options(self.defaults, &self.options)?;
+            system.solve(&mut petsc_b, rhs)?
         };
         let mut r = vec![0.0; b.len()];
         a.mul_vec(rhs, &mut r);
@@ -277,17 +328,18 @@ impl LinearSolver for PetscSolver {
         self.symbolic
     }
 
-    /// Keeps the split's multipliers for the fields of a `fieldsplit` preconditioner; a system
-    /// set up with other fields is set up again.
+    /// Keeps the split's multipliers for the fields of a `fieldsplit` preconditioner (a system
+    /// set up with other fields is set up again at the next factorisation), and gives the split
+    /// to the augmented Lagrangian, if any.
     fn set_split(&mut self, split: SaddlePointSplit) {
         let n = split.multipliers.iter().flat_map(|b| b.dofs.iter().map(|&d| d + 1)).max().unwrap_or(0);
         let mut multipliers = vec![false; n];
         for &d in split.multipliers.iter().flat_map(|b| &b.dofs) {
             multipliers[d] = true;
         }
-        if self.multipliers.as_ref() != Some(&multipliers) {
-            self.multipliers = Some(multipliers);
-            self.system = None;
+        self.multipliers = Some(multipliers);
+        if let Some(al) = self.al.as_mut() {
+            al.set_split(split);
         }
     }
 }
@@ -308,27 +360,54 @@ struct PetscSystem {
     csc_of_csr: Vec<usize>,
     values: Vec<f64>,
     world: World,
-    /// This rank's rows of each of [`FIELDS`] (none without a split), given to the
-    /// preconditioner at the first factorisation.
+    /// Which unknowns are in the second of [`FIELDS`] (as given; none without a split), this
+    /// rank's rows of each field, given to the preconditioner at the first factorisation, and
+    /// each unknown's index in the second field (its rank's rows after the lower ranks').
+    field_mask: Option<Vec<bool>>,
     fields: Option<[Vec<PetscInt>; 2]>,
     fields_set: bool,
+    second_index: Vec<PetscInt>,
     handles: Handles,
+    /// The shell preconditioner's context: a copy of `handles.shell` at a fixed address.
+    shell_context: Box<Shell>,
 }
 
-/// PETSc's objects of a [`PetscSystem`].
+/// PETSc's objects of a [`PetscSystem`]; with the augmented Lagrangian also `T K`, `T`, the
+/// field split on `T K` and a work vector, which the `KSP`'s shell preconditioner
+/// ([`apply_augmented_lagrangian`]) uses (null otherwise).
 struct Handles {
     mat: ffi::Mat,
     b: ffi::Vec,
     x: ffi::Vec,
     ksp: ffi::Ksp,
+    shell: Shell,
+}
+
+/// What the shell preconditioner [`apply_augmented_lagrangian`] applies: `z = U^-1 T r`.
+#[derive(Clone, Copy)]
+struct Shell {
+    tk: ffi::Mat,
+    t: ffi::Mat,
+    inner: ffi::Pc,
+    work: ffi::Vec,
+}
+
+impl Shell {
+    const NONE: Shell = Shell { tk: null_mut(), t: null_mut(), inner: null_mut(), work: null_mut() };
 }
 
 impl Handles {
-    /// Destroys the objects (the caller holds the lock): the solver first, the matrix last.
+    const NONE: Handles = Handles { mat: null_mut(), b: null_mut(), x: null_mut(), ksp: null_mut(), shell: Shell::NONE };
+
+    /// Destroys the objects (the caller holds the lock): the solvers first, the matrices last.
     fn destroy(&mut self) {
         // SAFETY: each handle is valid or null; PETSc's destroy calls accept null and set it.
         unsafe {
             ffi::KSPDestroy(&mut self.ksp);
+            ffi::PCDestroy(&mut self.shell.inner);
+            ffi::VecDestroy(&mut self.shell.work);
+            ffi::MatDestroy(&mut self.shell.t);
+            ffi::MatDestroy(&mut self.shell.tk);
             ffi::VecDestroy(&mut self.b);
             ffi::VecDestroy(&mut self.x);
             ffi::MatDestroy(&mut self.mat);
@@ -336,11 +415,59 @@ impl Handles {
     }
 }
 
+/// The options prefix of the augmented Lagrangian's field split (the shell's inner
+/// preconditioner): `-fdfsi_al_pc_fieldsplit_type`, `-fdfsi_al_fieldsplit_primal_pc_type`, ...
+pub const AL_OPTIONS_PREFIX: &str = "fdfsi_al_";
+
+/// The shell preconditioner of [`PetscSolver::augmented_lagrangian`]: `y = U^-1 (T x)`, `T` by a
+/// matrix product and `U^-1` by the field split on `T K` (PETSc calls this inside `KSPSolve`,
+/// under the caller's lock; no panic can cross it).
+extern "C" fn apply_augmented_lagrangian(pc: ffi::Pc, x: ffi::Vec, y: ffi::Vec) -> ffi::PetscErrorCode {
+    let mut context: *mut std::ffi::c_void = null_mut();
+    // SAFETY: the context is the `Shell` of a live `PetscSystem` (set with this callback, and
+    // the system outlives its KSP); its handles are valid.
+    unsafe {
+        let code = ffi::PCShellGetContext(pc, (&mut context as *mut *mut std::ffi::c_void).cast());
+        if code != 0 || context.is_null() {
+            return if code != 0 { code } else { 1 };
+        }
+        let shell = *(context as *const Shell);
+        let code = ffi::MatMult(shell.t, x, shell.work);
+        if code != 0 {
+            return code;
+        }
+        ffi::PCApply(shell.inner, shell.work, y)
+    }
+}
+
+/// A new AIJ matrix on `MPI_COMM_WORLD` of `size` unknowns, this rank's `local` rows given in
+/// CSR (global, increasing column indices), preallocated exactly (the caller holds the lock;
+/// collective).
+fn create_aij(local: PetscInt, size: PetscInt, row_ptr: &[PetscInt], cols: &[PetscInt], vals: &[f64]) -> Result<ffi::Mat, LinearSolveError> {
+    let aij = CString::new("aij").expect("no NUL");
+    let mut mat = null_mut();
+    // SAFETY: PETSc copies the CSR arrays; on failure the matrix is destroyed here.
+    unsafe {
+        let (r, c, v) = (row_ptr.as_ptr(), cols.as_ptr(), vals.as_ptr());
+        let made = check(ffi::MatCreate(ffi::comm_world(), &mut mat), "MatCreate")
+            .and_then(|_| check(ffi::MatSetSizes(mat, local, local, size, size), "MatSetSizes"))
+            .and_then(|_| check(ffi::MatSetType(mat, aij.as_ptr()), "MatSetType"))
+            .and_then(|_| check(ffi::MatSeqAIJSetPreallocationCSR(mat, r, c, v), "MatSeqAIJSetPreallocationCSR"))
+            .and_then(|_| check(ffi::MatMPIAIJSetPreallocationCSR(mat, r, c, v), "MatMPIAIJSetPreallocationCSR"))
+            .and_then(|_| check(ffi::MatSetOption(mat, ffi::MAT_NO_OFF_PROC_ENTRIES, 1), "MatSetOption"));
+        if let Err(e) = made {
+            ffi::MatDestroy(&mut mat);
+            return Err(e);
+        }
+    }
+    Ok(mat)
+}
+
 impl PetscSystem {
     /// The CSR copy of this rank's rows of `pattern` (in increasing column order, as PETSc
     /// requires), the matrix preallocated from it and the `KSP` on it, its options read at each
     /// factorisation (the caller holds the lock; collective over the ranks).
-    fn new(pattern: &Pattern, world: World, multipliers: Option<&[bool]>) -> Result<Self, LinearSolveError> {
+    fn new(pattern: &Pattern, world: World, multipliers: Option<&[bool]>, augmented: bool) -> Result<Self, LinearSolveError> {
         let n = pattern.n;
         let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {} entries exceed PETSc's integer range", pattern.nnz()));
         let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
@@ -374,6 +501,18 @@ impl PetscSystem {
             let of = |multiplier: bool| rows.clone().filter(|&i| m.get(i).copied().unwrap_or(false) == multiplier).map(|i| i as PetscInt).collect();
             [of(false), of(true)]
         });
+        let second_index = multipliers.map_or_else(Vec::new, |m| {
+            let mut next = 0;
+            (0..n)
+                .map(|i| match m.get(i) {
+                    Some(true) => {
+                        next += 1;
+                        next - 1
+                    }
+                    _ => -1,
+                })
+                .collect()
+        });
         let mut system = PetscSystem {
             col_ptr: pattern.col_ptr.clone(),
             row_idx: pattern.row_idx.clone(),
@@ -383,25 +522,33 @@ impl PetscSystem {
             csc_of_csr,
             values: vec![0.0; nnz],
             world,
+            field_mask: multipliers.map(<[bool]>::to_vec),
             fields,
             fields_set: false,
-            handles: Handles { mat: null_mut(), b: null_mut(), x: null_mut(), ksp: null_mut() },
+            second_index,
+            handles: Handles::NONE,
+            shell_context: Box::new(Shell::NONE),
         };
         let prefix = CString::new(OPTIONS_PREFIX).expect("no NUL");
-        let aij = CString::new("aij").expect("no NUL");
+        let al_prefix = CString::new(AL_OPTIONS_PREFIX).expect("no NUL");
         let s = &system;
-        let mut h = Handles { mat: null_mut(), b: null_mut(), x: null_mut(), ksp: null_mut() };
+        let mut h = Handles::NONE;
         // SAFETY: PETSc copies the CSR arrays; the handles start null; the vectors get their
         // arrays placed for each solve.
         let created = unsafe {
             let comm = ffi::comm_world();
-            let (rows, cols, vals) = (s.row_ptr.as_ptr(), s.col_idx.as_ptr(), s.values.as_ptr());
-            check(ffi::MatCreate(comm, &mut h.mat), "MatCreate")
-                .and_then(|_| check(ffi::MatSetSizes(h.mat, local, local, size, size), "MatSetSizes"))
-                .and_then(|_| check(ffi::MatSetType(h.mat, aij.as_ptr()), "MatSetType"))
-                .and_then(|_| check(ffi::MatSeqAIJSetPreallocationCSR(h.mat, rows, cols, vals), "MatSeqAIJSetPreallocationCSR"))
-                .and_then(|_| check(ffi::MatMPIAIJSetPreallocationCSR(h.mat, rows, cols, vals), "MatMPIAIJSetPreallocationCSR"))
-                .and_then(|_| check(ffi::MatSetOption(h.mat, ffi::MAT_NO_OFF_PROC_ENTRIES, 1), "MatSetOption"))
+            create_aij(local, size, &s.row_ptr, &s.col_idx, &s.values)
+                .map(|m| h.mat = m)
+                .and_then(|_| match augmented {
+                    true => create_aij(local, size, &s.row_ptr, &s.col_idx, &s.values).map(|m| h.shell.tk = m),
+                    false => Ok(()),
+                })
+                .and_then(|_| match augmented {
+                    true => check(ffi::PCCreate(comm, &mut h.shell.inner), "PCCreate")
+                        .and_then(|_| check(ffi::PCSetOptionsPrefix(h.shell.inner, al_prefix.as_ptr()), "PCSetOptionsPrefix"))
+                        .and_then(|_| check(ffi::VecCreateMPI(comm, local, size, &mut h.shell.work), "VecCreateMPI")),
+                    false => Ok(()),
+                })
                 .and_then(|_| check(ffi::VecCreateMPIWithArray(comm, 1, local, size, null(), &mut h.b), "VecCreateMPIWithArray"))
                 .and_then(|_| check(ffi::VecCreateMPIWithArray(comm, 1, local, size, null(), &mut h.x), "VecCreateMPIWithArray"))
                 .and_then(|_| check(ffi::KSPCreate(comm, &mut h.ksp), "KSPCreate"))
@@ -421,8 +568,11 @@ impl PetscSystem {
         }
     }
 
-    fn is_for(&self, pattern: &Pattern) -> bool {
-        self.col_ptr == pattern.col_ptr && self.row_idx == pattern.row_idx
+    fn is_for(&self, pattern: &Pattern, fields: Option<&[bool]>, augmented: bool) -> bool {
+        self.col_ptr == pattern.col_ptr
+            && self.row_idx == pattern.row_idx
+            && self.field_mask.as_deref() == fields
+            && self.handles.shell.tk.is_null() != augmented
     }
 
     /// Number of unknowns.
@@ -430,15 +580,12 @@ impl PetscSystem {
         self.col_ptr.len() - 1
     }
 
-    /// Copies this rank's rows of `values` (in CSC order) into the matrix and sets the `KSP` up
-    /// from the options database: for the default options, MUMPS's factorisation (the caller
-    /// holds the lock and has set the solver's options; collective).
-    fn factorize(&mut self, values: &[f64]) -> Result<(), LinearSolveError> {
+    /// Copies this rank's rows of `values` (in the pattern's CSC order) into `mat` (the caller
+    /// holds the lock; collective).
+    fn load(&mut self, mat: ffi::Mat, values: &[f64]) -> Result<(), LinearSolveError> {
         for (v, &k) in self.values.iter_mut().zip(&self.csc_of_csr) {
             *v = values[k];
         }
-        let (mut pc, mut failed) = (null_mut(), 0);
-        let h = &self.handles;
         // SAFETY: the matrix is valid and was preallocated with exactly these rows and columns;
         // each row's slice of the CSR arrays lies within them.
         unsafe {
@@ -446,21 +593,64 @@ impl PetscSystem {
                 let (start, end) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
                 let row = row as PetscInt;
                 let (cols, vals) = (self.col_idx[start..].as_ptr(), self.values[start..].as_ptr());
-                check(ffi::MatSetValues(h.mat, 1, &row, (end - start) as PetscInt, cols, vals, ffi::INSERT_VALUES), "MatSetValues")?;
+                check(ffi::MatSetValues(mat, 1, &row, (end - start) as PetscInt, cols, vals, ffi::INSERT_VALUES), "MatSetValues")?;
             }
-            check(ffi::MatAssemblyBegin(h.mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
-            check(ffi::MatAssemblyEnd(h.mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")?;
-            check(ffi::KSPSetOperators(h.ksp, h.mat, h.mat), "KSPSetOperators")?;
-            check(ffi::KSPSetFromOptions(h.ksp), "KSPSetFromOptions")?;
-            check(ffi::KSPGetPC(h.ksp, &mut pc), "KSPGetPC")?;
+            check(ffi::MatAssemblyBegin(mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
+            check(ffi::MatAssemblyEnd(mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")
+        }
+    }
+
+    /// Copies this rank's rows of `values` (in CSC order) into the matrix and sets the `KSP` up
+    /// from the options database: for the default options, MUMPS's factorisation. With `al`
+    /// (the augmented Lagrangian's transformed system, on this system's pattern), `values` are
+    /// ignored: the matrix is `K`, and its preconditioner a shell ([`apply_augmented_lagrangian`])
+    /// around the field split of `T K`, whose Schur complement is preconditioned by the
+    /// block-diagonal `S_p` (the caller holds the lock and has set the solver's options;
+    /// collective).
+    fn factorize(&mut self, values: &[f64], al: Option<&TransformedSystem<'_>>) -> Result<(), LinearSolveError> {
+        let (mat, tk, ksp) = (self.handles.mat, self.handles.shell.tk, self.handles.ksp);
+        self.load(mat, al.map_or(values, |t| &t.k_values))?;
+        let (mut pc, mut failed) = (null_mut(), 0);
+        let shell_type = CString::new("shell").expect("no NUL");
+        // SAFETY: the handles are valid (`tk` and the shell's with `al` only); the shell's
+        // context is boxed in `self`, which outlives the KSP.
+        unsafe {
+            check(ffi::KSPSetOperators(ksp, mat, mat), "KSPSetOperators")?;
+            check(ffi::KSPSetFromOptions(ksp), "KSPSetFromOptions")?;
+            check(ffi::KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
+            let split = match al {
+                Some(t) => {
+                    self.load(tk, &t.values)?;
+                    let mut transform = self.transform_matrix(&t.transform)?;
+                    std::mem::swap(&mut self.handles.shell.t, &mut transform);
+                    ffi::MatDestroy(&mut transform);
+                    *self.shell_context = self.handles.shell;
+                    check(ffi::PCSetType(pc, shell_type.as_ptr()), "PCSetType")?;
+                    check(ffi::PCShellSetApply(pc, apply_augmented_lagrangian), "PCShellSetApply")?;
+                    check(ffi::PCShellSetContext(pc, (&mut *self.shell_context as *mut Shell).cast()), "PCShellSetContext")?;
+                    let inner = self.handles.shell.inner;
+                    check(ffi::PCSetOperators(inner, tk, tk), "PCSetOperators")?;
+                    check(ffi::PCSetFromOptions(inner), "PCSetFromOptions")?;
+                    inner
+                }
+                None => pc,
+            };
             if !self.fields_set {
                 if let Some(fields) = &self.fields {
-                    set_fields(pc, fields)?;
+                    set_fields(split, fields)?;
                 }
                 self.fields_set = true;
             }
-            check(ffi::KSPSetUp(h.ksp), "KSPSetUp (the factorisation)")?;
-            check(ffi::PCGetFailedReason(pc, &mut failed), "PCGetFailedReason")?;
+            if let Some(t) = al {
+                let mut sp = self.schur_matrix(&t.schur_blocks)?;
+                let set = check(ffi::PCFieldSplitSetSchurPre(split, ffi::PC_FIELDSPLIT_SCHUR_PRE_USER, sp), "PCFieldSplitSetSchurPre");
+                ffi::MatDestroy(&mut sp);
+                set?;
+                check(ffi::PCSetUp(split), "PCSetUp (the augmented Lagrangian's field split)")?;
+                check(ffi::PCSetUpOnBlocks(split), "PCSetUpOnBlocks (the factorisation of the augmented block)")?;
+            }
+            check(ffi::KSPSetUp(ksp), "KSPSetUp (the factorisation)")?;
+            check(ffi::PCGetFailedReason(split, &mut failed), "PCGetFailedReason")?;
         }
         if failed != 0 {
             return Err(LinearSolveError::Numeric(format!(
@@ -468,6 +658,31 @@ impl PetscSystem {
             )));
         }
         Ok(())
+    }
+
+    /// `T = I + (T - I)` from the entries of `T - I` (`(row, column, value)`), this rank's rows
+    /// (the caller holds the lock and destroys it; collective).
+    fn transform_matrix(&self, off_diagonal: &[(usize, usize, f64)]) -> Result<ffi::Mat, LinearSolveError> {
+        let mut entries: Vec<(usize, usize, f64)> = off_diagonal.iter().copied().filter(|(i, _, _)| self.rows.contains(i)).collect();
+        entries.extend(self.rows.clone().map(|i| (i, i, 1.0)));
+        entries.sort_unstable_by_key(|&(i, j, _)| (i, j));
+        let mut row_ptr: Vec<PetscInt> = vec![0; self.rows.len() + 1];
+        let (mut cols, mut vals): (Vec<PetscInt>, Vec<f64>) = (Vec::with_capacity(entries.len()), Vec::with_capacity(entries.len()));
+        let mut last = None;
+        for (i, j, v) in entries {
+            if last == Some((i, j)) {
+                *vals.last_mut().expect("an entry before") += v;
+                continue;
+            }
+            last = Some((i, j));
+            cols.push(j as PetscInt);
+            vals.push(v);
+            row_ptr[i - self.rows.start + 1] = cols.len() as PetscInt;
+        }
+        for k in 1..row_ptr.len() {
+            row_ptr[k] = row_ptr[k].max(row_ptr[k - 1]);
+        }
+        create_aij(self.rows.len() as PetscInt, self.n() as PetscInt, &row_ptr, &cols, &vals)
     }
 
     /// Solves for `x` (all of it on every rank) with right-hand side `b` (of which this rank
@@ -499,6 +714,36 @@ impl PetscSystem {
         }
         self.world.all_gather(x)?;
         Ok(if reason == ffi::KSP_CONVERGED_ITS { 0 } else { iterations as usize })
+    }
+}
+
+impl PetscSystem {
+    /// The block-diagonal matrix of `blocks` (unknowns of the second field, increasing, and
+    /// their dense blocks, row-major) in the second field's numbering, this rank's rows (the
+    /// caller holds the lock and destroys it; collective).
+    fn schur_matrix(&self, blocks: &[(Vec<usize>, Vec<f64>)]) -> Result<ffi::Mat, LinearSolveError> {
+        let owned = self.fields.as_ref().map_or(&[][..], |f| &f[1][..]);
+        let total = self.second_index.iter().filter(|&&i| i >= 0).count() as PetscInt;
+        // This rank's rows: (unknown, block, row in it), by unknown.
+        let mut rows: Vec<(usize, usize, usize)> = blocks
+            .iter()
+            .enumerate()
+            .flat_map(|(b, (dofs, _))| dofs.iter().enumerate().filter(|(_, d)| self.rows.contains(d)).map(move |(r, &d)| (d, b, r)))
+            .collect();
+        rows.sort_unstable();
+        if rows.len() != owned.len() || rows.iter().zip(owned).any(|(r, &o)| r.0 as PetscInt != o) {
+            return Err(LinearSolveError::Petsc("the Schur blocks do not cover the second field's unknowns once each".into()));
+        }
+        let mut row_ptr: Vec<PetscInt> = vec![0];
+        let (mut cols, mut vals) = (Vec::new(), Vec::new());
+        for &(_, b, r) in &rows {
+            let (dofs, block) = &blocks[b];
+            let m = dofs.len();
+            cols.extend(dofs.iter().map(|&d| self.second_index[d]));
+            vals.extend_from_slice(&block[r * m..(r + 1) * m]);
+            row_ptr.push(cols.len() as PetscInt);
+        }
+        create_aij(owned.len() as PetscInt, total, &row_ptr, &cols, &vals)
     }
 }
 
