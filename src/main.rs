@@ -202,13 +202,12 @@ fn error_report(e: &anyhow::Error) -> String {
 /// (`[solver.linear] method = "petsc"`, the `petsc` feature) and does everything else on every
 /// rank alike (the meshes, the adaptation and the assembly are replicated); rank 0 writes the
 /// results and the log, each other rank writes its copy into a private folder `OUT/.rankN`,
-/// removed at the end. Ctrl-C stops such a run at once (mpirun ends every rank): checkpoints
+/// removed at the end. Ctrl-C stops a run mpirun started at once (mpirun ends every rank): checkpoints
 /// (`--checkpoint-every`) are the way to resume it.
 struct Ranks {
     rank: usize,
     size: usize,
     /// Started by mpirun: MPI is ended (or the run aborted on every rank) at the end.
-    #[cfg_attr(not(feature = "petsc"), allow(dead_code, reason = "MPI comes with the petsc feature"))]
     launched: bool,
 }
 
@@ -322,7 +321,7 @@ fn run(request: RunRequest, ranks: &Ranks, quiet: bool, verbose: bool) -> Result
     options.ranks = ranks.size;
     options.checkpoint_every = checkpoint_every.map(|n| n as usize);
     options.start_from = start_from.map(fdfsi::run::StartFrom::read).transpose()?;
-    if ranks.size == 1 {
+    if !ranks.launched {
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         ctrlc::set_handler(move || {

@@ -42,6 +42,16 @@ fn compare<const D: usize>(label: &str, disc: &FlowDiscretization<D>, problem: &
     iterations
 }
 
+/// Schaefer-Turek 2D-1's case, discretisation (P2+/P1disc, 36 596 unknowns) and problem on the
+/// coarse mesh.
+fn schaefer_turek_coarse() -> (Case, FlowDiscretization<2>, FlowProblem<2>) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
+    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
+    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
+    (case, FlowDiscretization::build(mesh, Formulation::Plane).unwrap(), problem)
+}
+
 /// Schaefer-Turek 2D-1 (Navier-Stokes, P2+/P1disc, 36 596 unknowns) and the 3D Stokes
 /// verification problem (4^3 cubes): MUMPS through PETSc gives fdfsi's solutions; a Krylov
 /// method chosen by options (GMRES preconditioned by MUMPS's LU) too, iterating. Each solver
@@ -49,11 +59,7 @@ fn compare<const D: usize>(label: &str, disc: &FlowDiscretization<D>, problem: &
 /// tests' solvers, which run on other threads meanwhile.
 #[test]
 fn petsc_solves_the_systems_fdfsi_factorises() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
-    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
-    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
-    let disc = FlowDiscretization::build(mesh, Formulation::Plane).unwrap();
+    let (_, disc, problem) = schaefer_turek_coarse();
     let direct = compare("Schaefer-Turek 2D-1, MUMPS", &disc, &problem, &mut PetscSolver::new("", 1e-8), 1e-9);
     assert_eq!(direct, 0, "a direct solve reports no Krylov iterations");
     let gmres = "-fdfsi_ksp_type gmres -fdfsi_ksp_rtol 1e-13";
@@ -72,11 +78,7 @@ fn petsc_solves_the_systems_fdfsi_factorises() {
 /// LU solutions.
 #[test]
 fn a_fieldsplit_preconditioner_gets_the_saddle_point_fields() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
-    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
-    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
-    let disc = FlowDiscretization::build(mesh, Formulation::Plane).unwrap();
+    let (_, disc, problem) = schaefer_turek_coarse();
     let options = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-12 -fdfsi_ksp_max_it 50 -fdfsi_pc_type fieldsplit \
         -fdfsi_pc_fieldsplit_type schur -fdfsi_pc_fieldsplit_schur_fact_type full -fdfsi_pc_fieldsplit_schur_precondition selfp \
         -fdfsi_fieldsplit_primal_ksp_type preonly -fdfsi_fieldsplit_primal_pc_type lu -fdfsi_fieldsplit_primal_pc_factor_mat_solver_type mumps \
@@ -101,11 +103,7 @@ fn a_fieldsplit_preconditioner_gets_the_saddle_point_fields() {
 /// step on this mesh, BENCHMARKS.md).
 #[test]
 fn the_augmented_lagrangian_through_petsc_solves_as_fdfsis() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
-    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
-    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
-    let disc = FlowDiscretization::build(mesh, Formulation::Plane).unwrap();
+    let (case, disc, problem) = schaefer_turek_coarse();
     let al = case.solver.linear.al_options(false, Formulation::Plane);
     let mut solver = PetscSolver::augmented_lagrangian(al, "-fdfsi_ksp_rtol 1e-13", 1e-8);
     solver.set_split(disc.saddle_point_split(Formulation::Plane).unwrap());
@@ -139,6 +137,14 @@ fn petsc_errors_are_errors() {
     assert!((x[0] - 0.0).abs() < 1e-15 && (x[1] - 1.0).abs() < 1e-15, "{x:?}");
     let e = solver.solve_in_place(&regular, &mut [1.0]).unwrap_err();
     assert!(e.to_string().contains("right-hand side of 1"), "{e}");
+    // Without a split (a solid alone) the augmented-Lagrangian solver solves as the default
+    // one: MUMPS, directly (FGMRES would report an iteration).
+    let mut al = PetscSolver::augmented_lagrangian(fdfsi::solve::augmented::AlOptions::default(), "", 1e-8);
+    al.factorize(&regular).unwrap();
+    let mut x = [1.0, 2.0];
+    let stats = al.solve_in_place(&regular, &mut x).unwrap();
+    assert_eq!(stats.krylov_iterations, 0, "a direct solve");
+    assert!((x[0] - 0.0).abs() < 1e-15 && (x[1] - 1.0).abs() < 1e-15, "{x:?}");
 }
 
 /// Runs with `[solver.linear] method = "petsc"` (MUMPS through PETSc) give the direct solve's

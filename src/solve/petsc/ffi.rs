@@ -6,7 +6,8 @@
 //! Types: `PetscInt` is 32-bit unless PETSc was built with 64-bit indices (`cfg(petsc_int64)`,
 //! set by `build.rs`); `PetscScalar` is `f64` (a real build: `build.rs` refuses a complex one);
 //! `MPI_Comm` is Open MPI's, a pointer (`build.rs` checks PETSc was built on Open MPI, and links
-//! Open MPI for the two calls of its own made here: the thread level and `MPI_COMM_SELF`).
+//! Open MPI for the MPI calls of its own made here: start and end, rank and size, the gather of
+//! the solution and the reduction of failures on `MPI_COMM_WORLD`).
 
 use std::ffi::{c_char, c_int, c_void};
 
@@ -50,7 +51,7 @@ pub const MPI_IN_PLACE: *const c_void = std::ptr::without_provenance(1);
 
 /// Open MPI's predefined objects (`struct ompi_predefined_communicator_t`, `..._datatype_t`;
 /// opaque here): `MPI_COMM_WORLD` is the address of `ompi_mpi_comm_world`, `MPI_DOUBLE` of
-/// `ompi_mpi_double`.
+/// `ompi_mpi_double`, `MPI_INT` of `ompi_mpi_int`, `MPI_MAX` of `ompi_mpi_op_max`.
 #[repr(C)]
 pub struct OmpiObject {
     _private: [u8; 0],
@@ -59,6 +60,8 @@ pub struct OmpiObject {
 extern "C" {
     static ompi_mpi_comm_world: OmpiObject;
     static ompi_mpi_double: OmpiObject;
+    static ompi_mpi_int: OmpiObject;
+    static ompi_mpi_op_max: OmpiObject;
     pub fn MPI_Initialized(flag: *mut c_int) -> c_int;
     pub fn MPI_Finalized(flag: *mut c_int) -> c_int;
     pub fn MPI_Init_thread(argc: *mut c_int, argv: *mut *mut *mut c_char, required: c_int, provided: *mut c_int) -> c_int;
@@ -66,6 +69,7 @@ extern "C" {
     pub fn MPI_Abort(comm: MpiComm, code: c_int) -> c_int;
     pub fn MPI_Comm_rank(comm: MpiComm, rank: *mut c_int) -> c_int;
     pub fn MPI_Comm_size(comm: MpiComm, size: *mut c_int) -> c_int;
+    pub fn MPI_Allreduce(send: *const c_void, receive: *mut c_void, count: c_int, datatype: MpiDatatype, op: MpiOp, comm: MpiComm) -> c_int;
     pub fn MPI_Allgatherv(
         send: *const c_void,
         send_count: c_int,
@@ -78,8 +82,9 @@ extern "C" {
     ) -> c_int;
 }
 
-/// Open MPI's `MPI_Datatype` (a pointer).
+/// Open MPI's `MPI_Datatype` and `MPI_Op` (pointers).
 pub type MpiDatatype = *mut c_void;
+pub type MpiOp = *mut c_void;
 
 /// `MPI_COMM_WORLD`: all the ranks `mpirun` started (one alone without it).
 pub fn comm_world() -> MpiComm {
@@ -90,6 +95,16 @@ pub fn comm_world() -> MpiComm {
 /// `MPI_DOUBLE`.
 pub fn mpi_double() -> MpiDatatype {
     std::ptr::addr_of!(ompi_mpi_double) as MpiDatatype
+}
+
+/// `MPI_INT`.
+pub fn mpi_int() -> MpiDatatype {
+    std::ptr::addr_of!(ompi_mpi_int) as MpiDatatype
+}
+
+/// `MPI_MAX`.
+pub fn mpi_max() -> MpiOp {
+    std::ptr::addr_of!(ompi_mpi_op_max) as MpiOp
 }
 
 extern "C" {

@@ -60,7 +60,8 @@ pub const DEFAULT_OPTIONS: &str = "-fdfsi_ksp_type preonly -fdfsi_pc_type lu -fd
 /// The options [`PetscSolver::augmented_lagrangian`] starts from: FGMRES (right-preconditioned)
 /// to `1e-10` with the field split [`FIELDS`] as an upper block-triangular Schur factorisation,
 /// the primal block `A_gamma` by MUMPS's LU, the Schur block by `S_p` (block diagonal: block
-/// Jacobi per rank, ILU(0) within, exact on its blocks, with no zero-pivot threshold: the
+/// Jacobi per rank, ILU(0) within, exact on its blocks but for a group that a rank boundary of
+/// [`owned_rows`] cuts, about one per boundary; with no zero-pivot threshold: the
 /// entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on the medium Schaefer-Turek mesh,
 /// below PETSc's absolute default of 2.2e-14); the same preconditioner as `solve::augmented`'s.
 pub const AUGMENTED_LAGRANGIAN_OPTIONS: &str = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-10 -fdfsi_ksp_max_it 200 -fdfsi_ksp_gmres_restart 200 \
@@ -258,11 +259,13 @@ impl PetscSolver {
     }
 
     /// The augmented-Lagrangian preconditioner of `solve::augmented` (with `al`'s weight and
-    /// placements) as PETSc's field split: each system with a split is handed over transformed
-    /// (`T K y = T b`, [`crate::solve::augmented::TransformedSystem`]), with the fields
-    /// [`FIELDS`] (the primal unknowns with the multipliers kept primal, and the multipliers of
-    /// the Schur block) and the Schur block's matrix `S_p`, under [`AUGMENTED_LAGRANGIAN_OPTIONS`]
-    /// and then `options`. A system without a split is solved as by [`PetscSolver::new`].
+    /// placements) in PETSc: for each system with a split, FGMRES on `K y = b`, right-
+    /// preconditioned by a shell that applies `T` and then the Schur field split of `T K`
+    /// ([`crate::solve::augmented::TransformedSystem`]: fields [`FIELDS`], the primal unknowns
+    /// with the multipliers kept primal and the multipliers of the Schur block, and the Schur
+    /// block's matrix `S_p`), under [`AUGMENTED_LAGRANGIAN_OPTIONS`] and then `options`. A system
+    /// without a split (a solid alone) is solved as by [`PetscSolver::new`] (MUMPS, then
+    /// `options`).
     pub fn augmented_lagrangian(al: AlOptions, options: &str, fail_tolerance: f64) -> Self {
         PetscSolver { defaults: AUGMENTED_LAGRANGIAN_OPTIONS, al: Some(AugmentedLagrangian::new(al)), ..Self::new(options, fail_tolerance) }
     }
@@ -288,7 +291,7 @@ impl LinearSolver for PetscSolver {
         }
         let system = self.system.as_mut().expect("set above");
         let _petsc = lock();
-        set_options(self.defaults, &self.options)?;
+        set_options(if augmented { self.defaults } else { DEFAULT_OPTIONS }, &self.options)?;
         system.factorize(&a.values, transformed.as_ref())
     }
 
@@ -307,7 +310,7 @@ impl LinearSolver for PetscSolver {
         let mut petsc_b = b.clone();
         let iterations = {
             let _petsc = lock();
-            set_options(self.defaults, &self.options)?;
+            set_options(if system.is_augmented() { self.defaults } else { DEFAULT_OPTIONS }, &self.options)?;
             system.solve(&mut petsc_b, rhs)?
         };
         let mut r = vec![0.0; b.len()];
@@ -569,10 +572,12 @@ impl PetscSystem {
     }
 
     fn is_for(&self, pattern: &Pattern, fields: Option<&[bool]>, augmented: bool) -> bool {
-        self.col_ptr == pattern.col_ptr
-            && self.row_idx == pattern.row_idx
-            && self.field_mask.as_deref() == fields
-            && self.handles.shell.tk.is_null() != augmented
+        self.col_ptr == pattern.col_ptr && self.row_idx == pattern.row_idx && self.field_mask.as_deref() == fields && self.is_augmented() == augmented
+    }
+
+    /// Whether this is an augmented Lagrangian's system ([`PetscSolver::augmented_lagrangian`]).
+    fn is_augmented(&self) -> bool {
+        !self.handles.shell.tk.is_null()
     }
 
     /// Number of unknowns.
@@ -651,6 +656,20 @@ impl PetscSystem {
             }
             check(ffi::KSPSetUp(ksp), "KSPSetUp (the factorisation)")?;
             check(ffi::PCGetFailedReason(split, &mut failed), "PCGetFailedReason")?;
+            // The reason is this rank's: a failure on one rank fails every rank (else their
+            // Newton solves would part and wait for each other).
+            let local = failed;
+            if ffi::MPI_Allreduce(
+                (&local as *const c_int).cast(),
+                (&mut failed as *mut c_int).cast(),
+                1,
+                ffi::mpi_int(),
+                ffi::mpi_max(),
+                ffi::comm_world(),
+            ) != 0
+            {
+                return Err(LinearSolveError::Petsc("MPI_Allreduce of the set-up's failure failed".into()));
+            }
         }
         if failed != 0 {
             return Err(LinearSolveError::Numeric(format!(
