@@ -736,23 +736,19 @@ impl AugmentedLagrangian {
             let m = qs.len();
             let minv = &s.minv[offset..offset + m * m];
             // T - I: sigma gamma_g B'_g M_g^-1.
-            for (ii, &fi) in g.coupled.iter().enumerate() {
-                let bt = &ops.bt[ii * m..(ii + 1) * m];
-                for (b, &q) in qs.iter().enumerate() {
-                    transform.push((s.f_dofs[fi], q, sigma * gamma_g * (0..m).map(|a| bt[a] * minv[a * m + b]).sum::<f64>()));
-                }
-            }
             // C_g (m x the columns its rows reach, row-major) from K.
             let columns = &t.group_columns[gi];
             let nc = columns.len();
             let c: Vec<f64> = (0..m * nc).map(|k| a.get(qs[k / nc], columns[k % nc])).collect();
-            if c.iter().any(|&v| v != 0.0) {
-                for (ii, &fi) in g.coupled.iter().enumerate() {
-                    let bt = &ops.bt[ii * m..(ii + 1) * m];
-                    // (B'_g M^-1)_ii, then times C_g.
-                    let w: Vec<f64> = (0..m).map(|b| (0..m).map(|a| bt[a] * minv[a * m + b]).sum()).collect();
+            let with_c = c.iter().any(|&v| v != 0.0);
+            for (ii, &fi) in g.coupled.iter().enumerate() {
+                let bt = &ops.bt[ii * m..(ii + 1) * m];
+                // Row ii of sigma gamma_g B'_g M_g^-1: of T - I, and times C_g of (T K)_FQ.
+                let w: Vec<f64> = (0..m).map(|b| sigma * gamma_g * (0..m).map(|a| bt[a] * minv[a * m + b]).sum::<f64>()).collect();
+                transform.extend(qs.iter().zip(&w).map(|(&q, &v)| (s.f_dofs[fi], q, v)));
+                if with_c {
                     for (cj, &q) in columns.iter().enumerate() {
-                        let add = sigma * gamma_g * (0..m).map(|b| w[b] * c[b * nc + cj]).sum::<f64>();
+                        let add = (0..m).map(|b| w[b] * c[b * nc + cj]).sum::<f64>();
                         if add != 0.0 {
                             values[t.pattern.find(s.f_dofs[fi], q).expect("merged in")] += add;
                         }
@@ -954,26 +950,15 @@ impl TransformedPattern {
         let mut col_ptr = vec![0];
         let mut row_idx = Vec::with_capacity(p.nnz() + s.pattern.nnz() - s.ff_pos.iter().filter(|&&k| k != usize::MAX).count());
         for j in 0..n {
-            let start = row_idx.len();
-            row_idx.extend_from_slice(&p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]]);
+            let mut column = p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].to_vec();
             let jl = s.f_local[j];
             if jl != usize::MAX {
-                row_idx.extend(s.pattern.row_idx[s.pattern.col_ptr[jl]..s.pattern.col_ptr[jl + 1]].iter().map(|&il| s.f_dofs[il]));
+                column.extend(s.pattern.row_idx[s.pattern.col_ptr[jl]..s.pattern.col_ptr[jl + 1]].iter().map(|&il| s.f_dofs[il]));
             }
-            row_idx.extend_from_slice(&extra[j]);
-            let column = &mut row_idx[start..];
+            column.extend_from_slice(&extra[j]);
             column.sort_unstable();
-            let len = {
-                let mut w = 0;
-                for r in 0..column.len() {
-                    if r == 0 || column[r] != column[w - 1] {
-                        column[w] = column[r];
-                        w += 1;
-                    }
-                }
-                w
-            };
-            row_idx.truncate(start + len);
+            column.dedup();
+            row_idx.extend(column);
             col_ptr.push(row_idx.len());
         }
         let pattern = Pattern { n, col_ptr, row_idx };

@@ -212,6 +212,16 @@ pub fn abort(code: i32) {
     }
 }
 
+/// The options a system starts from: [`AUGMENTED_LAGRANGIAN_OPTIONS`] for an augmented
+/// Lagrangian's, [`DEFAULT_OPTIONS`] for any other.
+fn defaults(augmented: bool) -> &'static str {
+    if augmented {
+        AUGMENTED_LAGRANGIAN_OPTIONS
+    } else {
+        DEFAULT_OPTIONS
+    }
+}
+
 /// Sets PETSc's options database to `defaults` and then `options` (`-name value ...`,
 /// overriding them), clearing what was there (the caller holds the lock).
 fn set_options(defaults: &str, options: &str) -> Result<(), LinearSolveError> {
@@ -229,8 +239,6 @@ fn set_options(defaults: &str, options: &str) -> Result<(), LinearSolveError> {
 pub struct PetscSolver {
     /// Options added after [`DEFAULT_OPTIONS`] (so they override them).
     options: String,
-    /// [`DEFAULT_OPTIONS`] or [`AUGMENTED_LAGRANGIAN_OPTIONS`].
-    defaults: &'static str,
     /// Which unknowns are multipliers (the [`SaddlePointSplit`] of [`LinearSolver::set_split`]):
     /// the fields of a `fieldsplit` preconditioner ([`FIELDS`]).
     multipliers: Option<Vec<bool>>,
@@ -247,15 +255,7 @@ impl PetscSolver {
     /// A solver with PETSc `options` (`-fdfsi_...`, added after [`DEFAULT_OPTIONS`]) that fails
     /// a solve whose relative residual exceeds `fail_tolerance`.
     pub fn new(options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver {
-            options: options.to_string(),
-            defaults: DEFAULT_OPTIONS,
-            multipliers: None,
-            al: None,
-            fail_tolerance,
-            system: None,
-            symbolic: 0,
-        }
+        PetscSolver { options: options.to_string(), multipliers: None, al: None, fail_tolerance, system: None, symbolic: 0 }
     }
 
     /// The augmented-Lagrangian preconditioner of `solve::augmented` (with `al`'s weight and
@@ -267,7 +267,7 @@ impl PetscSolver {
     /// without a split (a solid alone) is solved as by [`PetscSolver::new`] (MUMPS, then
     /// `options`).
     pub fn augmented_lagrangian(al: AlOptions, options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver { defaults: AUGMENTED_LAGRANGIAN_OPTIONS, al: Some(AugmentedLagrangian::new(al)), ..Self::new(options, fail_tolerance) }
+        PetscSolver { al: Some(AugmentedLagrangian::new(al)), ..Self::new(options, fail_tolerance) }
     }
 }
 
@@ -291,7 +291,7 @@ impl LinearSolver for PetscSolver {
         }
         let system = self.system.as_mut().expect("set above");
         let _petsc = lock();
-        set_options(if augmented { self.defaults } else { DEFAULT_OPTIONS }, &self.options)?;
+        set_options(defaults(augmented), &self.options)?;
         system.factorize(&a.values, transformed.as_ref())
     }
 
@@ -310,7 +310,7 @@ impl LinearSolver for PetscSolver {
         let mut petsc_b = b.clone();
         let iterations = {
             let _petsc = lock();
-            set_options(if system.is_augmented() { self.defaults } else { DEFAULT_OPTIONS }, &self.options)?;
+            set_options(defaults(system.is_augmented()), &self.options)?;
             system.solve(&mut petsc_b, rhs)?
         };
         let mut r = vec![0.0; b.len()];
@@ -363,13 +363,11 @@ struct PetscSystem {
     csc_of_csr: Vec<usize>,
     values: Vec<f64>,
     world: World,
-    /// Which unknowns are in the second of [`FIELDS`] (as given; none without a split), this
-    /// rank's rows of each field, given to the preconditioner at the first factorisation, and
-    /// each unknown's index in the second field (its rank's rows after the lower ranks').
+    /// Which unknowns are in the second of [`FIELDS`] (as given; none without a split), and this
+    /// rank's rows of each field, given to the preconditioner at the first factorisation.
     field_mask: Option<Vec<bool>>,
     fields: Option<[Vec<PetscInt>; 2]>,
     fields_set: bool,
-    second_index: Vec<PetscInt>,
     handles: Handles,
     /// The shell preconditioner's context: a copy of `handles.shell` at a fixed address.
     shell_context: Box<Shell>,
@@ -504,18 +502,6 @@ impl PetscSystem {
             let of = |multiplier: bool| rows.clone().filter(|&i| m.get(i).copied().unwrap_or(false) == multiplier).map(|i| i as PetscInt).collect();
             [of(false), of(true)]
         });
-        let second_index = multipliers.map_or_else(Vec::new, |m| {
-            let mut next = 0;
-            (0..n)
-                .map(|i| match m.get(i) {
-                    Some(true) => {
-                        next += 1;
-                        next - 1
-                    }
-                    _ => -1,
-                })
-                .collect()
-        });
         let mut system = PetscSystem {
             col_ptr: pattern.col_ptr.clone(),
             row_idx: pattern.row_idx.clone(),
@@ -528,7 +514,6 @@ impl PetscSystem {
             field_mask: multipliers.map(<[bool]>::to_vec),
             fields,
             fields_set: false,
-            second_index,
             handles: Handles::NONE,
             shell_context: Box::new(Shell::NONE),
         };
@@ -734,15 +719,23 @@ impl PetscSystem {
         self.world.all_gather(x)?;
         Ok(if reason == ffi::KSP_CONVERGED_ITS { 0 } else { iterations as usize })
     }
-}
 
-impl PetscSystem {
     /// The block-diagonal matrix of `blocks` (unknowns of the second field, increasing, and
     /// their dense blocks, row-major) in the second field's numbering, this rank's rows (the
     /// caller holds the lock and destroys it; collective).
     fn schur_matrix(&self, blocks: &[(Vec<usize>, Vec<f64>)]) -> Result<ffi::Mat, LinearSolveError> {
         let owned = self.fields.as_ref().map_or(&[][..], |f| &f[1][..]);
-        let total = self.second_index.iter().filter(|&&i| i >= 0).count() as PetscInt;
+        // Each unknown's index in the second field: its rank's rows after the lower ranks'.
+        let mut total = 0;
+        let second_index: Vec<PetscInt> = (0..self.n())
+            .map(|i| match self.field_mask.as_ref().and_then(|m| m.get(i)) {
+                Some(true) => {
+                    total += 1;
+                    total - 1
+                }
+                _ => -1,
+            })
+            .collect();
         // This rank's rows: (unknown, block, row in it), by unknown.
         let mut rows: Vec<(usize, usize, usize)> = blocks
             .iter()
@@ -758,7 +751,7 @@ impl PetscSystem {
         for &(_, b, r) in &rows {
             let (dofs, block) = &blocks[b];
             let m = dofs.len();
-            cols.extend(dofs.iter().map(|&d| self.second_index[d]));
+            cols.extend(dofs.iter().map(|&d| second_index[d]));
             vals.extend_from_slice(&block[r * m..(r + 1) * m]);
             row_ptr.push(cols.len() as PetscInt);
         }
