@@ -579,9 +579,8 @@ pub enum PetscMethod {
     Mumps,
     /// FGMRES with the augmented-Lagrangian preconditioner of `method = "augmented-lagrangian"`
     /// (its `gamma` and placements from `[solver.linear]`) as PETSc's field split, the augmented
-    /// block by MUMPS (`crate::solve::petsc::AUGMENTED_LAGRANGIAN_OPTIONS`). Verified on 2D flow
-    /// and 2D FSI (Schaefer-Turek 2D-1, model problem 3, on 1 and 2 ranks); on 3D FSI (model
-    /// problem 4) FGMRES stalls after the first step, where fdfsi's own AL converges: open.
+    /// block by MUMPS (`crate::solve::petsc::AUGMENTED_LAGRANGIAN_OPTIONS`). Verified on 2D flow,
+    /// 2D and 3D FSI (Schaefer-Turek 2D-1, model problems 3 and 4, on 1 and 2 ranks).
     AugmentedLagrangian,
 }
 
