@@ -34,7 +34,7 @@
 mod ffi;
 
 use super::augmented::{AlOptions, AugmentedLagrangian, SaddlePointSplit, TransformedSystem};
-use super::linear::{norm, LinearSolveError, LinearSolver, SolveStats};
+use super::linear::{norm, pattern_key, LinearSolveError, LinearSolver, SolveStats};
 use fdfsi_fem::sparse::{CscMatrix, Pattern};
 use ffi::PetscInt;
 use std::ffi::{c_int, CStr, CString};
@@ -387,16 +387,18 @@ impl LinearSolver for PetscSolver {
 /// side and solution vectors (placed over this rank's part of the caller's arrays for each
 /// solve) and the `KSP`.
 struct PetscSystem {
-    /// The CSC pattern this was built for.
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
+    /// The CSC pattern this was built for: its size, entries and key
+    /// (`crate::solve::linear::pattern_key`; not a copy, which would cost as much as the matrix).
+    n: usize,
+    nnz: usize,
+    key: u64,
     /// This rank's rows.
     rows: Range<usize>,
-    /// The CSR arrays of those rows (global column indices) and the CSC position of each entry.
+    /// The CSR arrays of those rows (global column indices) and the CSC position of each entry
+    /// (below the pattern's entry count, which fits a `PetscInt`).
     row_ptr: Vec<PetscInt>,
     col_idx: Vec<PetscInt>,
-    csc_of_csr: Vec<usize>,
-    values: Vec<f64>,
+    csc_of_csr: Vec<PetscInt>,
     world: World,
     /// Which unknowns are in the second of [`FIELDS`] (as given; none without a split), and this
     /// rank's rows of each field, given to the preconditioner at the first factorisation.
@@ -479,12 +481,14 @@ extern "C" fn apply_augmented_lagrangian(pc: ffi::Pc, x: ffi::Vec, y: ffi::Vec) 
 /// A new AIJ matrix on `MPI_COMM_WORLD` of `size` unknowns, this rank's `local` rows given in
 /// CSR (global, increasing column indices), preallocated exactly (the caller holds the lock;
 /// collective).
-fn create_aij(local: PetscInt, size: PetscInt, row_ptr: &[PetscInt], cols: &[PetscInt], vals: &[f64]) -> Result<ffi::Mat, LinearSolveError> {
+/// An AIJ matrix of `local` of `size` rows on this rank, preallocated with the CSR arrays of
+/// its rows and filled with `vals` (zeros without).
+fn create_aij(local: PetscInt, size: PetscInt, row_ptr: &[PetscInt], cols: &[PetscInt], vals: Option<&[f64]>) -> Result<ffi::Mat, LinearSolveError> {
     let aij = CString::new("aij").expect("no NUL");
     let mut mat = null_mut();
     // SAFETY: PETSc copies the CSR arrays; on failure the matrix is destroyed here.
     unsafe {
-        let (r, c, v) = (row_ptr.as_ptr(), cols.as_ptr(), vals.as_ptr());
+        let (r, c, v) = (row_ptr.as_ptr(), cols.as_ptr(), vals.map_or(null(), <[f64]>::as_ptr));
         let made = check(ffi::MatCreate(ffi::comm_world(), &mut mat), "MatCreate")
             .and_then(|_| check(ffi::MatSetSizes(mat, local, local, size, size), "MatSetSizes"))
             .and_then(|_| check(ffi::MatSetType(mat, aij.as_ptr()), "MatSetType"))
@@ -525,7 +529,7 @@ impl PetscSystem {
                 let i = pattern.row_idx[k];
                 if rows.contains(&i) {
                     let at = &mut next[i - rows.start];
-                    csc_of_csr[*at] = k;
+                    csc_of_csr[*at] = k as PetscInt;
                     col_idx[*at] = int(j)?;
                     *at += 1;
                 }
@@ -538,13 +542,13 @@ impl PetscSystem {
             [of(false), of(true)]
         });
         let mut system = PetscSystem {
-            col_ptr: pattern.col_ptr.clone(),
-            row_idx: pattern.row_idx.clone(),
+            n,
+            nnz: pattern.nnz(),
+            key: pattern_key(pattern),
             rows,
             row_ptr,
             col_idx,
             csc_of_csr,
-            values: vec![0.0; nnz],
             world,
             field_mask: multipliers.map(<[bool]>::to_vec),
             fields,
@@ -560,10 +564,10 @@ impl PetscSystem {
         // arrays placed for each solve.
         let created = unsafe {
             let comm = ffi::comm_world();
-            create_aij(local, size, &s.row_ptr, &s.col_idx, &s.values)
+            create_aij(local, size, &s.row_ptr, &s.col_idx, None)
                 .map(|m| h.mat = m)
                 .and_then(|_| match augmented {
-                    true => create_aij(local, size, &s.row_ptr, &s.col_idx, &s.values).map(|m| h.shell.tk = m),
+                    true => create_aij(local, size, &s.row_ptr, &s.col_idx, None).map(|m| h.shell.tk = m),
                     false => Ok(()),
                 })
                 .and_then(|_| match augmented {
@@ -592,7 +596,11 @@ impl PetscSystem {
     }
 
     fn is_for(&self, pattern: &Pattern, fields: Option<&[bool]>, augmented: bool) -> bool {
-        self.col_ptr == pattern.col_ptr && self.row_idx == pattern.row_idx && self.field_mask.as_deref() == fields && self.is_augmented() == augmented
+        self.n == pattern.n
+            && self.nnz == pattern.nnz()
+            && self.key == pattern_key(pattern)
+            && self.field_mask.as_deref() == fields
+            && self.is_augmented() == augmented
     }
 
     /// Whether this is an augmented Lagrangian's system ([`PetscSolver::augmented_lagrangian`]).
@@ -602,22 +610,22 @@ impl PetscSystem {
 
     /// Number of unknowns.
     fn n(&self) -> usize {
-        self.col_ptr.len() - 1
+        self.n
     }
 
     /// Copies this rank's rows of `values` (in the pattern's CSC order) into `mat` (the caller
     /// holds the lock; collective).
-    fn load(&mut self, mat: ffi::Mat, values: &[f64]) -> Result<(), LinearSolveError> {
-        for (v, &k) in self.values.iter_mut().zip(&self.csc_of_csr) {
-            *v = values[k];
-        }
+    fn load(&self, mat: ffi::Mat, values: &[f64]) -> Result<(), LinearSolveError> {
+        let mut row_values = Vec::new();
         // SAFETY: the matrix is valid and was preallocated with exactly these rows and columns;
         // each row's slice of the CSR arrays lies within them.
         unsafe {
             for (i, row) in self.rows.clone().enumerate() {
                 let (start, end) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
+                row_values.clear();
+                row_values.extend(self.csc_of_csr[start..end].iter().map(|&k| values[k as usize]));
                 let row = row as PetscInt;
-                let (cols, vals) = (self.col_idx[start..].as_ptr(), self.values[start..].as_ptr());
+                let (cols, vals) = (self.col_idx[start..].as_ptr(), row_values.as_ptr());
                 check(ffi::MatSetValues(mat, 1, &row, (end - start) as PetscInt, cols, vals, ffi::INSERT_VALUES), "MatSetValues")?;
             }
             check(ffi::MatAssemblyBegin(mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
@@ -721,7 +729,7 @@ impl PetscSystem {
         for k in 1..row_ptr.len() {
             row_ptr[k] = row_ptr[k].max(row_ptr[k - 1]);
         }
-        create_aij(self.rows.len() as PetscInt, self.n() as PetscInt, &row_ptr, &cols, &vals)
+        create_aij(self.rows.len() as PetscInt, self.n() as PetscInt, &row_ptr, &cols, Some(&vals))
     }
 
     /// Solves for `x` (all of it on every rank) with right-hand side `b` (of which this rank
@@ -790,7 +798,7 @@ impl PetscSystem {
             vals.extend_from_slice(&block[r * m..(r + 1) * m]);
             row_ptr.push(cols.len() as PetscInt);
         }
-        create_aij(owned.len() as PetscInt, total, &row_ptr, &cols, &vals)
+        create_aij(owned.len() as PetscInt, total, &row_ptr, &cols, Some(&vals))
     }
 }
 
