@@ -7,11 +7,12 @@
 //!
 //! One process (no `mpirun`, or `mpirun -n 1`): a sequential AIJ matrix. Several (`mpirun -n
 //! N fdfsi run`): every rank holds the same system (the run is replicated up to the linear
-//! solve) and each gives PETSc its [`owned_rows`], a contiguous block of the layout's numbering,
+//! solve) and each gives PETSc its [`owned_rows`], a contiguous block of PETSc's numbering of
+//! the unknowns (a level-set order of the matrix graph, [`Numbering`]: a slice of the domain),
 //! as its rows of a distributed AIJ matrix (preallocated from the pattern, so setting values
-//! sends nothing); the right-hand side and solution vectors are placed over each rank's part of
-//! the caller's arrays, and after the solve every rank gathers the whole solution
-//! (`MPI_Allgatherv`), so the Newton update is the same on all. [`world`] tells a process its
+//! sends nothing); each rank copies its rows of the right-hand side into PETSc's numbering, and
+//! after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and takes it back
+//! to the layout's numbering, so the Newton update is the same on all. [`world`] tells a process its
 //! rank; [`finalize`] and [`abort`] end MPI.
 //!
 //! With a system's saddle-point split ([`LinearSolver::set_split`]) a `fieldsplit`
@@ -145,11 +146,98 @@ impl World {
     }
 }
 
-/// The rows of a system of `n` unknowns that `world.rank` owns: contiguous, `n / size` or one
-/// more each, in rank order (the unknowns' numbering is the system layout's; see
-/// [`crate::discretize::layout`]).
+/// The rows of a system of `n` unknowns that `world.rank` owns in PETSc's numbering
+/// ([`Numbering`]): contiguous, `n / size` or one more each, in rank order.
 pub fn owned_rows(n: usize, world: World) -> Range<usize> {
     n * world.rank / world.size..n * (world.rank + 1) / world.size
+}
+
+/// PETSc's numbering of a system's unknowns, and fdfsi's (the system layout's,
+/// [`crate::discretize::layout`]). PETSc gives each rank a contiguous block of its numbering
+/// ([`owned_rows`]); in the layout's numbering such a block would be scattered over the domain
+/// (the velocity's vertex nodes first, then its edge, face and cell nodes, then the pressure), so
+/// every rank's rows would couple to every other's, and a rank-local smoother (hypre's hybrid
+/// Gauss-Seidel, block Jacobi) would see little of the operator. On several ranks PETSc's
+/// numbering is therefore a *level-set order* of the matrix graph (Cuthill-McKee without the
+/// reversal): breadth-first from a pseudo-peripheral unknown (George & Liu 1979: the last one
+/// reached from unknown 0), so consecutive unknowns lie close together and the blocks of
+/// [`owned_rows`] are slices of the domain across its longest extent, each coupled to its
+/// neighbours only. A sound partition for a few ranks on elongated domains (vessels, channels);
+/// for many ranks a graph partitioner (METIS through PETSc's `MatPartitioning`) would cut less.
+/// On one rank it is the identity (no copy).
+#[derive(Clone, Debug, Default)]
+pub struct Numbering {
+    /// `petsc[i]`: PETSc's index of fdfsi's unknown `i`; empty for the identity.
+    petsc: Vec<usize>,
+    /// `fdfsi[p]`: fdfsi's unknown of PETSc's index `p`; empty for the identity.
+    fdfsi: Vec<usize>,
+}
+
+impl Numbering {
+    /// The numbering of `pattern`'s unknowns for `world`: the identity on one rank, the level-set
+    /// order on several.
+    pub fn new(pattern: &Pattern, world: World) -> Self {
+        if world.size == 1 {
+            return Numbering::default();
+        }
+        let fdfsi = level_set_order(pattern);
+        let mut petsc = vec![0; fdfsi.len()];
+        for (p, &i) in fdfsi.iter().enumerate() {
+            petsc[i] = p;
+        }
+        Numbering { petsc, fdfsi }
+    }
+
+    /// PETSc's index of fdfsi's unknown `i`.
+    pub fn to_petsc(&self, i: usize) -> usize {
+        self.petsc.get(i).copied().unwrap_or(i)
+    }
+
+    /// fdfsi's unknown of PETSc's index `p`.
+    pub fn to_fdfsi(&self, p: usize) -> usize {
+        self.fdfsi.get(p).copied().unwrap_or(p)
+    }
+}
+
+/// The unknowns of `pattern` in breadth-first (level-set) order from a pseudo-peripheral one; an
+/// unknown the search does not reach (another connected part) starts a new search. The graph is
+/// the pattern's columns (`i` a neighbour of `j` where `(i, j)` is an entry), symmetric for
+/// finite-element systems.
+fn level_set_order(pattern: &Pattern) -> Vec<usize> {
+    let n = pattern.n;
+    let neighbours = |j: usize| &pattern.row_idx[pattern.col_ptr[j]..pattern.col_ptr[j + 1]];
+    let breadth_first = |start: usize, seen: &mut [bool], order: &mut Vec<usize>| {
+        let mut head = order.len();
+        seen[start] = true;
+        order.push(start);
+        while head < order.len() {
+            let j = order[head];
+            head += 1;
+            for &i in neighbours(j) {
+                if !seen[i] {
+                    seen[i] = true;
+                    order.push(i);
+                }
+            }
+        }
+    };
+    let mut order = Vec::with_capacity(n);
+    let mut seen = vec![false; n];
+    if n == 0 {
+        return order;
+    }
+    // The last unknown reached from unknown 0 lies at the far end of its part.
+    breadth_first(0, &mut seen, &mut order);
+    let start = *order.last().expect("one at least");
+    order.clear();
+    seen.iter_mut().for_each(|s| *s = false);
+    breadth_first(start, &mut seen, &mut order);
+    for i in 0..n {
+        if !seen[i] {
+            breadth_first(i, &mut seen, &mut order);
+        }
+    }
+    order
 }
 
 /// Whether [`finalize`] ran: PETSc cannot start again.
@@ -285,13 +373,11 @@ impl PetscSolver {
         PetscSolver { al: Some(AugmentedLagrangian::new(al)), ..Self::new(options, fail_tolerance) }
     }
 
-    /// `x = K^-1 b` by `system`'s `KSP` under this solver's options (PETSc may scale its
-    /// right-hand side in place, `-ksp_diagonal_scale`: it gets a copy); the Krylov iterations.
+    /// `x = K^-1 b` by `system`'s `KSP` under this solver's options; the Krylov iterations.
     fn petsc_solve(&self, system: &PetscSystem, b: &[f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
-        let mut petsc_b = b.to_vec();
         let _petsc = lock();
         set_options(defaults(system.is_augmented()), &self.options)?;
-        system.solve(&mut petsc_b, x)
+        system.solve(b, x)
     }
 }
 
@@ -383,8 +469,8 @@ impl LinearSolver for PetscSolver {
 }
 
 /// PETSc's objects for one pattern: the matrix (this rank's rows, [`owned_rows`], of the AIJ
-/// matrix on `MPI_COMM_WORLD`: sequential on one rank, distributed on several), the right-hand
-/// side and solution vectors (placed over this rank's part of the caller's arrays for each
+/// matrix on `MPI_COMM_WORLD`: sequential on one rank, distributed on several, in PETSc's
+/// [`Numbering`]), the right-hand side and solution vectors (their arrays placed for each
 /// solve) and the `KSP`.
 struct PetscSystem {
     /// The CSC pattern this was built for: its size, entries and key
@@ -392,7 +478,9 @@ struct PetscSystem {
     n: usize,
     nnz: usize,
     key: u64,
-    /// This rank's rows.
+    /// PETSc's numbering of the unknowns.
+    numbering: Numbering,
+    /// This rank's rows (in PETSc's numbering).
     rows: Range<usize>,
     /// The CSR arrays of those rows (global column indices) and the CSC position of each entry
     /// (below the pattern's entry count, which fits a `PetscInt`).
@@ -479,10 +567,8 @@ extern "C" fn apply_augmented_lagrangian(pc: ffi::Pc, x: ffi::Vec, y: ffi::Vec) 
 }
 
 /// A new AIJ matrix on `MPI_COMM_WORLD` of `size` unknowns, this rank's `local` rows given in
-/// CSR (global, increasing column indices), preallocated exactly (the caller holds the lock;
-/// collective).
-/// An AIJ matrix of `local` of `size` rows on this rank, preallocated with the CSR arrays of
-/// its rows and filled with `vals` (zeros without).
+/// CSR (global, increasing column indices), preallocated exactly and filled with `vals` (zeros
+/// without; the caller holds the lock; collective).
 fn create_aij(local: PetscInt, size: PetscInt, row_ptr: &[PetscInt], cols: &[PetscInt], vals: Option<&[f64]>) -> Result<ffi::Mat, LinearSolveError> {
     let aij = CString::new("aij").expect("no NUL");
     let mut mat = null_mut();
@@ -514,9 +600,10 @@ impl PetscSystem {
         let size = int(n)?;
         int(pattern.nnz())?;
         let rows = owned_rows(n, world);
+        let numbering = Numbering::new(pattern, world);
         let mut row_ptr = vec![0; rows.len() + 1];
-        for &i in pattern.row_idx.iter().filter(|i| rows.contains(i)) {
-            row_ptr[i - rows.start + 1] += 1;
+        for p in pattern.row_idx.iter().map(|&i| numbering.to_petsc(i)).filter(|p| rows.contains(p)) {
+            row_ptr[p - rows.start + 1] += 1;
         }
         for i in 0..rows.len() {
             row_ptr[i + 1] += row_ptr[i];
@@ -524,13 +611,15 @@ impl PetscSystem {
         let mut next = row_ptr.clone();
         let nnz = row_ptr[rows.len()];
         let (mut col_idx, mut csc_of_csr) = (vec![0; nnz], vec![0; nnz]);
-        for j in 0..n {
+        // Columns in PETSc's order, so that each row's columns increase.
+        for q in 0..n {
+            let j = numbering.to_fdfsi(q);
             for k in pattern.col_ptr[j]..pattern.col_ptr[j + 1] {
-                let i = pattern.row_idx[k];
-                if rows.contains(&i) {
-                    let at = &mut next[i - rows.start];
+                let p = numbering.to_petsc(pattern.row_idx[k]);
+                if rows.contains(&p) {
+                    let at = &mut next[p - rows.start];
                     csc_of_csr[*at] = k as PetscInt;
-                    col_idx[*at] = int(j)?;
+                    col_idx[*at] = int(q)?;
                     *at += 1;
                 }
             }
@@ -538,13 +627,16 @@ impl PetscSystem {
         let row_ptr = row_ptr.into_iter().map(int).collect::<Result<Vec<_>, _>>()?;
         let local = int(rows.len())?;
         let fields = multipliers.map(|m| {
-            let of = |multiplier: bool| rows.clone().filter(|&i| m.get(i).copied().unwrap_or(false) == multiplier).map(|i| i as PetscInt).collect();
+            let of = |multiplier: bool| {
+                rows.clone().filter(|&p| m.get(numbering.to_fdfsi(p)).copied().unwrap_or(false) == multiplier).map(|p| p as PetscInt).collect()
+            };
             [of(false), of(true)]
         });
         let mut system = PetscSystem {
             n,
             nnz: pattern.nnz(),
             key: pattern_key(pattern),
+            numbering,
             rows,
             row_ptr,
             col_idx,
@@ -710,7 +802,9 @@ impl PetscSystem {
     /// `T = I + (T - I)` from the entries of `T - I` (`(row, column, value)`), this rank's rows
     /// (the caller holds the lock and destroys it; collective).
     fn transform_matrix(&self, off_diagonal: &[(usize, usize, f64)]) -> Result<ffi::Mat, LinearSolveError> {
-        let mut entries: Vec<(usize, usize, f64)> = off_diagonal.iter().copied().filter(|(i, _, _)| self.rows.contains(i)).collect();
+        let to_petsc = |i| self.numbering.to_petsc(i);
+        let mut entries: Vec<(usize, usize, f64)> =
+            off_diagonal.iter().map(|&(i, j, v)| (to_petsc(i), to_petsc(j), v)).filter(|(p, _, _)| self.rows.contains(p)).collect();
         entries.extend(self.rows.clone().map(|i| (i, i, 1.0)));
         entries.sort_unstable_by_key(|&(i, j, _)| (i, j));
         let mut row_ptr: Vec<PetscInt> = vec![0; self.rows.len() + 1];
@@ -733,17 +827,20 @@ impl PetscSystem {
     }
 
     /// Solves for `x` (all of it on every rank) with right-hand side `b` (of which this rank
-    /// reads its rows); returns PETSc's iteration count (the caller holds the lock; collective).
-    fn solve(&self, b: &mut [f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
+    /// reads its rows; PETSc gets a copy, which it may scale: `-ksp_diagonal_scale`); returns
+    /// PETSc's iteration count (the caller holds the lock; collective).
+    fn solve(&self, b: &[f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
         let (mut iterations, mut reason): (PetscInt, c_int) = (0, 0);
         let h = &self.handles;
         let lo = self.rows.start;
-        // SAFETY: `b` and `x` have the system's size (checked by the caller), so this rank's rows
-        // lie within them, and outlive the solve; whatever was placed is reset to no array
-        // before returning.
+        // This rank's rows of `b`, and all of `x`, in PETSc's numbering.
+        let mut b_petsc: Vec<f64> = self.rows.clone().map(|p| b[self.numbering.to_fdfsi(p)]).collect();
+        let mut x_petsc = vec![0.0; self.n];
+        // SAFETY: `b_petsc` holds this rank's rows and `x_petsc` all, both outlive the solve;
+        // whatever was placed is reset to no array before returning.
         unsafe {
-            check(ffi::VecPlaceArray(h.b, b.as_mut_ptr().add(lo)), "VecPlaceArray")?;
-            if let Err(e) = check(ffi::VecPlaceArray(h.x, x.as_mut_ptr().add(lo)), "VecPlaceArray") {
+            check(ffi::VecPlaceArray(h.b, b_petsc.as_mut_ptr()), "VecPlaceArray")?;
+            if let Err(e) = check(ffi::VecPlaceArray(h.x, x_petsc.as_mut_ptr().add(lo)), "VecPlaceArray") {
                 ffi::VecResetArray(h.b);
                 return Err(e);
             }
@@ -759,7 +856,10 @@ impl PetscSystem {
                 "KSPSolve diverged (KSPConvergedReason {reason}, after {iterations} iterations; -{OPTIONS_PREFIX}ksp_converged_reason tells more)"
             )));
         }
-        self.world.all_gather(x)?;
+        self.world.all_gather(&mut x_petsc)?;
+        for (p, v) in x_petsc.into_iter().enumerate() {
+            x[self.numbering.to_fdfsi(p)] = v;
+        }
         Ok(if reason == ffi::KSP_CONVERGED_ITS { 0 } else { iterations as usize })
     }
 
@@ -771,7 +871,7 @@ impl PetscSystem {
         // Each unknown's index in the second field: its rank's rows after the lower ranks'.
         let mut total = 0;
         let second_index: Vec<PetscInt> = (0..self.n())
-            .map(|i| match self.field_mask.as_ref().and_then(|m| m.get(i)) {
+            .map(|p| match self.field_mask.as_ref().and_then(|m| m.get(self.numbering.to_fdfsi(p))) {
                 Some(true) => {
                     total += 1;
                     total - 1
@@ -779,11 +879,13 @@ impl PetscSystem {
                 _ => -1,
             })
             .collect();
-        // This rank's rows: (unknown, block, row in it), by unknown.
+        // This rank's rows: (PETSc's index, block, row in it), by index.
+        let to_petsc = |d| self.numbering.to_petsc(d);
         let mut rows: Vec<(usize, usize, usize)> = blocks
             .iter()
             .enumerate()
-            .flat_map(|(b, (dofs, _))| dofs.iter().enumerate().filter(|(_, d)| self.rows.contains(d)).map(move |(r, &d)| (d, b, r)))
+            .flat_map(|(b, (dofs, _))| dofs.iter().enumerate().map(move |(r, &d)| (to_petsc(d), b, r)))
+            .filter(|(p, _, _)| self.rows.contains(p))
             .collect();
         rows.sort_unstable();
         if rows.len() != owned.len() || rows.iter().zip(owned).any(|(r, &o)| r.0 as PetscInt != o) {
@@ -794,8 +896,10 @@ impl PetscSystem {
         for &(_, b, r) in &rows {
             let (dofs, block) = &blocks[b];
             let m = dofs.len();
-            cols.extend(dofs.iter().map(|&d| second_index[d]));
-            vals.extend_from_slice(&block[r * m..(r + 1) * m]);
+            let mut row: Vec<(PetscInt, f64)> = dofs.iter().zip(&block[r * m..(r + 1) * m]).map(|(&d, &v)| (second_index[to_petsc(d)], v)).collect();
+            row.sort_unstable_by_key(|&(c, _)| c);
+            cols.extend(row.iter().map(|&(c, _)| c));
+            vals.extend(row.iter().map(|&(_, v)| v));
             row_ptr.push(cols.len() as PetscInt);
         }
         create_aij(owned.len() as PetscInt, total, &row_ptr, &cols, Some(&vals))
