@@ -61,8 +61,8 @@ pub const DEFAULT_OPTIONS: &str = "-fdfsi_ksp_type preonly -fdfsi_pc_type lu -fd
 /// The options [`PetscSolver::augmented_lagrangian`] starts from: FGMRES (right-preconditioned)
 /// to `1e-10`, its Gram-Schmidt refined at every step (PETSc's default, classical Gram-Schmidt
 /// without refinement, loses the basis's orthogonality with the 3D defaults' reduced-gamma groups
-/// in the Schur block, and FGMRES stalls near 5e-6: the 3D Poiseuille slab at 56 427 unknowns,
-/// 200 iterations; refined, 6), with the field split [`FIELDS`] as an upper block-triangular
+/// in the Schur block, and FGMRES stalls: the 3D Poiseuille slab at 56 427 unknowns, still at
+/// 4e-7 of its start after 200 iterations; refined, 6), with the field split [`FIELDS`] as an upper block-triangular
 /// Schur factorisation,
 /// the primal block `A_gamma` by MUMPS's LU, the Schur block by `S_p` (block diagonal: block
 /// Jacobi per rank, ILU(0) within, exact on its blocks but for a group that a rank boundary of
@@ -123,6 +123,24 @@ pub struct World {
 }
 
 impl World {
+    /// The largest of every rank's `value`, a NaN counting as infinite (MPI's maximum of a NaN
+    /// is undefined; the caller holds the lock; collective).
+    fn max(&self, value: f64) -> Result<f64, LinearSolveError> {
+        let local = if value.is_nan() { f64::INFINITY } else { value };
+        if self.size == 1 {
+            return Ok(local);
+        }
+        let mut max = local;
+        // SAFETY: one value of the named type each, sent and received.
+        let code = unsafe {
+            ffi::MPI_Allreduce((&local as *const f64).cast(), (&mut max as *mut f64).cast(), 1, ffi::mpi_double(), ffi::mpi_max(), ffi::comm_world())
+        };
+        if code != 0 {
+            return Err(LinearSolveError::Petsc(format!("MPI_Allreduce of the residual failed (MPI error {code})")));
+        }
+        Ok(max)
+    }
+
     /// Fills all of `x` on every rank from each rank's [`owned_rows`] (the caller holds the lock;
     /// collective).
     fn all_gather(&self, x: &mut [f64]) -> Result<(), LinearSolveError> {
@@ -158,11 +176,10 @@ pub fn owned_rows(n: usize, world: World) -> Range<usize> {
 /// (the velocity's vertex nodes first, then its edge, face and cell nodes, then the pressure), so
 /// every rank's rows would couple to every other's, and a rank-local smoother (hypre's hybrid
 /// Gauss-Seidel, block Jacobi) would see little of the operator. On several ranks PETSc's
-/// numbering is therefore a *level-set order* of the matrix graph (Cuthill-McKee without the
-/// reversal): breadth-first from a pseudo-peripheral unknown (George & Liu 1979: the last one
-/// reached from unknown 0), so consecutive unknowns lie close together and the blocks of
-/// [`owned_rows`] are slices of the domain across its longest extent, each coupled to its
-/// neighbours only. A sound partition for a few ranks on elongated domains (vessels, channels);
+/// numbering is therefore a *level-set order* of the matrix graph: breadth-first from a
+/// pseudo-peripheral unknown (per connected part), so consecutive unknowns lie close together
+/// and the blocks of [`owned_rows`] are slices of the domain across its longest extent, each
+/// coupled to its neighbours only. A sound partition for a few ranks on elongated domains (vessels, channels);
 /// for many ranks a graph partitioner (METIS through PETSc's `MatPartitioning`) would cut less.
 /// On one rank it is the identity (no copy).
 #[derive(Clone, Debug, Default)]
@@ -190,19 +207,22 @@ impl Numbering {
 
     /// PETSc's index of fdfsi's unknown `i`.
     pub fn to_petsc(&self, i: usize) -> usize {
+        debug_assert!(self.petsc.is_empty() || i < self.petsc.len(), "unknown {i} of {}", self.petsc.len());
         self.petsc.get(i).copied().unwrap_or(i)
     }
 
     /// fdfsi's unknown of PETSc's index `p`.
     pub fn to_fdfsi(&self, p: usize) -> usize {
+        debug_assert!(self.fdfsi.is_empty() || p < self.fdfsi.len(), "index {p} of {}", self.fdfsi.len());
         self.fdfsi.get(p).copied().unwrap_or(p)
     }
 }
 
-/// The unknowns of `pattern` in breadth-first (level-set) order from a pseudo-peripheral one; an
-/// unknown the search does not reach (another connected part) starts a new search. The graph is
-/// the pattern's columns (`i` a neighbour of `j` where `(i, j)` is an entry), symmetric for
-/// finite-element systems.
+/// The unknowns of `pattern` in breadth-first (level-set) order, each connected part from a
+/// pseudo-peripheral unknown: the last one reached by a first sweep from its lowest unknown (one
+/// step of George & Liu's search), the parts one after another. The graph is the pattern's
+/// columns (`i` a neighbour of `j` where `(i, j)` is an entry), symmetric for finite-element
+/// systems; neighbours are visited in index order (no sorting by degree, as Cuthill-McKee's).
 fn level_set_order(pattern: &Pattern) -> Vec<usize> {
     let n = pattern.n;
     let neighbours = |j: usize| &pattern.row_idx[pattern.col_ptr[j]..pattern.col_ptr[j + 1]];
@@ -223,19 +243,17 @@ fn level_set_order(pattern: &Pattern) -> Vec<usize> {
     };
     let mut order = Vec::with_capacity(n);
     let mut seen = vec![false; n];
-    if n == 0 {
-        return order;
-    }
-    // The last unknown reached from unknown 0 lies at the far end of its part.
-    breadth_first(0, &mut seen, &mut order);
-    let start = *order.last().expect("one at least");
-    order.clear();
-    seen.iter_mut().for_each(|s| *s = false);
-    breadth_first(start, &mut seen, &mut order);
     for i in 0..n {
-        if !seen[i] {
-            breadth_first(i, &mut seen, &mut order);
+        if seen[i] {
+            continue;
         }
+        // The first sweep finds the part and its far end; the second orders it from there.
+        let first = order.len();
+        breadth_first(i, &mut seen, &mut order);
+        let far = *order.last().expect("the sweep's start at least");
+        order[first..].iter().for_each(|&j| seen[j] = false);
+        order.truncate(first);
+        breadth_first(far, &mut seen, &mut order);
     }
     order
 }
@@ -421,22 +439,23 @@ impl LinearSolver for PetscSolver {
             b_norm => b_norm,
         };
         // `b - A x` (into `r`) relative to `|b|`, against the caller's matrix.
+        // The largest over the ranks (each rank's `a` and `b` are its own copies), so that all
+        // take the same branch: each refinement is a collective solve.
         let relative_residual = |x: &[f64], r: &mut [f64]| {
             a.mul_vec(x, r);
             r.iter_mut().zip(&b).for_each(|(ax, b)| *ax = b - *ax);
-            norm(r) / b_norm
+            let _petsc = lock();
+            system.world.max(norm(r) / b_norm)
         };
         let mut iterations = self.petsc_solve(system, &b, rhs)?;
         let mut r = vec![0.0; b.len()];
-        let mut residual = relative_residual(rhs, &mut r);
-        // Every rank holds the same `a` and `x`, so all take the same branch (each refinement
-        // is a collective solve).
+        let mut residual = relative_residual(rhs, &mut r)?;
         let mut refinements = 0;
         while residual > REFINE_ABOVE * self.fail_tolerance && refinements < MAX_REFINEMENTS && residual.is_finite() {
             let mut correction = vec![0.0; b.len()];
             iterations += self.petsc_solve(system, &r, &mut correction)?;
             rhs.iter_mut().zip(&correction).for_each(|(x, d)| *x += d);
-            residual = relative_residual(rhs, &mut r);
+            residual = relative_residual(rhs, &mut r)?;
             refinements += 1;
         }
         if !residual.is_finite() || rhs.iter().any(|x| !x.is_finite()) {
