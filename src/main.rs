@@ -202,8 +202,8 @@ fn error_report(e: &anyhow::Error) -> String {
 /// (`[solver.linear] method = "petsc"`, the `petsc` feature) and does everything else on every
 /// rank alike (the meshes, the adaptation and the assembly are replicated); rank 0 writes the
 /// results and the log, each other rank writes its copy into a private folder `OUT/.rankN`,
-/// removed at the end. Ctrl-C stops a run mpirun started at once (mpirun ends every rank): checkpoints
-/// (`--checkpoint-every`) are the way to resume it.
+/// removed at the end. Ctrl-C stops a run mpirun started at once (mpirun ends every rank):
+/// checkpoints (`--checkpoint-every`) are the way to resume it.
 struct Ranks {
     rank: usize,
     size: usize,

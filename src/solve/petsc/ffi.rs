@@ -51,7 +51,7 @@ pub const MPI_IN_PLACE: *const c_void = std::ptr::without_provenance(1);
 
 /// Open MPI's predefined objects (`struct ompi_predefined_communicator_t`, `..._datatype_t`;
 /// opaque here): `MPI_COMM_WORLD` is the address of `ompi_mpi_comm_world`, `MPI_DOUBLE` of
-/// `ompi_mpi_double`, `MPI_INT` of `ompi_mpi_int`, `MPI_MAX` of `ompi_mpi_op_max`.
+/// `ompi_mpi_double`, `MPI_MAX` of `ompi_mpi_op_max`.
 #[repr(C)]
 pub struct OmpiObject {
     _private: [u8; 0],
@@ -60,7 +60,6 @@ pub struct OmpiObject {
 extern "C" {
     static ompi_mpi_comm_world: OmpiObject;
     static ompi_mpi_double: OmpiObject;
-    static ompi_mpi_int: OmpiObject;
     static ompi_mpi_op_max: OmpiObject;
     pub fn MPI_Initialized(flag: *mut c_int) -> c_int;
     pub fn MPI_Finalized(flag: *mut c_int) -> c_int;
@@ -95,11 +94,6 @@ pub fn comm_world() -> MpiComm {
 /// `MPI_DOUBLE`.
 pub fn mpi_double() -> MpiDatatype {
     std::ptr::addr_of!(ompi_mpi_double) as MpiDatatype
-}
-
-/// `MPI_INT`.
-pub fn mpi_int() -> MpiDatatype {
-    std::ptr::addr_of!(ompi_mpi_int) as MpiDatatype
 }
 
 /// `MPI_MAX`.

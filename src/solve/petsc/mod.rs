@@ -12,8 +12,8 @@
 //! as its rows of a distributed AIJ matrix (preallocated from the pattern, so setting values
 //! sends nothing); each rank copies its rows of the right-hand side into PETSc's numbering, and
 //! after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and takes it back
-//! to the layout's numbering, so the Newton update is the same on all. [`world`] tells a process its
-//! rank; [`finalize`] and [`abort`] end MPI.
+//! to the layout's numbering, so the Newton update is the same on all. [`world`] tells a
+//! process its rank; [`finalize`] and [`abort`] end MPI.
 //!
 //! With a system's saddle-point split ([`LinearSolver::set_split`]) a `fieldsplit`
 //! preconditioner gets the fields [`FIELDS`]. [`PetscSolver::augmented_lagrangian`] runs
@@ -62,13 +62,13 @@ pub const DEFAULT_OPTIONS: &str = "-fdfsi_ksp_type preonly -fdfsi_pc_type lu -fd
 /// to `1e-10`, its Gram-Schmidt refined at every step (PETSc's default, classical Gram-Schmidt
 /// without refinement, loses the basis's orthogonality with the 3D defaults' reduced-gamma groups
 /// in the Schur block, and FGMRES stalls: the 3D Poiseuille slab at 56 427 unknowns, still at
-/// 4e-7 of its start after 200 iterations; refined, 6), with the field split [`FIELDS`] as an upper block-triangular
-/// Schur factorisation,
-/// the primal block `A_gamma` by MUMPS's LU, the Schur block by `S_p` (block diagonal: block
-/// Jacobi per rank, ILU(0) within, exact on its blocks but for a group that a rank boundary of
-/// [`owned_rows`] cuts, about one per boundary; with no zero-pivot threshold: the
-/// entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on the medium Schaefer-Turek mesh,
-/// below PETSc's absolute default of 2.2e-14); the same preconditioner as `solve::augmented`'s.
+/// 4e-7 of its start after 200 iterations; refined, 6), with the field split [`FIELDS`] as an
+/// upper block-triangular Schur factorisation, the primal block `A_gamma` by MUMPS's LU, the
+/// Schur block by `S_p` (block diagonal: block Jacobi per rank, ILU(0) within, exact on its
+/// blocks but for a group that a rank boundary of [`owned_rows`] cuts, about one per boundary;
+/// with no zero-pivot threshold: the entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on
+/// the medium Schaefer-Turek mesh, below PETSc's absolute default of 2.2e-14); the same
+/// preconditioner as `solve::augmented`'s.
 pub const AUGMENTED_LAGRANGIAN_OPTIONS: &str = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-10 -fdfsi_ksp_max_it 200 -fdfsi_ksp_gmres_restart 200 -fdfsi_ksp_gmres_cgs_refinement_type refine_always \
 -fdfsi_al_pc_type fieldsplit -fdfsi_al_pc_fieldsplit_type schur -fdfsi_al_pc_fieldsplit_schur_fact_type upper \
 -fdfsi_al_fieldsplit_primal_ksp_type preonly -fdfsi_al_fieldsplit_primal_pc_type lu -fdfsi_al_fieldsplit_primal_pc_factor_mat_solver_type mumps \
@@ -136,7 +136,7 @@ impl World {
             ffi::MPI_Allreduce((&local as *const f64).cast(), (&mut max as *mut f64).cast(), 1, ffi::mpi_double(), ffi::mpi_max(), ffi::comm_world())
         };
         if code != 0 {
-            return Err(LinearSolveError::Petsc(format!("MPI_Allreduce of the residual failed (MPI error {code})")));
+            return Err(LinearSolveError::Petsc(format!("MPI_Allreduce failed (MPI error {code})")));
         }
         Ok(max)
     }
@@ -179,8 +179,9 @@ pub fn owned_rows(n: usize, world: World) -> Range<usize> {
 /// numbering is therefore a *level-set order* of the matrix graph: breadth-first from a
 /// pseudo-peripheral unknown (per connected part), so consecutive unknowns lie close together
 /// and the blocks of [`owned_rows`] are slices of the domain across its longest extent, each
-/// coupled to its neighbours only. A sound partition for a few ranks on elongated domains (vessels, channels);
-/// for many ranks a graph partitioner (METIS through PETSc's `MatPartitioning`) would cut less.
+/// coupled to its neighbours only. A sound partition for a few ranks on elongated domains
+/// (vessels, channels); for many ranks a graph partitioner (METIS through PETSc's
+/// `MatPartitioning`) would cut less.
 /// On one rank it is the identity (no copy).
 #[derive(Clone, Debug, Default)]
 pub struct Numbering {
@@ -795,22 +796,12 @@ impl PetscSystem {
             }
             check(ffi::KSPSetUp(ksp), "KSPSetUp (the factorisation)")?;
             check(ffi::PCGetFailedReason(split, &mut failed), "PCGetFailedReason")?;
-            // The reason is this rank's: a failure on one rank fails every rank (else their
-            // Newton solves would part and wait for each other).
-            let local = failed;
-            if ffi::MPI_Allreduce(
-                (&local as *const c_int).cast(),
-                (&mut failed as *mut c_int).cast(),
-                1,
-                ffi::mpi_int(),
-                ffi::mpi_max(),
-                ffi::comm_world(),
-            ) != 0
-            {
-                return Err(LinearSolveError::Petsc("MPI_Allreduce of the set-up's failure failed".into()));
-            }
         }
-        if failed != 0 {
+        // A failure on one rank fails every rank (else their Newton solves would part and wait
+        // for each other); the reason reported is this rank's (0 where another rank failed;
+        // PETSc's reasons include -1, so the ranks agree on whether any failed, not on a
+        // largest reason).
+        if self.world.max(f64::from(u8::from(failed != 0)))? != 0.0 {
             return Err(LinearSolveError::Numeric(format!(
                 "PETSc's preconditioner set-up failed (PCFailedReason {failed}; for the default MUMPS LU: a singular matrix)"
             )));
