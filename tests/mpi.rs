@@ -55,8 +55,13 @@ fn quantities(summary: &Value) -> BTreeMap<String, f64> {
 /// steps and quantities, to `tol` relative (plus `floor` absolute, for quantities that are zero
 /// up to the solver tolerance) against the serial run and to 1e-9 between the two MPI runs.
 fn compare(name: &str, solver: PetscMethod, tol: f64, floor: f64, edit: impl Fn(&mut Case)) {
+    compare_file(name, &cases_dir().join(format!("{name}.toml")), solver, tol, floor, edit);
+}
+
+/// [`compare`] for the case file `file`; returns the log of the run on 2 ranks.
+fn compare_file(name: &str, file: &Path, solver: PetscMethod, tol: f64, floor: f64, edit: impl Fn(&mut Case)) -> String {
     let dir = scratch(&format!("{name}-{solver:?}"));
-    let mut case = Case::read(&cases_dir().join(format!("{name}.toml"))).unwrap();
+    let mut case = Case::read(file).unwrap();
     edit(&mut case);
     let serial = run_case(&case, &RunOptions::new(dir.join("serial"), cases_dir()), &mut |_: &str| {}).unwrap();
     case.solver.linear.method = LinearMethod::Petsc;
@@ -85,6 +90,7 @@ fn compare(name: &str, solver: PetscMethod, tol: f64, floor: f64, edit: impl Fn(
     }
     assert!(!dir.join("n2/.rank1").exists(), "{name}: rank 1's private output folder was not removed");
     let _ = std::fs::remove_dir_all(&dir);
+    log
 }
 
 /// Schaefer-Turek 2D-1 (steady Navier-Stokes) on the coarse mesh (36 596 unknowns), with MUMPS and
@@ -127,6 +133,27 @@ fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
             c.time.as_mut().unwrap().end = 0.3;
         });
     }
+}
+
+/// The 3D Navier-Stokes problem of the scaling runs (`benches/scale3d`, plane Poiseuille flow at
+/// Re = 100) on 8 x 4 x 2 box cells (7 623 unknowns), serially by fdfsi's augmented Lagrangian
+/// and on 1 and 2 ranks by the benchmark's own PETSc options (FGMRES, a Schur field split,
+/// BoomerAMG on the velocity, no LU): the exact solution (centre velocity 1.5, pressures 18 and
+/// 6, flux 0.5) each time, and PETSc's velocity block, the field split's first field, of block
+/// size 3 on both ranks (its view), so that BoomerAMG coarsens each component apart.
+#[test]
+fn the_scaling_problem_on_two_ranks_gives_the_serial_quantities() {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/scale3d/slab-3d-navier-stokes.toml");
+    let log = compare_file("slab-3d-navier-stokes", &file, PetscMethod::Mumps, 1e-8, 1e-10, |c| {
+        let Some(MeshSpec::Box { n, .. }) = c.mesh.as_mut() else { panic!("the scaling problem's mesh is a box") };
+        *n = [8, 4, 2];
+        c.solver.linear.method = LinearMethod::AugmentedLagrangian;
+        c.solver.petsc.options.push_str(" -fdfsi_ksp_view");
+    });
+    let views = log.matches("Mat Object: (fdfsi_fieldsplit_primal_)").count();
+    assert!(views > 0, "no view of the velocity block in the log\n{log}");
+    let velocity_rows = 6_087;
+    assert!(log.contains(&format!("rows={velocity_rows}, cols={velocity_rows}, bs=3")), "the velocity block's block size\n{log}");
 }
 
 /// On several ranks a case must solve through PETSc: any other linear method would solve the

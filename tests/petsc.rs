@@ -177,20 +177,21 @@ fn runs_with_petsc_match_the_direct_solve() {
 }
 
 /// PETSc's numbering on two ranks (the level-set order, `solve::petsc::Numbering`) is a
-/// permutation of the unknowns whose two halves ([`owned_rows`]) couple through a thin slice of
-/// the domain: on the Stokes system of an 8 x 4 x 2 box, the entries between the halves fall
-/// from 44 % of all (the layout's numbering: vertex nodes, edge, face and cell nodes, then the
-/// pressure, so each half is spread over the whole box) to 4.6 %.
+/// permutation of the unknowns whose two halves ([`Numbering::rows`]) couple through a thin
+/// slice of the domain: on the Stokes system of an 8 x 4 x 2 box, the entries between the halves
+/// fall from 44 % of all (the layout's numbering: vertex nodes, edge, face and cell nodes, then
+/// the pressure, so each half is spread over the whole box) to 4.6 %. With the velocity's nodes
+/// kept whole ([`Nodes`], as for PETSc's block size 3), each node's components stay
+/// consecutive and in order, each half holds whole nodes, and the halves couple as little.
 #[test]
 fn two_ranks_own_two_slices_of_the_domain() {
-    use fdfsi::solve::petsc::{owned_rows, Numbering, World};
+    use fdfsi::solve::petsc::{Nodes, Numbering, World};
     let disc = FlowDiscretization::build(box_tetrahedra(0.0, 4.0, 0.0, 2.0, 0.0, 1.0, 8, 4, 2), Formulation::ThreeD).unwrap();
     let pattern = &disc.pattern;
     let n = pattern.n;
     let two = World { rank: 0, size: 2 };
-    let first = owned_rows(n, two);
     // The share of the entries that couple the two halves under a numbering.
-    let coupling = |numbering: &Numbering| {
+    let coupling = |numbering: &Numbering, first: &std::ops::Range<usize>| {
         let mut between = 0;
         for j in 0..n {
             for &i in &pattern.row_idx[pattern.col_ptr[j]..pattern.col_ptr[j + 1]] {
@@ -199,18 +200,47 @@ fn two_ranks_own_two_slices_of_the_domain() {
         }
         between as f64 / pattern.nnz() as f64
     };
-    let numbering = Numbering::new(pattern, two);
-    let mut seen = vec![false; n];
-    for i in 0..n {
-        let p = numbering.to_petsc(i);
-        assert!(!seen[p], "PETSc index {p} given twice");
-        seen[p] = true;
-        assert_eq!(numbering.to_fdfsi(p), i);
-    }
-    let identity = Numbering::new(pattern, World { rank: 0, size: 1 });
-    assert_eq!((identity.to_petsc(7), identity.to_fdfsi(7)), (7, 7));
-    let (layout, level_set) = (coupling(&identity), coupling(&numbering));
+    let is_permutation = |numbering: &Numbering| {
+        let mut seen = vec![false; n];
+        for i in 0..n {
+            let p = numbering.to_petsc(i);
+            assert!(!seen[p], "PETSc index {p} given twice");
+            seen[p] = true;
+            assert_eq!(numbering.to_fdfsi(p), i);
+        }
+        assert_eq!((numbering.rows(0).start, numbering.rows(0).end, numbering.rows(1).end), (0, numbering.rows(1).start, n));
+    };
+    let numbering = Numbering::new(pattern, two, Nodes::SCALAR);
+    is_permutation(&numbering);
+    assert_eq!(numbering.rows(0), 0..n / 2);
+    let identity = Numbering::new(pattern, World { rank: 0, size: 1 }, Nodes::SCALAR);
+    assert_eq!((identity.to_petsc(7), identity.to_fdfsi(7), identity.rows(0)), (7, 7, 0..n));
+    let (layout, level_set) = (coupling(&identity, &(0..n / 2)), coupling(&numbering, &numbering.rows(0)));
     println!("entries between the two halves: layout's numbering {layout:.3}, level-set order {level_set:.3}");
     assert!(layout > 0.2, "{layout}");
     assert!(level_set < 0.1, "{level_set}");
+
+    let velocity = disc.velocity_field().range();
+    assert_eq!(velocity.start, 0);
+    let in_pressure: Vec<bool> = (0..n).map(|i| !velocity.contains(&i)).collect();
+    let nodes = Nodes::of_split(&in_pressure, n, 3);
+    assert_eq!(nodes, Nodes { size: 3, end: velocity.end });
+    let by_node = Numbering::new(pattern, two, nodes);
+    is_permutation(&by_node);
+    for node in (0..velocity.end).step_by(3) {
+        let p = by_node.to_petsc(node);
+        assert_eq!((by_node.to_petsc(node + 1), by_node.to_petsc(node + 2)), (p + 1, p + 2), "the components of node {}", node / 3);
+    }
+    let second = by_node.rows(1).start;
+    let first_of_second = by_node.to_fdfsi(second);
+    assert!(first_of_second >= velocity.end || first_of_second.is_multiple_of(3), "rank 1 starts within a node");
+    assert!(second.abs_diff(n / 2) < 3, "{second} rows of {n} on rank 0");
+    let by_nodes = coupling(&by_node, &by_node.rows(0));
+    println!("entries between the two halves, nodes kept whole: {by_nodes:.3}");
+    assert!(by_nodes < 0.1, "{by_nodes}");
+    // Not a prefix of whole nodes: every unknown a node of its own.
+    assert_eq!(Nodes::of_split(&in_pressure, n, 4), Nodes::SCALAR);
+    let mut shuffled = in_pressure.clone();
+    shuffled.swap(0, n - 1);
+    assert_eq!(Nodes::of_split(&shuffled, n, 3), Nodes::SCALAR);
 }

@@ -195,7 +195,7 @@ impl<const D: usize> FlowDiscretization<D> {
             let dofs: Vec<usize> = (0..=D).map(|k| pf.dof(c * (D + 1) + k, 0)).collect();
             block.push_group(&dofs, &mass);
         }
-        Ok(SaddlePointSplit { multipliers: vec![block] })
+        Ok(SaddlePointSplit { multipliers: vec![block], primal_components: D })
     }
 
     /// Sets the Dirichlet values at time `t` in `x` and returns which dofs they constrain (the

@@ -850,6 +850,8 @@ impl<const D: usize> FsiDiscretization<D> {
     /// stay primal.
     pub fn saddle_point_split(&self, model: &FsiModel<D>) -> Result<SaddlePointSplit, FsiError> {
         let mut split = self.flow.saddle_point_split(model.problem.fluid.formulation)?;
+        // The primal unknowns: velocity, displacement and the unknowns of no block.
+        split.primal_components = 1;
         split.multipliers.extend(model.solid.pressure_block(self.solid_offset())?);
         let c = &self.coupling;
         let mut block = MultiplierBlock { role: MultiplierRole::Coupling, ..MultiplierBlock::new("coupling multiplier") };

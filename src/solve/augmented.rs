@@ -189,6 +189,13 @@ impl MultiplierBlock {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SaddlePointSplit {
     pub multipliers: Vec<MultiplierBlock>,
+    /// The components per node of the primal unknowns where they are one vector field numbered
+    /// node by node from unknown 0, a node's components consecutive (the flow system: the
+    /// velocity, `D` per node, then the pressure); 1 (or 0, the default) where they are of
+    /// several fields (FSI). A preconditioner may treat them node by node: PETSc's field split
+    /// gives its primal field this block size, and hypre's BoomerAMG then coarsens and
+    /// interpolates each component apart (`crate::solve::petsc`).
+    pub primal_components: usize,
 }
 
 /// Options of the AL solver (`[solver.linear]`).

@@ -175,6 +175,7 @@ extern "C" {
     pub fn VecCreateMPI(comm: MpiComm, local: PetscInt, global: PetscInt, vec: *mut Vec) -> PetscErrorCode;
     pub fn ISCreateGeneral(comm: MpiComm, n: PetscInt, indices: *const PetscInt, mode: c_int, is: *mut Is) -> PetscErrorCode;
     pub fn ISDestroy(is: *mut Is) -> PetscErrorCode;
+    pub fn ISSetBlockSize(is: Is, bs: PetscInt) -> PetscErrorCode;
     /// A no-op unless the preconditioner is `fieldsplit`.
     pub fn PCFieldSplitSetIS(pc: Pc, name: *const c_char, is: Is) -> PetscErrorCode;
     /// `kind`: a `PCFieldSplitSchurPreType` ([`PC_FIELDSPLIT_SCHUR_PRE_USER`]); the

@@ -7,13 +7,23 @@
 //!
 //! One process (no `mpirun`, or `mpirun -n 1`): a sequential AIJ matrix. Several (`mpirun -n
 //! N fdfsi run`): every rank holds the same system (the run is replicated up to the linear
-//! solve) and each gives PETSc its [`owned_rows`], a contiguous block of PETSc's numbering of
-//! the unknowns (a level-set order of the matrix graph, [`Numbering`]: a slice of the domain),
-//! as its rows of a distributed AIJ matrix (preallocated from the pattern, so setting values
+//! solve) and each gives PETSc its rows ([`Numbering::rows`]), a contiguous block of PETSc's
+//! numbering of the unknowns (a level-set order of the matrix graph, [`Numbering`]: a slice of
+//! the domain), as its rows of a distributed AIJ matrix (preallocated from the pattern, so setting values
 //! sends nothing); each rank copies its rows of the right-hand side into PETSc's numbering, and
 //! after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and takes it back
 //! to the layout's numbering, so the Newton update is the same on all. [`world`] tells a
 //! process its rank; [`finalize`] and [`abort`] end MPI.
+//!
+//! Where the primal unknowns of a split are one vector field numbered node by node
+//! ([`SaddlePointSplit::primal_components`]: the flow systems' velocity), PETSc's numbering
+//! keeps each node's components together ([`Nodes`]) and the primal field of a `fieldsplit`
+//! preconditioner gets their number as its block size: hypre's BoomerAMG on it then coarsens and
+//! interpolates each component apart (its "unknown" approach), and PETSc's GAMG sees the block
+//! size too. On the 3D Poiseuille slab of `benches/scale3d` (one V-cycle on the velocity, the
+//! Schur complement by Jacobi on `selfp`): 119 Krylov iterations for its two Newton solves at
+//! 56 427 unknowns, 126 at 434 259 and 136 at 2 129 253, against 196, 337 and (after 28
+//! minutes) not yet one solve with scalar AMG.
 //!
 //! With a system's saddle-point split ([`LinearSolver::set_split`]) a `fieldsplit`
 //! preconditioner gets the fields [`FIELDS`]. [`PetscSolver::augmented_lagrangian`] runs
@@ -65,8 +75,8 @@ pub const DEFAULT_OPTIONS: &str = "-fdfsi_ksp_type preonly -fdfsi_pc_type lu -fd
 /// 4e-7 of its start after 200 iterations; refined, 6), with the field split [`FIELDS`] as an
 /// upper block-triangular Schur factorisation, the primal block `A_gamma` by MUMPS's LU, the
 /// Schur block by `S_p` (block diagonal: block Jacobi per rank, ILU(0) within, exact on its
-/// blocks but for a group that a rank boundary of [`owned_rows`] cuts, about one per boundary;
-/// with no zero-pivot threshold: the entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on
+/// blocks but for a group that a rank boundary of [`Numbering::rows`] cuts, about one per
+/// boundary; with no zero-pivot threshold: the entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on
 /// the medium Schaefer-Turek mesh, below PETSc's absolute default of 2.2e-14); the same
 /// preconditioner as `solve::augmented`'s.
 pub const AUGMENTED_LAGRANGIAN_OPTIONS: &str = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-10 -fdfsi_ksp_max_it 200 -fdfsi_ksp_gmres_restart 200 -fdfsi_ksp_gmres_cgs_refinement_type refine_always \
@@ -141,13 +151,13 @@ impl World {
         Ok(max)
     }
 
-    /// Fills all of `x` on every rank from each rank's [`owned_rows`] (the caller holds the lock;
-    /// collective).
-    fn all_gather(&self, x: &mut [f64]) -> Result<(), LinearSolveError> {
+    /// Fills all of `x` (in PETSc's `numbering`) on every rank from each rank's rows
+    /// ([`Numbering::rows`]; the caller holds the lock; collective).
+    fn all_gather(&self, numbering: &Numbering, x: &mut [f64]) -> Result<(), LinearSolveError> {
         if self.size == 1 {
             return Ok(());
         }
-        let ranges: Vec<Range<usize>> = (0..self.size).map(|rank| owned_rows(x.len(), World { rank, size: self.size })).collect();
+        let ranges: Vec<Range<usize>> = (0..self.size).map(|rank| numbering.rows(rank)).collect();
         let int = |v: usize| c_int::try_from(v).map_err(|_| LinearSolveError::Petsc(format!("{v} values exceed MPI's count range")));
         let counts = ranges.iter().map(|r| int(r.len())).collect::<Result<Vec<_>, _>>()?;
         let starts = ranges.iter().map(|r| int(r.start)).collect::<Result<Vec<_>, _>>()?;
@@ -164,46 +174,97 @@ impl World {
     }
 }
 
-/// The rows of a system of `n` unknowns that `world.rank` owns in PETSc's numbering
-/// ([`Numbering`]): contiguous, `n / size` or one more each, in rank order.
-pub fn owned_rows(n: usize, world: World) -> Range<usize> {
-    n * world.rank / world.size..n * (world.rank + 1) / world.size
+/// Consecutive unknowns that PETSc's numbering keeps together and in order, on one rank: the
+/// components of a node. Unknowns `0..end` form nodes of `size` each, every later unknown a
+/// node of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Nodes {
+    pub size: usize,
+    pub end: usize,
+}
+
+impl Nodes {
+    /// Every unknown a node of its own.
+    pub const SCALAR: Nodes = Nodes { size: 1, end: 0 };
+
+    /// The nodes of a split's primal unknowns with `components` each
+    /// ([`SaddlePointSplit::primal_components`]), where they are `0..end` and the unknowns in the
+    /// second field (`in_second`, by unknown; missing at the end: not in it) are `end..n`, with
+    /// `end` a multiple of `components`; [`Nodes::SCALAR`] otherwise.
+    pub fn of_split(in_second: &[bool], n: usize, components: usize) -> Nodes {
+        let second = |i: usize| in_second.get(i).copied().unwrap_or(false);
+        let end = (0..n).find(|&i| second(i)).unwrap_or(n);
+        if components > 1 && end.is_multiple_of(components) && (end..n).all(second) {
+            Nodes { size: components, end }
+        } else {
+            Nodes::SCALAR
+        }
+    }
+
+    /// The first unknown of unknown `i`'s node, and the node's size.
+    fn node_of(&self, i: usize) -> (usize, usize) {
+        match i < self.end {
+            true => (i - i % self.size, self.size),
+            false => (i, 1),
+        }
+    }
 }
 
 /// PETSc's numbering of a system's unknowns, and fdfsi's (the system layout's,
 /// [`crate::discretize::layout`]). PETSc gives each rank a contiguous block of its numbering
-/// ([`owned_rows`]); in the layout's numbering such a block would be scattered over the domain
-/// (the velocity's vertex nodes first, then its edge, face and cell nodes, then the pressure), so
-/// every rank's rows would couple to every other's, and a rank-local smoother (hypre's hybrid
-/// Gauss-Seidel, block Jacobi) would see little of the operator. On several ranks PETSc's
-/// numbering is therefore a *level-set order* of the matrix graph: breadth-first from a
-/// pseudo-peripheral unknown (per connected part), so consecutive unknowns lie close together
-/// and the blocks of [`owned_rows`] are slices of the domain across its longest extent, each
-/// coupled to its neighbours only. A sound partition for a few ranks on elongated domains
-/// (vessels, channels); for many ranks a graph partitioner (METIS through PETSc's
-/// `MatPartitioning`) would cut less.
-/// On one rank it is the identity (no copy).
-#[derive(Clone, Debug, Default)]
+/// ([`Numbering::rows`]); in the layout's numbering such a block would be scattered over the
+/// domain (the velocity's vertex nodes first, then its edge, face and cell nodes, then the
+/// pressure), so every rank's rows would couple to every other's, and a rank-local smoother
+/// (hypre's hybrid Gauss-Seidel, block Jacobi) would see little of the operator. On several
+/// ranks PETSc's numbering is therefore a *level-set order* of the matrix graph: breadth-first
+/// from a pseudo-peripheral unknown (per connected part), so consecutive unknowns lie close
+/// together and the ranks' rows are slices of the domain across its longest extent, each coupled
+/// to its neighbours only. A sound partition for a few ranks on elongated domains (vessels,
+/// channels); for many ranks a graph partitioner (METIS through PETSc's `MatPartitioning`)
+/// would cut less. On one rank it is the identity (no copy).
+///
+/// The level-set order keeps the [`Nodes`] whole, each node's components consecutive and in
+/// order, and each rank's rows whole nodes: about `n / size` rows each, a rank's first row at a
+/// node's first component.
+#[derive(Clone, Debug)]
 pub struct Numbering {
     /// `petsc[i]`: PETSc's index of fdfsi's unknown `i`; empty for the identity.
     petsc: Vec<usize>,
     /// `fdfsi[p]`: fdfsi's unknown of PETSc's index `p`; empty for the identity.
     fdfsi: Vec<usize>,
+    /// Rank `r`'s rows are `bounds[r]..bounds[r + 1]`.
+    bounds: Vec<usize>,
 }
 
 impl Numbering {
-    /// The numbering of `pattern`'s unknowns for `world`: the identity on one rank, the level-set
-    /// order on several.
-    pub fn new(pattern: &Pattern, world: World) -> Self {
+    /// The numbering of `pattern`'s unknowns, with `nodes` kept whole, for `world`: the
+    /// identity on one rank, the level-set order on several.
+    pub fn new(pattern: &Pattern, world: World, nodes: Nodes) -> Self {
+        let n = pattern.n;
         if world.size == 1 {
-            return Numbering::default();
+            return Numbering { petsc: Vec::new(), fdfsi: Vec::new(), bounds: vec![0, n] };
         }
-        let fdfsi = level_set_order(pattern);
+        let fdfsi = level_set_order(pattern, nodes);
         let mut petsc = vec![0; fdfsi.len()];
         for (p, &i) in fdfsi.iter().enumerate() {
             petsc[i] = p;
         }
-        Numbering { petsc, fdfsi }
+        // An even split, each bound moved up to the next node's first component.
+        let bounds = (0..=world.size)
+            .map(|r| {
+                let mut bound = n * r / world.size;
+                while bound < n && nodes.node_of(fdfsi[bound]).0 != fdfsi[bound] {
+                    bound += 1;
+                }
+                bound
+            })
+            .collect();
+        Numbering { petsc, fdfsi, bounds }
+    }
+
+    /// The rows of `rank` in PETSc's numbering: contiguous, in rank order.
+    pub fn rows(&self, rank: usize) -> Range<usize> {
+        self.bounds[rank]..self.bounds[rank + 1]
     }
 
     /// PETSc's index of fdfsi's unknown `i`.
@@ -224,20 +285,26 @@ impl Numbering {
 /// step of George & Liu's search), the parts one after another. The graph is the pattern's
 /// columns (`i` a neighbour of `j` where `(i, j)` is an entry), symmetric for finite-element
 /// systems; neighbours are visited in index order (no sorting by degree, as Cuthill-McKee's).
-fn level_set_order(pattern: &Pattern) -> Vec<usize> {
+/// An unknown reached brings its whole node (`nodes`), its components in order.
+fn level_set_order(pattern: &Pattern, nodes: Nodes) -> Vec<usize> {
     let n = pattern.n;
     let neighbours = |j: usize| &pattern.row_idx[pattern.col_ptr[j]..pattern.col_ptr[j + 1]];
+    let reach = |i: usize, seen: &mut [bool], order: &mut Vec<usize>| {
+        let (first, size) = nodes.node_of(i);
+        for k in first..first + size {
+            seen[k] = true;
+            order.push(k);
+        }
+    };
     let breadth_first = |start: usize, seen: &mut [bool], order: &mut Vec<usize>| {
         let mut head = order.len();
-        seen[start] = true;
-        order.push(start);
+        reach(start, seen, order);
         while head < order.len() {
             let j = order[head];
             head += 1;
             for &i in neighbours(j) {
                 if !seen[i] {
-                    seen[i] = true;
-                    order.push(i);
+                    reach(i, seen, order);
                 }
             }
         }
@@ -364,6 +431,8 @@ pub struct PetscSolver {
     /// Which unknowns are multipliers (the [`SaddlePointSplit`] of [`LinearSolver::set_split`]):
     /// the fields of a `fieldsplit` preconditioner ([`FIELDS`]).
     multipliers: Option<Vec<bool>>,
+    /// The split's [`SaddlePointSplit::primal_components`].
+    primal_components: usize,
     /// With [`PetscSolver::augmented_lagrangian`]: what transforms each system for the field
     /// split.
     al: Option<AugmentedLagrangian>,
@@ -377,7 +446,7 @@ impl PetscSolver {
     /// A solver with PETSc `options` (`-fdfsi_...`, added after [`DEFAULT_OPTIONS`]) that fails
     /// a solve whose relative residual exceeds `fail_tolerance`.
     pub fn new(options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver { options: options.to_string(), multipliers: None, al: None, fail_tolerance, system: None, symbolic: 0 }
+        PetscSolver { options: options.to_string(), multipliers: None, primal_components: 1, al: None, fail_tolerance, system: None, symbolic: 0 }
     }
 
     /// The augmented-Lagrangian preconditioner of `solve::augmented` (with `al`'s weight and
@@ -411,11 +480,12 @@ impl LinearSolver for PetscSolver {
             None => (a.pattern, self.multipliers.as_deref()),
         };
         let augmented = transformed.is_some();
-        if !self.system.as_ref().is_some_and(|s| s.is_for(pattern, fields, augmented)) {
+        let nodes = fields.map_or(Nodes::SCALAR, |m| Nodes::of_split(m, pattern.n, self.primal_components));
+        if !self.system.as_ref().is_some_and(|s| s.is_for(pattern, fields, nodes, augmented)) {
             self.system = None;
             let _petsc = lock();
             let world = initialize()?;
-            self.system = Some(PetscSystem::new(pattern, world, fields, augmented)?);
+            self.system = Some(PetscSystem::new(pattern, world, fields, nodes, augmented)?);
             self.symbolic += 1;
         }
         let system = self.system.as_mut().expect("set above");
@@ -482,14 +552,15 @@ impl LinearSolver for PetscSolver {
             multipliers[d] = true;
         }
         self.multipliers = Some(multipliers);
+        self.primal_components = split.primal_components.max(1);
         if let Some(al) = self.al.as_mut() {
             al.set_split(split);
         }
     }
 }
 
-/// PETSc's objects for one pattern: the matrix (this rank's rows, [`owned_rows`], of the AIJ
-/// matrix on `MPI_COMM_WORLD`: sequential on one rank, distributed on several, in PETSc's
+/// PETSc's objects for one pattern: the matrix (this rank's rows, [`Numbering::rows`], of the
+/// AIJ matrix on `MPI_COMM_WORLD`: sequential on one rank, distributed on several, in PETSc's
 /// [`Numbering`]), the right-hand side and solution vectors (their arrays placed for each
 /// solve) and the `KSP`.
 struct PetscSystem {
@@ -498,8 +569,10 @@ struct PetscSystem {
     n: usize,
     nnz: usize,
     key: u64,
-    /// PETSc's numbering of the unknowns.
+    /// PETSc's numbering of the unknowns, and the nodes it keeps whole (the primal field's
+    /// block size).
     numbering: Numbering,
+    nodes: Nodes,
     /// This rank's rows (in PETSc's numbering).
     rows: Range<usize>,
     /// The CSR arrays of those rows (global column indices) and the CSC position of each entry
@@ -613,14 +686,14 @@ impl PetscSystem {
     /// The CSR copy of this rank's rows of `pattern` (in increasing column order, as PETSc
     /// requires), the matrix preallocated from it and the `KSP` on it, its options read at each
     /// factorisation (the caller holds the lock; collective over the ranks).
-    fn new(pattern: &Pattern, world: World, multipliers: Option<&[bool]>, augmented: bool) -> Result<Self, LinearSolveError> {
+    fn new(pattern: &Pattern, world: World, multipliers: Option<&[bool]>, nodes: Nodes, augmented: bool) -> Result<Self, LinearSolveError> {
         let n = pattern.n;
         let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {} entries exceed PETSc's integer range", pattern.nnz()));
         let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
         let size = int(n)?;
         int(pattern.nnz())?;
-        let rows = owned_rows(n, world);
-        let numbering = Numbering::new(pattern, world);
+        let numbering = Numbering::new(pattern, world, nodes);
+        let rows = numbering.rows(world.rank);
         let mut row_ptr = vec![0; rows.len() + 1];
         for p in pattern.row_idx.iter().map(|&i| numbering.to_petsc(i)).filter(|p| rows.contains(p)) {
             row_ptr[p - rows.start + 1] += 1;
@@ -657,6 +730,7 @@ impl PetscSystem {
             nnz: pattern.nnz(),
             key: pattern_key(pattern),
             numbering,
+            nodes,
             rows,
             row_ptr,
             col_idx,
@@ -707,8 +781,9 @@ impl PetscSystem {
         }
     }
 
-    fn is_for(&self, pattern: &Pattern, fields: Option<&[bool]>, augmented: bool) -> bool {
+    fn is_for(&self, pattern: &Pattern, fields: Option<&[bool]>, nodes: Nodes, augmented: bool) -> bool {
         self.n == pattern.n
+            && self.nodes == nodes
             && self.nnz == pattern.nnz()
             && self.key == pattern_key(pattern)
             && self.field_mask.as_deref() == fields
@@ -782,7 +857,7 @@ impl PetscSystem {
             };
             if !self.fields_set {
                 if let Some(fields) = &self.fields {
-                    set_fields(split, fields)?;
+                    set_fields(split, fields, self.nodes.size)?;
                 }
                 self.fields_set = true;
             }
@@ -866,7 +941,7 @@ impl PetscSystem {
                 "KSPSolve diverged (KSPConvergedReason {reason}, after {iterations} iterations; -{OPTIONS_PREFIX}ksp_converged_reason tells more)"
             )));
         }
-        self.world.all_gather(&mut x_petsc)?;
+        self.world.all_gather(&self.numbering, &mut x_petsc)?;
         for (p, v) in x_petsc.into_iter().enumerate() {
             x[self.numbering.to_fdfsi(p)] = v;
         }
@@ -916,10 +991,11 @@ impl PetscSystem {
     }
 }
 
-/// Gives a `fieldsplit` preconditioner `pc` the fields [`FIELDS`] (this rank's rows of each;
-/// a no-op for another preconditioner; the caller holds the lock; collective).
-fn set_fields(pc: ffi::Pc, fields: &[Vec<PetscInt>; 2]) -> Result<(), LinearSolveError> {
-    for (name, rows) in FIELDS.iter().zip(fields) {
+/// Gives a `fieldsplit` preconditioner `pc` the fields [`FIELDS`] (this rank's rows of each,
+/// the first in whole nodes of `node_size`, its block size; a no-op for another preconditioner;
+/// the caller holds the lock; collective).
+fn set_fields(pc: ffi::Pc, fields: &[Vec<PetscInt>; 2], node_size: usize) -> Result<(), LinearSolveError> {
+    for ((name, rows), block_size) in FIELDS.iter().zip(fields).zip([node_size, 1]) {
         let name = CString::new(*name).expect("no NUL");
         let mut is = null_mut();
         // SAFETY: PETSc copies the indices (PETSC_COPY_VALUES) and keeps its own reference to
@@ -929,7 +1005,8 @@ fn set_fields(pc: ffi::Pc, fields: &[Vec<PetscInt>; 2]) -> Result<(), LinearSolv
                 ffi::ISCreateGeneral(ffi::comm_world(), rows.len() as PetscInt, rows.as_ptr(), ffi::PETSC_COPY_VALUES, &mut is),
                 "ISCreateGeneral",
             )?;
-            let set = check(ffi::PCFieldSplitSetIS(pc, name.as_ptr(), is), "PCFieldSplitSetIS");
+            let set = check(ffi::ISSetBlockSize(is, block_size as PetscInt), "ISSetBlockSize")
+                .and_then(|_| check(ffi::PCFieldSplitSetIS(pc, name.as_ptr(), is), "PCFieldSplitSetIS"));
             ffi::ISDestroy(&mut is);
             set?;
         }
