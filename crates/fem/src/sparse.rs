@@ -50,30 +50,53 @@ impl Pattern {
                 fill[d] += 1;
             }
         }
-        // Column j: union of the dofs of the cells containing dof j.
-        let columns: Vec<Vec<usize>> = (0..n)
+        // Column j: the union of the dofs of the cells containing dof j, sorted, into `rows`
+        // (a buffer per thread: a vector per column would hold its capacity from before the
+        // deduplication, about 7 times the column, which the allocator keeps after they are
+        // freed: 0.4 GB of resident memory at 434 259 unknowns).
+        let column = |j: usize, buf: &mut Vec<usize>, rows: &mut Vec<usize>| {
+            rows.clear();
+            for &c in &dof_cells[count[j]..count[j + 1]] {
+                cell_dofs(c, buf);
+                rows.extend_from_slice(buf);
+            }
+            rows.sort_unstable();
+            rows.dedup();
+            if rows.is_empty() {
+                rows.push(j); // an unused dof still gets its diagonal
+            }
+        };
+        // Two passes: the column lengths, then the columns into their slices of `row_idx`.
+        let lengths: Vec<usize> = (0..n)
             .into_par_iter()
-            .map_init(Vec::new, |buf, j| {
-                let mut rows: Vec<usize> = Vec::new();
-                for &c in &dof_cells[count[j]..count[j + 1]] {
-                    cell_dofs(c, buf);
-                    rows.extend_from_slice(buf);
-                }
-                rows.sort_unstable();
-                rows.dedup();
-                if rows.is_empty() {
-                    rows.push(j); // an unused dof still gets its diagonal
-                }
-                rows
-            })
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(buf, rows), j| {
+                    column(j, buf, rows);
+                    rows.len()
+                },
+            )
             .collect();
         let mut col_ptr = Vec::with_capacity(n + 1);
         col_ptr.push(0);
-        let mut row_idx = Vec::with_capacity(columns.iter().map(Vec::len).sum());
-        for col in &columns {
-            row_idx.extend_from_slice(col);
-            col_ptr.push(row_idx.len());
+        for len in &lengths {
+            col_ptr.push(col_ptr.last().copied().unwrap_or(0) + len);
         }
+        let mut row_idx = vec![0usize; col_ptr[n]];
+        let mut slices: Vec<&mut [usize]> = Vec::with_capacity(n);
+        let mut rest = &mut row_idx[..];
+        for &len in &lengths {
+            let (slice, tail) = rest.split_at_mut(len);
+            slices.push(slice);
+            rest = tail;
+        }
+        slices.into_par_iter().enumerate().for_each_init(
+            || (Vec::new(), Vec::new()),
+            |(buf, rows), (j, out)| {
+                column(j, buf, rows);
+                out.copy_from_slice(rows);
+            },
+        );
         Pattern { n, col_ptr, row_idx }
     }
 
