@@ -177,3 +177,31 @@ fn several_ranks_need_the_petsc_method() {
     assert!(!out.exists(), "nothing written");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A PETSc error on several ranks ends every rank at once, each printing the error with its rank:
+/// an error that one rank met alone inside a collective call, returned, would send that rank on
+/// (a Newton failure, a cut step, another collective call) while the others wait for it.
+#[test]
+fn a_petsc_error_on_two_ranks_ends_every_rank() {
+    let dir = scratch("petsc-error");
+    let mut case = Case::read(&cases_dir().join("channel-stokes.toml")).unwrap();
+    case.solver.linear.method = LinearMethod::Petsc;
+    case.solver.petsc.options = "-fdfsi_ksp_type no-such-method".into();
+    let file = dir.join("case.toml");
+    std::fs::write(&file, case.to_toml()).unwrap();
+    let _one = MPIRUN.lock().unwrap_or_else(|e| e.into_inner());
+    let output = Command::new("mpirun")
+        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_fdfsi"), "run"])
+        .arg(&file)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .unwrap();
+    let log = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    assert!(!output.status.success(), "{log}");
+    assert!(log.contains("KSPSetFromOptions") && log.contains("ending every rank"), "{log}");
+    assert!(!log.contains("done on 2 ranks"), "{log}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

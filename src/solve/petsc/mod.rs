@@ -13,7 +13,10 @@
 //! sends nothing); each rank copies its rows of the right-hand side into PETSc's numbering, and
 //! after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and takes it back
 //! to the layout's numbering, so the Newton update is the same on all. [`world`] tells a
-//! process its rank; [`finalize`] and [`abort`] end MPI.
+//! process its rank; [`finalize`] and [`abort`] end MPI. An error that one rank may meet alone
+//! (a failed PETSc or MPI call) ends every rank at once, printed with its rank: returned, it
+//! would send that rank on while the others wait for it in a collective call. Errors the ranks
+//! agree on (a diverged Krylov solve, an inaccurate solve) are returned on every rank alike.
 //!
 //! Where the primal unknowns of a split are one vector field numbered node by node
 //! ([`SaddlePointSplit::primal_components`]: the flow systems' velocity), PETSc's numbering
@@ -102,7 +105,8 @@ fn lock() -> MutexGuard<'static, ()> {
     PETSC.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// `Err` with PETSc's message for a nonzero error `code` of `call`.
+/// `Err` with PETSc's message for a nonzero error `code` of `call`; on several ranks, every rank
+/// ended ([`end_ranks_on`]).
 fn check(code: ffi::PetscErrorCode, call: &str) -> Result<(), LinearSolveError> {
     if code == 0 {
         return Ok(());
@@ -119,7 +123,25 @@ fn check(code: ffi::PetscErrorCode, call: &str) -> Result<(), LinearSolveError> 
             .collect::<Vec<_>>()
             .join(": ")
     };
-    Err(LinearSolveError::Petsc(format!("{call}: {message} (PETSc error {code})")))
+    Err(end_ranks_on(LinearSolveError::Petsc(format!("{call}: {message} (PETSc error {code})"))))
+}
+
+/// `error`, where this process runs alone; on several ranks, `error` printed with this rank and
+/// every rank ended (`MPI_Abort`, exit code 1). For an error that this rank may meet alone
+/// (a failed PETSc or MPI call, a check of this rank's rows) during or just before a collective
+/// call: returned, it would send this rank on (a Newton failure, a cut time step and a new
+/// collective call) while the other ranks wait in the collective call it left. Errors that the
+/// ranks agree on (a Krylov solve that diverged: PETSc's reason is global; a residual reduced
+/// over the ranks, [`World::max`]) are returned on every rank alike, and a run may go on from
+/// them (cut the step) on all ranks together.
+fn end_ranks_on(error: LinearSolveError) -> LinearSolveError {
+    if let Some(Ok(world)) = WORLD.get() {
+        if world.size > 1 {
+            eprintln!("rank {}: {error}; ending every rank (the others would wait for this one)", world.rank);
+            abort(1);
+        }
+    }
+    error
 }
 
 /// This process among the MPI ranks of `MPI_COMM_WORLD` (those `mpirun` started; one alone
@@ -146,7 +168,7 @@ impl World {
             ffi::MPI_Allreduce((&local as *const f64).cast(), (&mut max as *mut f64).cast(), 1, ffi::mpi_double(), ffi::mpi_max(), ffi::comm_world())
         };
         if code != 0 {
-            return Err(LinearSolveError::Petsc(format!("MPI_Allreduce failed (MPI error {code})")));
+            return Err(end_ranks_on(LinearSolveError::Petsc(format!("MPI_Allreduce failed (MPI error {code})"))));
         }
         Ok(max)
     }
@@ -168,7 +190,7 @@ impl World {
             ffi::MPI_Allgatherv(ffi::MPI_IN_PLACE, 0, double, x.as_mut_ptr().cast(), counts.as_ptr(), starts.as_ptr(), double, ffi::comm_world())
         };
         if code != 0 {
-            return Err(LinearSolveError::Petsc(format!("MPI_Allgatherv failed (MPI error {code})")));
+            return Err(end_ranks_on(LinearSolveError::Petsc(format!("MPI_Allgatherv failed (MPI error {code})"))));
         }
         Ok(())
     }
@@ -329,35 +351,38 @@ fn level_set_order(pattern: &Pattern, nodes: Nodes) -> Vec<usize> {
 /// Whether [`finalize`] ran: PETSc cannot start again.
 static FINALIZED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
+/// This process's rank once MPI and PETSc are initialised ([`initialize`]).
+static WORLD: OnceLock<Result<World, String>> = OnceLock::new();
+
 /// Initialises MPI and PETSc once per process (the caller holds the lock); returns this rank.
 fn initialize() -> Result<World, LinearSolveError> {
-    static DONE: OnceLock<Result<World, String>> = OnceLock::new();
     if FINALIZED.load(std::sync::atomic::Ordering::SeqCst) {
         return Err(LinearSolveError::Petsc("PETSc was finalised (solve::petsc::finalize)".into()));
     }
-    DONE.get_or_init(|| {
-        let (mut mpi, mut provided, mut petsc): (c_int, c_int, ffi::PetscBool) = (0, 0, 0);
-        let (mut rank, mut size): (c_int, c_int) = (0, 1);
-        let flag = CString::new("-no_signal_handler").expect("no NUL");
-        // SAFETY: plain calls; null argc/argv are allowed by MPI_Init_thread.
-        unsafe {
-            ffi::MPI_Initialized(&mut mpi);
-            if mpi == 0 && ffi::MPI_Init_thread(null_mut(), null_mut(), ffi::MPI_THREAD_SERIALIZED, &mut provided) != 0 {
-                return Err("MPI_Init_thread failed".to_string());
+    WORLD
+        .get_or_init(|| {
+            let (mut mpi, mut provided, mut petsc): (c_int, c_int, ffi::PetscBool) = (0, 0, 0);
+            let (mut rank, mut size): (c_int, c_int) = (0, 1);
+            let flag = CString::new("-no_signal_handler").expect("no NUL");
+            // SAFETY: plain calls; null argc/argv are allowed by MPI_Init_thread.
+            unsafe {
+                ffi::MPI_Initialized(&mut mpi);
+                if mpi == 0 && ffi::MPI_Init_thread(null_mut(), null_mut(), ffi::MPI_THREAD_SERIALIZED, &mut provided) != 0 {
+                    return Err("MPI_Init_thread failed".to_string());
+                }
+                check(ffi::PetscInitialized(&mut petsc), "PetscInitialized").map_err(|e| e.to_string())?;
+                if petsc == 0 {
+                    check(ffi::PetscOptionsSetValue(null_mut(), flag.as_ptr(), null()), "PetscOptionsSetValue").map_err(|e| e.to_string())?;
+                    check(ffi::PetscInitializeNoArguments(), "PetscInitializeNoArguments").map_err(|e| e.to_string())?;
+                }
+                if ffi::MPI_Comm_rank(ffi::comm_world(), &mut rank) != 0 || ffi::MPI_Comm_size(ffi::comm_world(), &mut size) != 0 {
+                    return Err("MPI_Comm_rank or MPI_Comm_size failed".to_string());
+                }
             }
-            check(ffi::PetscInitialized(&mut petsc), "PetscInitialized").map_err(|e| e.to_string())?;
-            if petsc == 0 {
-                check(ffi::PetscOptionsSetValue(null_mut(), flag.as_ptr(), null()), "PetscOptionsSetValue").map_err(|e| e.to_string())?;
-                check(ffi::PetscInitializeNoArguments(), "PetscInitializeNoArguments").map_err(|e| e.to_string())?;
-            }
-            if ffi::MPI_Comm_rank(ffi::comm_world(), &mut rank) != 0 || ffi::MPI_Comm_size(ffi::comm_world(), &mut size) != 0 {
-                return Err("MPI_Comm_rank or MPI_Comm_size failed".to_string());
-            }
-        }
-        Ok(World { rank: rank as usize, size: size as usize })
-    })
-    .clone()
-    .map_err(LinearSolveError::Petsc)
+            Ok(World { rank: rank as usize, size: size as usize })
+        })
+        .clone()
+        .map_err(LinearSolveError::Petsc)
 }
 
 /// This process's rank and the number of ranks, initialising MPI and PETSc if they are not yet.
@@ -974,7 +999,8 @@ impl PetscSystem {
             .collect();
         rows.sort_unstable();
         if rows.len() != owned.len() || rows.iter().zip(owned).any(|(r, &o)| r.0 as PetscInt != o) {
-            return Err(LinearSolveError::Petsc("the Schur blocks do not cover the second field's unknowns once each".into()));
+            // This rank's check, before the collective creation of the matrix.
+            return Err(end_ranks_on(LinearSolveError::Petsc("the Schur blocks do not cover the second field's unknowns once each".into())));
         }
         let mut row_ptr: Vec<PetscInt> = vec![0];
         let (mut cols, mut vals) = (Vec::new(), Vec::new());
