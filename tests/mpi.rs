@@ -1,6 +1,8 @@
 //! `mpirun -n 1` and `mpirun -n 2 fdfsi run CASE` (the `petsc` feature: every rank runs the case,
 //! the Newton systems are solved by PETSc on all of them together) reproduce the serial run's
-//! quantities on Schaefer-Turek 2D-1, model problem 3 and the first steps of model problem 4
+//! quantities on Schaefer-Turek 2D-1, model problem 3, the first steps of model problem 4 and
+//! the 3D Navier-Stokes problem of the scaling runs (with its iterative solve and the velocity's
+//! block size), and a PETSc error ends every rank
 //! (`cargo test --release --features petsc --test mpi`; needs the system's PETSc and Open MPI's
 //! `mpirun`).
 #![cfg(feature = "petsc")]
@@ -138,9 +140,10 @@ fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
 /// The 3D Navier-Stokes problem of the scaling runs (`benches/scale3d`, plane Poiseuille flow at
 /// Re = 100) on 8 x 4 x 2 box cells (7 623 unknowns), serially by fdfsi's augmented Lagrangian
 /// and on 1 and 2 ranks by the benchmark's own PETSc options (FGMRES, a Schur field split,
-/// BoomerAMG on the velocity, no LU): the exact solution (centre velocity 1.5, pressures 18 and
-/// 6, flux 0.5) each time, and PETSc's velocity block, the field split's first field, of block
-/// size 3 on both ranks (its view), so that BoomerAMG coarsens each component apart.
+/// BoomerAMG on the velocity, no LU): the serial run's quantities (the exact solution: centre
+/// velocity 1.5, pressures 18 and 6, flux 0.5), and on 2 ranks PETSc's velocity block, the
+/// field split's first field, of block size 3 (its view), so that BoomerAMG coarsens each
+/// component apart.
 #[test]
 fn the_scaling_problem_on_two_ranks_gives_the_serial_quantities() {
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/scale3d/slab-3d-navier-stokes.toml");
@@ -190,8 +193,9 @@ fn a_petsc_error_on_two_ranks_ends_every_rank() {
     let file = dir.join("case.toml");
     std::fs::write(&file, case.to_toml()).unwrap();
     let _one = MPIRUN.lock().unwrap_or_else(|e| e.into_inner());
-    let output = Command::new("mpirun")
-        .args(["-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_fdfsi"), "run"])
+    // A rank left waiting would hang the test: `timeout` fails it instead.
+    let output = Command::new("timeout")
+        .args(["300", "mpirun", "-n", "2", "--oversubscribe", env!("CARGO_BIN_EXE_fdfsi"), "run"])
         .arg(&file)
         .arg("--out")
         .arg(dir.join("out"))
@@ -201,6 +205,7 @@ fn a_petsc_error_on_two_ranks_ends_every_rank() {
         .unwrap();
     let log = format!("{}{}", String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
     assert!(!output.status.success(), "{log}");
+    assert_ne!(output.status.code(), Some(124), "the run did not end within 300 s\n{log}");
     assert!(log.contains("KSPSetFromOptions") && log.contains("ending every rank"), "{log}");
     assert!(!log.contains("done on 2 ranks"), "{log}");
     let _ = std::fs::remove_dir_all(&dir);

@@ -243,4 +243,5 @@ fn two_ranks_own_two_slices_of_the_domain() {
     let mut shuffled = in_pressure.clone();
     shuffled.swap(0, n - 1);
     assert_eq!(Nodes::of_split(&shuffled, n, 3), Nodes::SCALAR);
+    assert_eq!(Nodes::of_split(&vec![true; n], n, 3), Nodes::SCALAR, "no primal unknowns");
 }

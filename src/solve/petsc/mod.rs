@@ -216,7 +216,7 @@ impl Nodes {
     pub fn of_split(in_second: &[bool], n: usize, components: usize) -> Nodes {
         let second = |i: usize| in_second.get(i).copied().unwrap_or(false);
         let end = (0..n).find(|&i| second(i)).unwrap_or(n);
-        if components > 1 && end.is_multiple_of(components) && (end..n).all(second) {
+        if components > 1 && end > 0 && end.is_multiple_of(components) && (end..n).all(second) {
             Nodes { size: components, end }
         } else {
             Nodes::SCALAR
@@ -263,6 +263,7 @@ impl Numbering {
     /// identity on one rank, the level-set order on several.
     pub fn new(pattern: &Pattern, world: World, nodes: Nodes) -> Self {
         let n = pattern.n;
+        assert!(nodes.size >= 1 && nodes.end <= n && nodes.end.is_multiple_of(nodes.size), "{nodes:?} of {n} unknowns");
         if world.size == 1 {
             return Numbering { petsc: Vec::new(), fdfsi: Vec::new(), bounds: vec![0, n] };
         }
@@ -505,7 +506,13 @@ impl LinearSolver for PetscSolver {
             None => (a.pattern, self.multipliers.as_deref()),
         };
         let augmented = transformed.is_some();
-        let nodes = fields.map_or(Nodes::SCALAR, |m| Nodes::of_split(m, pattern.n, self.primal_components));
+        // The nodes of the split's primal unknowns, where the fields' first is exactly those
+        // (the augmented Lagrangian's may hold multipliers kept primal too).
+        let split_nodes = self.multipliers.as_deref().map(|m| Nodes::of_split(m, pattern.n, self.primal_components));
+        let nodes = match fields.map(|m| Nodes::of_split(m, pattern.n, self.primal_components)) {
+            Some(of_fields) if Some(of_fields) == split_nodes => of_fields,
+            _ => Nodes::SCALAR,
+        };
         if !self.system.as_ref().is_some_and(|s| s.is_for(pattern, fields, nodes, augmented)) {
             self.system = None;
             let _petsc = lock();
