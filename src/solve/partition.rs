@@ -5,7 +5,7 @@
 //! (`solve::petsc`) hands them to PETSc, and a partitioned assembly can ask them which rows are
 //! its own (`docs/design/partitioned-assembly.md`).
 
-use fdfsi_fem::sparse::Pattern;
+use fdfsi_fem::sparse::{dof_cells, Pattern};
 use std::ops::Range;
 
 /// This process among the MPI ranks of `MPI_COMM_WORLD` (those `mpirun` started; one alone
@@ -103,26 +103,8 @@ impl Numbering {
         if world.size == 1 {
             return Self::level_set(n, world, nodes, |_, _| unreachable!("the identity on one rank"));
         }
-        // dof -> cells adjacency (CSR), as `Pattern::from_cells` builds it.
-        let mut start = vec![0usize; n + 1];
+        let (start, dof_cells) = dof_cells(n, num_cells, &cell_dofs);
         let mut buf = Vec::new();
-        for c in 0..num_cells {
-            cell_dofs(c, &mut buf);
-            buf.iter().for_each(|&d| start[d + 1] += 1);
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut dof_cells = vec![0usize; start[n]];
-        for c in 0..num_cells {
-            cell_dofs(c, &mut buf);
-            for &d in &buf {
-                dof_cells[fill[d]] = c;
-                fill[d] += 1;
-            }
-        }
-        drop(fill);
         Self::level_set(n, world, nodes, |j, column| {
             column.clear();
             for &c in &dof_cells[start[j]..start[j + 1]] {

@@ -27,6 +27,35 @@ pub struct Pattern {
 /// freed memory (glibc's mmap threshold rises up to 32 MiB).
 const MIN_CHUNK: usize = 1 << 16;
 
+/// The cells around each dof (or vertex), from the cells' dofs (`cell_dofs(c, out)`), as a CSR
+/// map: dof `d`'s cells are `cells[start[d]..start[d + 1]]`, in increasing order; returns `(start, cells)`.
+pub fn dof_cells<F>(n: usize, num_cells: usize, cell_dofs: &F) -> (Vec<usize>, Vec<usize>)
+where
+    F: Fn(usize, &mut Vec<usize>),
+{
+    let mut start = vec![0usize; n + 1];
+    let mut buf = Vec::new();
+    for c in 0..num_cells {
+        cell_dofs(c, &mut buf);
+        for &d in &buf {
+            start[d + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut cells = vec![0usize; start[n]];
+    for c in 0..num_cells {
+        cell_dofs(c, &mut buf);
+        for &d in &buf {
+            cells[fill[d]] = c;
+            fill[d] += 1;
+        }
+    }
+    (start, cells)
+}
+
 impl Pattern {
     /// Pattern of a matrix in which the dofs of every cell are coupled with each other.
     /// `cell_dofs(c)` returns the global dofs of cell `c`.
@@ -34,27 +63,7 @@ impl Pattern {
     where
         F: Fn(usize, &mut Vec<usize>) + Sync,
     {
-        // dof -> cells adjacency (CSR).
-        let mut count = vec![0usize; n + 1];
-        let mut buf = Vec::new();
-        for c in 0..num_cells {
-            cell_dofs(c, &mut buf);
-            for &d in &buf {
-                count[d + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            count[i + 1] += count[i];
-        }
-        let mut fill = count.clone();
-        let mut dof_cells = vec![0usize; count[n]];
-        for c in 0..num_cells {
-            cell_dofs(c, &mut buf);
-            for &d in &buf {
-                dof_cells[fill[d]] = c;
-                fill[d] += 1;
-            }
-        }
+        let (count, dof_cells) = dof_cells(n, num_cells, &cell_dofs);
         // Column j: the union of the dofs of the cells containing dof j, sorted, into `rows`.
         let column = |j: usize, buf: &mut Vec<usize>, rows: &mut Vec<usize>| {
             rows.clear();
@@ -158,24 +167,10 @@ impl Colouring {
     where
         F: Fn(usize) -> &'a [usize],
     {
-        // vertex -> cells (CSR)
-        let mut count = vec![0usize; num_vertices + 1];
-        for c in 0..num_cells {
-            for &v in cell_vertices(c) {
-                count[v + 1] += 1;
-            }
-        }
-        for i in 0..num_vertices {
-            count[i + 1] += count[i];
-        }
-        let mut fill = count.clone();
-        let mut vc = vec![0usize; count[num_vertices]];
-        for c in 0..num_cells {
-            for &v in cell_vertices(c) {
-                vc[fill[v]] = c;
-                fill[v] += 1;
-            }
-        }
+        let (count, vc) = dof_cells(num_vertices, num_cells, &|c, out: &mut Vec<usize>| {
+            out.clear();
+            out.extend_from_slice(cell_vertices(c));
+        });
         let mut colour = vec![usize::MAX; num_cells];
         let mut stamp: Vec<usize> = Vec::new(); // stamp[k] == c + 1: colour k is taken for cell c
         let mut colours: Vec<Vec<usize>> = Vec::new();
