@@ -96,9 +96,10 @@ fn compare_file(name: &str, file: &Path, solver: PetscMethod, tol: f64, floor: f
 }
 
 /// Schaefer-Turek 2D-1 (steady Navier-Stokes) on the coarse mesh (36 596 unknowns), with MUMPS and
-/// with the augmented Lagrangian through PETSc: drag, lift and pressure difference. The serial run's Newton (inexact, its linear solves by the
-/// augmented-Lagrangian FGMRES) stops at |R| <= 1e-10: the coefficients agree to 1e-9
-/// absolute (measured 2.4e-10 for the lift, 2.3e-8 of its value of 1e-2; 2e-11 of the drag).
+/// with the augmented Lagrangian through PETSc: drag, lift and pressure difference. The serial
+/// run's Newton (inexact, its linear solves by the augmented-Lagrangian FGMRES) stops at
+/// |R| <= 1e-10: the coefficients agree to 1e-9 absolute (measured 2.4e-10 for the lift, 2.3e-8
+/// of its value of 1e-2; 2e-11 of the drag).
 #[test]
 fn schaefer_turek_2d1_on_two_ranks_gives_the_serial_quantities() {
     let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/dfg2d-coarse.msh");

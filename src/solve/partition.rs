@@ -32,9 +32,10 @@ impl Nodes {
     pub const SCALAR: Nodes = Nodes { size: 1, end: 0 };
 
     /// The nodes of a split's primal unknowns with `components` each
-    /// ([`crate::solve::augmented::SaddlePointSplit::primal_components`]), where they are `0..end` and the unknowns in the
-    /// second field (`in_second`, by unknown; missing at the end: not in it) are `end..n`, with
-    /// `end` a multiple of `components`; [`Nodes::SCALAR`] otherwise.
+    /// ([`crate::solve::augmented::SaddlePointSplit::primal_components`]), where they are
+    /// `0..end` and the unknowns in the second field (`in_second`, by unknown; missing at the
+    /// end: not in it) are `end..n`, with `end` a multiple of `components`; [`Nodes::SCALAR`]
+    /// otherwise.
     pub fn of_split(in_second: &[bool], n: usize, components: usize) -> Nodes {
         let second = |i: usize| in_second.get(i).copied().unwrap_or(false);
         let end = (0..n).find(|&i| second(i)).unwrap_or(n);

@@ -28,7 +28,8 @@ pub struct Pattern {
 const MIN_CHUNK: usize = 1 << 16;
 
 /// The cells around each dof (or vertex), from the cells' dofs (`cell_dofs(c, out)`), as a CSR
-/// map: dof `d`'s cells are `cells[start[d]..start[d + 1]]`, in increasing order; returns `(start, cells)`.
+/// map: dof `d`'s cells are `cells[start[d]..start[d + 1]]`, in increasing order; returns
+/// `(start, cells)`.
 pub fn dof_cells<F>(n: usize, num_cells: usize, cell_dofs: &F) -> (Vec<usize>, Vec<usize>)
 where
     F: Fn(usize, &mut Vec<usize>),

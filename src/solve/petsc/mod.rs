@@ -9,12 +9,12 @@
 //! N fdfsi run`): every rank holds the same system (the run is replicated up to the linear
 //! solve) and each gives PETSc its rows ([`Numbering::rows`]), a contiguous block of PETSc's
 //! numbering of the unknowns (a level-set order of the matrix graph, [`Numbering`]: a slice of
-//! the domain), as its rows of a distributed AIJ matrix (preallocated from the pattern, so setting values
-//! sends nothing); each rank copies its rows of the right-hand side into PETSc's numbering, and
-//! after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and takes it back
-//! to the layout's numbering, so the Newton update is the same on all. [`world`] tells a
-//! process its rank; [`finalize`] and [`abort`] end MPI. An error that one rank may meet alone
-//! (a failed PETSc or MPI call) ends every rank at once, printed with its rank: returned, it
+//! the domain), as its rows of a distributed AIJ matrix (preallocated from the pattern, so
+//! setting values sends nothing); each rank copies its rows of the right-hand side into PETSc's
+//! numbering, and after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and
+//! takes it back to the layout's numbering, so the Newton update is the same on all. [`world`]
+//! tells a process its rank; [`finalize`] and [`abort`] end MPI. An error that one rank may meet
+//! alone (a failed PETSc or MPI call) ends every rank at once, printed with its rank: returned, it
 //! would send that rank on while the others wait for it in a collective call. Errors the ranks
 //! agree on (a diverged Krylov solve, an inaccurate solve) are returned on every rank alike.
 //!
@@ -80,8 +80,8 @@ pub const DEFAULT_OPTIONS: &str = "-fdfsi_ksp_type preonly -fdfsi_pc_type lu -fd
 /// upper block-triangular Schur factorisation, the primal block `A_gamma` by MUMPS's LU, the
 /// Schur block by `S_p` (block diagonal: block Jacobi per rank, ILU(0) within, exact on its
 /// blocks but for a group that a rank boundary of [`Numbering::rows`] cuts, about one per
-/// boundary; with no zero-pivot threshold: the entries of `S_p` scale as `|K| / (eta + gamma)`, 2e-14 on
-/// the medium Schaefer-Turek mesh, below PETSc's absolute default of 2.2e-14); the same
+/// boundary; with no zero-pivot threshold: the entries of `S_p` scale as `|K| / (eta + gamma)`,
+/// 2e-14 on the medium Schaefer-Turek mesh, below PETSc's absolute default of 2.2e-14); the same
 /// preconditioner as `solve::augmented`'s.
 pub const AUGMENTED_LAGRANGIAN_OPTIONS: &str = "-fdfsi_ksp_type fgmres -fdfsi_ksp_rtol 1e-10 -fdfsi_ksp_max_it 200 -fdfsi_ksp_gmres_restart 200 -fdfsi_ksp_gmres_cgs_refinement_type refine_always \
 -fdfsi_al_pc_type fieldsplit -fdfsi_al_pc_fieldsplit_type schur -fdfsi_al_pc_fieldsplit_schur_fact_type upper \
