@@ -5,7 +5,7 @@
 //! (`solve::petsc`) hands them to PETSc, and a partitioned assembly can ask them which rows are
 //! its own (`docs/design/partitioned-assembly.md`).
 
-use fdfsi_fem::sparse::{dof_cells, Pattern};
+use fdfsi_fem::sparse::{DofCells, Pattern};
 use std::ops::Range;
 
 /// This process among the MPI ranks of `MPI_COMM_WORLD` (those `mpirun` started; one alone
@@ -104,20 +104,9 @@ impl Numbering {
         if world.size == 1 {
             return Self::level_set(n, world, nodes, |_, _| unreachable!("the identity on one rank"));
         }
-        let (start, dof_cells) = dof_cells(n, num_cells, &cell_dofs);
+        let dof_cells = DofCells::new(n, num_cells, &cell_dofs);
         let mut buf = Vec::new();
-        Self::level_set(n, world, nodes, |j, column| {
-            column.clear();
-            for &c in &dof_cells[start[j]..start[j + 1]] {
-                cell_dofs(c, &mut buf);
-                column.extend_from_slice(&buf);
-            }
-            column.sort_unstable();
-            column.dedup();
-            if column.is_empty() {
-                column.push(j); // an unused dof: its diagonal only, as in the pattern
-            }
-        })
+        Self::level_set(n, world, nodes, |j, column| dof_cells.column_into(j, &cell_dofs, &mut buf, column))
     }
 
     /// The numbering of `n` unknowns for `world` with the graph's neighbours of each unknown

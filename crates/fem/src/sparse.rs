@@ -27,34 +27,65 @@ pub struct Pattern {
 /// freed memory (glibc's mmap threshold rises up to 32 MiB).
 const MIN_CHUNK: usize = 1 << 16;
 
-/// The cells around each dof (or vertex), from the cells' dofs (`cell_dofs(c, out)`), as a CSR
-/// map: dof `d`'s cells are `cells[start[d]..start[d + 1]]`, in increasing order; returns
-/// `(start, cells)`.
-pub fn dof_cells<F>(n: usize, num_cells: usize, cell_dofs: &F) -> (Vec<usize>, Vec<usize>)
-where
-    F: Fn(usize, &mut Vec<usize>),
-{
-    let mut start = vec![0usize; n + 1];
-    let mut buf = Vec::new();
-    for c in 0..num_cells {
-        cell_dofs(c, &mut buf);
-        for &d in &buf {
-            start[d + 1] += 1;
+/// The cells around each dof (or vertex), as a CSR map: dof `d`'s cells, in increasing order,
+/// are [`DofCells::of`]`(d)`.
+pub struct DofCells {
+    start: Vec<usize>,
+    cells: Vec<usize>,
+}
+
+impl DofCells {
+    /// The map of `n` dofs from the dofs of `num_cells` cells (`cell_dofs(c, out)`).
+    pub fn new<F>(n: usize, num_cells: usize, cell_dofs: &F) -> Self
+    where
+        F: Fn(usize, &mut Vec<usize>),
+    {
+        let mut start = vec![0usize; n + 1];
+        let mut buf = Vec::new();
+        for c in 0..num_cells {
+            cell_dofs(c, &mut buf);
+            for &d in &buf {
+                start[d + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut cells = vec![0usize; start[n]];
+        for c in 0..num_cells {
+            cell_dofs(c, &mut buf);
+            for &d in &buf {
+                cells[fill[d]] = c;
+                fill[d] += 1;
+            }
+        }
+        DofCells { start, cells }
+    }
+
+    /// The cells around dof `d`.
+    pub fn of(&self, d: usize) -> &[usize] {
+        &self.cells[self.start[d]..self.start[d + 1]]
+    }
+
+    /// Column `j` of [`Pattern::from_cells`]'s pattern into `column`: the union of the dofs of
+    /// the cells around dof `j`, sorted (`buf` is scratch); `[j]` alone for a dof of no cell
+    /// (its diagonal).
+    pub fn column_into<F>(&self, j: usize, cell_dofs: &F, buf: &mut Vec<usize>, column: &mut Vec<usize>)
+    where
+        F: Fn(usize, &mut Vec<usize>),
+    {
+        column.clear();
+        for &c in self.of(j) {
+            cell_dofs(c, buf);
+            column.extend_from_slice(buf);
+        }
+        column.sort_unstable();
+        column.dedup();
+        if column.is_empty() {
+            column.push(j);
         }
     }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut cells = vec![0usize; start[n]];
-    for c in 0..num_cells {
-        cell_dofs(c, &mut buf);
-        for &d in &buf {
-            cells[fill[d]] = c;
-            fill[d] += 1;
-        }
-    }
-    (start, cells)
 }
 
 impl Pattern {
@@ -64,20 +95,7 @@ impl Pattern {
     where
         F: Fn(usize, &mut Vec<usize>) + Sync,
     {
-        let (count, dof_cells) = dof_cells(n, num_cells, &cell_dofs);
-        // Column j: the union of the dofs of the cells containing dof j, sorted, into `rows`.
-        let column = |j: usize, buf: &mut Vec<usize>, rows: &mut Vec<usize>| {
-            rows.clear();
-            for &c in &dof_cells[count[j]..count[j + 1]] {
-                cell_dofs(c, buf);
-                rows.extend_from_slice(buf);
-            }
-            rows.sort_unstable();
-            rows.dedup();
-            if rows.is_empty() {
-                rows.push(j); // an unused dof still gets its diagonal
-            }
-        };
+        let dof_cells = DofCells::new(n, num_cells, &cell_dofs);
         // Columns in chunks, each chunk's one after another into one vector, then the chunks
         // into `row_idx`. (A vector per column would keep its capacity from before the
         // deduplication, about 7 times the column, and the allocator keeps such small blocks
@@ -91,7 +109,7 @@ impl Pattern {
                 |(buf, rows), k| {
                     let (mut lengths, mut entries) = (Vec::with_capacity(chunk), Vec::new());
                     for j in k * chunk..((k + 1) * chunk).min(n) {
-                        column(j, buf, rows);
+                        dof_cells.column_into(j, &cell_dofs, buf, rows);
                         lengths.push(rows.len());
                         entries.extend_from_slice(rows);
                     }
@@ -168,7 +186,7 @@ impl Colouring {
     where
         F: Fn(usize) -> &'a [usize],
     {
-        let (count, vc) = dof_cells(num_vertices, num_cells, &|c, out: &mut Vec<usize>| {
+        let vertex_cells = DofCells::new(num_vertices, num_cells, &|c, out: &mut Vec<usize>| {
             out.clear();
             out.extend_from_slice(cell_vertices(c));
         });
@@ -177,7 +195,7 @@ impl Colouring {
         let mut colours: Vec<Vec<usize>> = Vec::new();
         for c in 0..num_cells {
             for &v in cell_vertices(c) {
-                for &other in &vc[count[v]..count[v + 1]] {
+                for &other in vertex_cells.of(v) {
                     let k = colour[other];
                     if k != usize::MAX {
                         stamp[k] = c + 1;

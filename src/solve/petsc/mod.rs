@@ -443,8 +443,6 @@ struct PetscSystem {
     /// block size).
     numbering: Numbering,
     nodes: Nodes,
-    /// This rank's rows (in PETSc's numbering).
-    rows: Range<usize>,
     /// The CSR arrays of those rows (global column indices) and the CSC position of each entry
     /// (below the pattern's entry count, which fits a `PetscInt`).
     row_ptr: Vec<PetscInt>,
@@ -601,7 +599,6 @@ impl PetscSystem {
             key: pattern_key(pattern),
             numbering,
             nodes,
-            rows,
             row_ptr,
             col_idx,
             csc_of_csr,
@@ -670,6 +667,11 @@ impl PetscSystem {
         self.n
     }
 
+    /// This rank's rows (in PETSc's numbering).
+    fn rows(&self) -> Range<usize> {
+        self.numbering.rows(self.world.rank)
+    }
+
     /// Copies this rank's rows of `values` (in the pattern's CSC order) into `mat` (the caller
     /// holds the lock; collective).
     fn load(&self, mat: ffi::Mat, values: &[f64]) -> Result<(), LinearSolveError> {
@@ -677,7 +679,7 @@ impl PetscSystem {
         // SAFETY: the matrix is valid and was preallocated with exactly these rows and columns;
         // each row's slice of the CSR arrays lies within them.
         unsafe {
-            for (i, row) in self.rows.clone().enumerate() {
+            for (i, row) in self.rows().enumerate() {
                 let (start, end) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
                 row_values.clear();
                 row_values.extend(self.csc_of_csr[start..end].iter().map(|&k| values[k as usize]));
@@ -757,12 +759,12 @@ impl PetscSystem {
     /// `T = I + (T - I)` from the entries of `T - I` (`(row, column, value)`), this rank's rows
     /// (the caller holds the lock and destroys it; collective).
     fn transform_matrix(&self, off_diagonal: &[(usize, usize, f64)]) -> Result<ffi::Mat, LinearSolveError> {
-        let to_petsc = |i| self.numbering.to_petsc(i);
+        let (to_petsc, rows) = (|i| self.numbering.to_petsc(i), self.rows());
         let mut entries: Vec<(usize, usize, f64)> =
-            off_diagonal.iter().map(|&(i, j, v)| (to_petsc(i), to_petsc(j), v)).filter(|(p, _, _)| self.rows.contains(p)).collect();
-        entries.extend(self.rows.clone().map(|i| (i, i, 1.0)));
+            off_diagonal.iter().map(|&(i, j, v)| (to_petsc(i), to_petsc(j), v)).filter(|(p, _, _)| rows.contains(p)).collect();
+        entries.extend(rows.clone().map(|i| (i, i, 1.0)));
         entries.sort_unstable_by_key(|&(i, j, _)| (i, j));
-        let mut row_ptr: Vec<PetscInt> = vec![0; self.rows.len() + 1];
+        let mut row_ptr: Vec<PetscInt> = vec![0; rows.len() + 1];
         let (mut cols, mut vals): (Vec<PetscInt>, Vec<f64>) = (Vec::with_capacity(entries.len()), Vec::with_capacity(entries.len()));
         let mut last = None;
         for (i, j, v) in entries {
@@ -773,12 +775,12 @@ impl PetscSystem {
             last = Some((i, j));
             cols.push(j as PetscInt);
             vals.push(v);
-            row_ptr[i - self.rows.start + 1] = cols.len() as PetscInt;
+            row_ptr[i - rows.start + 1] = cols.len() as PetscInt;
         }
         for k in 1..row_ptr.len() {
             row_ptr[k] = row_ptr[k].max(row_ptr[k - 1]);
         }
-        create_aij(self.rows.len() as PetscInt, self.n() as PetscInt, &row_ptr, &cols, Some(&vals))
+        create_aij(rows.len() as PetscInt, self.n() as PetscInt, &row_ptr, &cols, Some(&vals))
     }
 
     /// Solves for `x` (all of it on every rank) with right-hand side `b` (of which this rank
@@ -787,9 +789,10 @@ impl PetscSystem {
     fn solve(&self, b: &[f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
         let (mut iterations, mut reason): (PetscInt, c_int) = (0, 0);
         let h = &self.handles;
-        let lo = self.rows.start;
+        let rows = self.rows();
+        let lo = rows.start;
         // This rank's rows of `b`, and all of `x`, in PETSc's numbering.
-        let mut b_petsc: Vec<f64> = self.rows.clone().map(|p| b[self.numbering.to_fdfsi(p)]).collect();
+        let mut b_petsc: Vec<f64> = rows.map(|p| b[self.numbering.to_fdfsi(p)]).collect();
         let mut x_petsc = vec![0.0; self.n];
         // SAFETY: `b_petsc` holds this rank's rows and `x_petsc` all, both outlive the solve;
         // whatever was placed is reset to no array before returning.
@@ -835,12 +838,12 @@ impl PetscSystem {
             })
             .collect();
         // This rank's rows: (PETSc's index, block, row in it), by index.
-        let to_petsc = |d| self.numbering.to_petsc(d);
+        let (to_petsc, owned_rows) = (|d| self.numbering.to_petsc(d), self.rows());
         let mut rows: Vec<(usize, usize, usize)> = blocks
             .iter()
             .enumerate()
             .flat_map(|(b, (dofs, _))| dofs.iter().enumerate().map(move |(r, &d)| (to_petsc(d), b, r)))
-            .filter(|(p, _, _)| self.rows.contains(p))
+            .filter(|(p, _, _)| owned_rows.contains(p))
             .collect();
         rows.sort_unstable();
         if rows.len() != owned.len() || rows.iter().zip(owned).any(|(r, &o)| r.0 as PetscInt != o) {
