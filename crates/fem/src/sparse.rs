@@ -13,6 +13,7 @@
 //! the same memory ([`assemble`]).
 
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// A CSC sparsity pattern with sorted row indices in each column.
 #[derive(Clone, Debug)]
@@ -75,17 +76,65 @@ impl DofCells {
     where
         F: Fn(usize, &mut Vec<usize>),
     {
-        column.clear();
-        for &c in self.of(j) {
-            cell_dofs(c, buf);
-            column.extend_from_slice(buf);
-        }
-        column.sort_unstable();
-        column.dedup();
+        self.union_into(j, cell_dofs, buf, column);
         if column.is_empty() {
             column.push(j);
         }
     }
+
+    /// The sorted union of the dofs of the cells around `d` into `out` (empty for a dof of no
+    /// cell; `buf` is scratch).
+    fn union_into<F>(&self, d: usize, cell_dofs: &F, buf: &mut Vec<usize>, out: &mut Vec<usize>)
+    where
+        F: Fn(usize, &mut Vec<usize>),
+    {
+        out.clear();
+        for &c in self.of(d) {
+            cell_dofs(c, buf);
+            out.extend_from_slice(buf);
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+}
+
+/// The compressed lists `0..n` that `list(j, buf, out)` writes (each into `out`; `buf` is
+/// scratch), as start offsets (`n + 1`) and entries converted by `convert`, built in parallel by
+/// chunks of lists, each chunk's lists one after another into one vector. (A vector per list
+/// would keep its capacity from before a deduplication, about 7 times the list, and the allocator
+/// keeps such small blocks resident after they are freed: 0.5 GB at 434 259 unknowns. A chunk's
+/// vector is large, tens of MB, given back when freed.)
+fn compressed_lists<T, L>(n: usize, list: L, convert: impl Fn(usize) -> T) -> (Vec<usize>, Vec<T>)
+where
+    T: Send,
+    L: Fn(usize, &mut Vec<usize>, &mut Vec<usize>) + Sync,
+{
+    let chunk = n.div_ceil(8 * rayon::current_num_threads()).max(MIN_CHUNK);
+    let chunks: Vec<(Vec<usize>, Vec<usize>)> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(buf, out), k| {
+                let (mut lengths, mut entries) = (Vec::with_capacity(chunk), Vec::new());
+                for j in k * chunk..((k + 1) * chunk).min(n) {
+                    list(j, buf, out);
+                    lengths.push(out.len());
+                    entries.extend_from_slice(out);
+                }
+                (lengths, entries)
+            },
+        )
+        .collect();
+    let mut start = Vec::with_capacity(n + 1);
+    start.push(0);
+    for len in chunks.iter().flat_map(|(lengths, _)| lengths) {
+        start.push(start.last().copied().unwrap_or(0) + len);
+    }
+    let mut entries = Vec::with_capacity(start[n]);
+    for (_, chunk_entries) in chunks {
+        entries.extend(chunk_entries.into_iter().map(&convert));
+    }
+    (start, entries)
 }
 
 impl Pattern {
@@ -96,36 +145,7 @@ impl Pattern {
         F: Fn(usize, &mut Vec<usize>) + Sync,
     {
         let dof_cells = DofCells::new(n, num_cells, &cell_dofs);
-        // Columns in chunks, each chunk's one after another into one vector, then the chunks
-        // into `row_idx`. (A vector per column would keep its capacity from before the
-        // deduplication, about 7 times the column, and the allocator keeps such small blocks
-        // resident after they are freed: 0.5 GB at 434 259 unknowns. A chunk's vector is large,
-        // tens of MB, given back when freed.)
-        let chunk = n.div_ceil(8 * rayon::current_num_threads()).max(MIN_CHUNK);
-        let chunks: Vec<(Vec<usize>, Vec<usize>)> = (0..n.div_ceil(chunk))
-            .into_par_iter()
-            .map_init(
-                || (Vec::new(), Vec::new()),
-                |(buf, rows), k| {
-                    let (mut lengths, mut entries) = (Vec::with_capacity(chunk), Vec::new());
-                    for j in k * chunk..((k + 1) * chunk).min(n) {
-                        dof_cells.column_into(j, &cell_dofs, buf, rows);
-                        lengths.push(rows.len());
-                        entries.extend_from_slice(rows);
-                    }
-                    (lengths, entries)
-                },
-            )
-            .collect();
-        let mut col_ptr = Vec::with_capacity(n + 1);
-        col_ptr.push(0);
-        for len in chunks.iter().flat_map(|(lengths, _)| lengths) {
-            col_ptr.push(col_ptr.last().copied().unwrap_or(0) + len);
-        }
-        let mut row_idx = Vec::with_capacity(col_ptr[n]);
-        for (_, entries) in chunks {
-            row_idx.extend_from_slice(&entries);
-        }
+        let (col_ptr, row_idx) = compressed_lists(n, |j, buf, column| dof_cells.column_into(j, &cell_dofs, buf, column), |i| i);
         Pattern { n, col_ptr, row_idx }
     }
 
@@ -173,6 +193,102 @@ impl<'p> CscMatrix<'p> {
     }
 }
 
+/// Some consecutive rows of a pattern like [`Pattern::from_cells`]'s, in compressed sparse *row*
+/// storage with sorted column indices: the rows one MPI rank assembles and owns (a partitioned
+/// assembly; the numbering is the partition's, in which each rank's rows are consecutive). Column
+/// indices are `u32` (half the memory of `usize`; PETSc's own indices are 32-bit too).
+#[derive(Clone, Debug)]
+pub struct RowPattern {
+    /// The number of unknowns (of columns).
+    pub n: usize,
+    /// The rows held, `row_ptr.len() - 1` of them.
+    pub rows: Range<usize>,
+    /// Row `rows.start + i` has the columns `cols[row_ptr[i]..row_ptr[i + 1]]`, increasing.
+    pub row_ptr: Vec<usize>,
+    pub cols: Vec<u32>,
+}
+
+impl RowPattern {
+    /// The `rows` of the pattern of `n` unknowns in which the dofs of every cell are coupled
+    /// with each other: row `p` has the union of the dofs of the cells around `p`, or `p` alone
+    /// for a dof of no cell (as [`Pattern::from_cells`]'s column `p`). `cells` must hold every
+    /// cell with a dof in `rows` (others are allowed); `cell_dofs(c, out)` lists cell `c`'s dofs.
+    ///
+    /// # Panics
+    /// If `n` exceeds the `u32` range.
+    pub fn from_cells<F>(n: usize, rows: Range<usize>, cells: &[usize], cell_dofs: F) -> Self
+    where
+        F: Fn(usize, &mut Vec<usize>) + Sync,
+    {
+        assert!(u32::try_from(n).is_ok(), "{n} unknowns exceed the u32 column indices of a RowPattern");
+        let lo = rows.start;
+        let cell = |k: usize, out: &mut Vec<usize>| cell_dofs(cells[k], out);
+        let row_cells = DofCells::new(rows.len(), cells.len(), &|k, out: &mut Vec<usize>| {
+            cell(k, out);
+            out.retain(|d| rows.contains(d));
+            out.iter_mut().for_each(|d| *d -= lo);
+        });
+        let (row_ptr, cols) = compressed_lists(
+            rows.len(),
+            |i, buf, row| {
+                row_cells.union_into(i, &cell, buf, row);
+                if row.is_empty() {
+                    row.push(lo + i);
+                }
+            },
+            |j| j as u32,
+        );
+        RowPattern { n, rows, row_ptr, cols }
+    }
+
+    /// Number of stored entries.
+    pub fn nnz(&self) -> usize {
+        self.cols.len()
+    }
+
+    /// The columns of row `row` (in [`RowPattern::rows`]) and their first position in the value
+    /// array.
+    #[inline]
+    pub fn row(&self, row: usize) -> (&[u32], usize) {
+        let i = row - self.rows.start;
+        let start = self.row_ptr[i];
+        (&self.cols[start..self.row_ptr[i + 1]], start)
+    }
+
+    /// Position of entry `(row, col)` in the value array, if `row` is held and the entry is in
+    /// the pattern.
+    pub fn find(&self, row: usize, col: usize) -> Option<usize> {
+        if !self.rows.contains(&row) {
+            return None;
+        }
+        let (cols, start) = self.row(row);
+        cols.binary_search(&u32::try_from(col).ok()?).ok().map(|k| start + k)
+    }
+}
+
+/// Values on a [`RowPattern`]: the held rows of a square sparse matrix.
+#[derive(Clone, Debug)]
+pub struct RowMatrix<'p> {
+    pub pattern: &'p RowPattern,
+    pub values: Vec<f64>,
+}
+
+impl<'p> RowMatrix<'p> {
+    /// All-zero rows on `pattern`.
+    pub fn zeros(pattern: &'p RowPattern) -> Self {
+        RowMatrix { pattern, values: vec![0.0; pattern.nnz()] }
+    }
+
+    /// `y = A x` in the held rows: `x` of all `n` unknowns, `y` of the held rows.
+    pub fn mul_rows(&self, x: &[f64], y: &mut [f64]) {
+        let p = self.pattern;
+        for (i, yi) in y.iter_mut().enumerate().take(p.rows.len()) {
+            let range = p.row_ptr[i]..p.row_ptr[i + 1];
+            *yi = p.cols[range.clone()].iter().zip(&self.values[range]).map(|(&j, v)| v * x[j as usize]).sum();
+        }
+    }
+}
+
 /// A colouring of the cells such that two cells of one colour share no vertex.
 #[derive(Clone, Debug)]
 pub struct Colouring {
@@ -212,6 +328,13 @@ impl Colouring {
         }
         Colouring { colours }
     }
+
+    /// The cells of this colouring that `keep` keeps, in their colours (the colours and the
+    /// order within each kept): an assembly over them sums each entry in the order of an
+    /// assembly over all cells.
+    pub fn restricted(&self, keep: impl Fn(usize) -> bool) -> Colouring {
+        Colouring { colours: self.colours.iter().map(|cells| cells.iter().copied().filter(|&c| keep(c)).collect()).collect() }
+    }
 }
 
 /// Element matrix and vector of one cell, filled by a kernel: `ke` row-major `n x n`.
@@ -242,6 +365,14 @@ struct SharedOut {
 unsafe impl Sync for SharedOut {}
 unsafe impl Send for SharedOut {}
 
+/// Scratch of one thread's scatter: the cell's dofs in column order, and their indices in the
+/// matrix's numbering.
+#[derive(Default)]
+struct ScatterScratch {
+    order: Vec<usize>,
+    global: Vec<usize>,
+}
+
 /// Assembles `sum_c P_c^T ke_c P_c` into `matrix` and `sum_c P_c^T fe_c` into `rhs`, in parallel
 /// over the cells of each colour. `kernel(c, scratch, local)` fills `local.dofs`, `local.ke`,
 /// `local.fe` for cell `c` (the loop stays visible in the caller's kernel; the kernel is pure).
@@ -262,7 +393,45 @@ where
 {
     let pattern = matrix.pattern;
     let out = SharedOut { values: matrix.values.as_mut_ptr(), rhs: rhs.as_mut_ptr() };
-    let out = &out;
+    // SAFETY: `for_each_cell` writes the cells of one colour at once only, which share no row.
+    for_each_cell(colouring, make_scratch, kernel, |local, scratch| unsafe { scatter(local, &mut scratch.order, pattern, skip_row, &out) })
+}
+
+/// [`assemble`] into the held rows of a partitioned matrix: `matrix` and `rhs` (the held rows,
+/// `matrix.pattern.rows`) in the partition's numbering, to which `to_global` maps the kernel's
+/// dofs; `skip_row` is by the kernel's dofs. The cells of `colouring` must be those with a dof
+/// in the held rows ([`Colouring::restricted`]): then each held entry is the sum of the same
+/// terms in the same order as in [`assemble`] over all cells, so the held rows equal that
+/// assembly's bit for bit.
+pub fn assemble_rows<S, E, K>(
+    matrix: &mut RowMatrix<'_>,
+    rhs: &mut [f64],
+    colouring: &Colouring,
+    skip_row: &[bool],
+    to_global: &(dyn Fn(usize) -> usize + Sync),
+    make_scratch: impl Fn() -> S + Sync + Send,
+    kernel: K,
+) -> Result<(), E>
+where
+    E: Send,
+    K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+{
+    let pattern = matrix.pattern;
+    assert_eq!(rhs.len(), pattern.rows.len(), "a right-hand side of the held rows");
+    let out = SharedOut { values: matrix.values.as_mut_ptr(), rhs: rhs.as_mut_ptr() };
+    // SAFETY: as in `assemble`.
+    for_each_cell(colouring, make_scratch, kernel, |local, scratch| unsafe { scatter_rows(local, scratch, pattern, skip_row, to_global, &out) })
+}
+
+/// Runs `kernel` on every cell of `colouring` and `write`s each cell's system: in cell order on
+/// one rayon thread, colour by colour in parallel on several (so `write` runs concurrently for
+/// cells of one colour only, which share no dof). Returns the first kernel error, if any.
+fn for_each_cell<S, E, K, W>(colouring: &Colouring, make_scratch: impl Fn() -> S + Sync + Send, kernel: K, write: W) -> Result<(), E>
+where
+    E: Send,
+    K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+    W: Fn(&LocalSystem, &mut ScatterScratch) + Sync,
+{
     if rayon::current_num_threads() == 1 {
         // One thread: the cells in their own (mesh) order, so that neighbouring cells find their
         // shared columns in cache; the colours scatter them over the mesh (Schaefer-Turek 2D-1,
@@ -270,21 +439,19 @@ where
         // then differ from the threaded ones by round-off (another order of the same terms).
         let mut cells = colouring.colours.concat();
         cells.sort_unstable();
-        let (mut scratch, mut local, mut order) = (make_scratch(), LocalSystem::default(), Vec::new());
+        let (mut scratch, mut local, mut order) = (make_scratch(), LocalSystem::default(), ScatterScratch::default());
         for c in cells {
             kernel(c, &mut scratch, &mut local)?;
-            // SAFETY: one thread writes.
-            unsafe { scatter(&local, &mut order, pattern, skip_row, out) };
+            write(&local, &mut order);
         }
         return Ok(());
     }
     for cells in &colouring.colours {
         cells.par_iter().with_min_len(64).try_for_each_init(
-            || (make_scratch(), LocalSystem::default(), Vec::new()),
+            || (make_scratch(), LocalSystem::default(), ScatterScratch::default()),
             |(scratch, local, order), &c| -> Result<(), E> {
                 kernel(c, scratch, local)?;
-                // SAFETY: see `SharedOut`.
-                unsafe { scatter(local, order, pattern, skip_row, out) };
+                write(local, order);
                 Ok(())
             },
         )?;
@@ -329,6 +496,45 @@ unsafe fn scatter(local: &LocalSystem, order: &mut Vec<usize>, pattern: &Pattern
     }
 }
 
+/// Adds the held rows of one cell's `local` system into `out` (rows with `skip_row` left out):
+/// [`scatter`] by rows, each held row's columns walked forward once, the cell's columns in
+/// ascending order of the matrix's numbering (`to_global`).
+///
+/// # Safety
+/// No other thread may write the rows of `local.dofs` meanwhile (see `SharedOut`).
+unsafe fn scatter_rows(
+    local: &LocalSystem,
+    scratch: &mut ScatterScratch,
+    pattern: &RowPattern,
+    skip_row: &[bool],
+    to_global: &(dyn Fn(usize) -> usize + Sync),
+    out: &SharedOut,
+) {
+    let n = local.dofs.len();
+    let ScatterScratch { order, global } = scratch;
+    global.clear();
+    global.extend(local.dofs.iter().map(|&d| to_global(d)));
+    order.clear();
+    order.extend(0..n);
+    order.sort_unstable_by_key(|&j| global[j]);
+    for (i, &dof) in local.dofs.iter().enumerate() {
+        if skip_row[dof] || !pattern.rows.contains(&global[i]) {
+            continue;
+        }
+        let (cols, start) = pattern.row(global[i]);
+        unsafe { *out.rhs.add(global[i] - pattern.rows.start) += local.fe[i] };
+        let mut k = 0;
+        for &j in order.iter() {
+            let col = global[j] as u32;
+            while cols[k] < col {
+                k += 1;
+            }
+            assert_eq!(cols[k], col, "cell dofs are in the pattern");
+            unsafe { *out.values.add(start + k) += local.ke[i * n + j] };
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -365,6 +571,94 @@ mod tests {
         }
         let empty = Pattern::from_cells(0, 0, |_, buf| buf.clear());
         assert_eq!((empty.nnz(), &empty.col_ptr[..]), (0, &[0][..]));
+    }
+
+    /// Each rank's rows of a partitioned assembly ([`assemble_rows`] over the cells touching
+    /// them, in a permuted numbering) are bit for bit the full assembly's rows, and they cover
+    /// its pattern, for 1-3 ranks on one and on three threads: triangles with a dof per vertex
+    /// and one per cell, some rows skipped, element values whose sums depend on their order.
+    #[test]
+    fn partitioned_rows_equal_the_full_assembly() {
+        let mesh = crate::generate::rectangle_triangles(0.0, 1.0, 0.0, 1.0, 9, 7, crate::generate::DiagonalPattern::Alternating);
+        let nv = mesh.points.len();
+        let n = nv + mesh.num_cells();
+        let cell_dofs = |c: usize, out: &mut Vec<usize>| {
+            out.clear();
+            out.extend_from_slice(mesh.cell_vertices(c));
+            out.push(nv + c);
+        };
+        // A permutation of the dofs: the partition's numbering.
+        let mut by_key: Vec<usize> = (0..n).collect();
+        by_key.sort_by_key(|&i| (i * 7919) % 1009 * n + i);
+        let mut to_global = vec![0; n];
+        for (p, &i) in by_key.iter().enumerate() {
+            to_global[i] = p;
+        }
+        let skip: Vec<bool> = (0..n).map(|i| i % 11 == 3).collect();
+        let colouring = Colouring::greedy(nv, mesh.num_cells(), |c| mesh.cell_vertices(c));
+        let kernel = |c: usize, _: &mut (), l: &mut LocalSystem| -> Result<(), ()> {
+            cell_dofs(c, &mut l.dofs);
+            let m = l.dofs.len();
+            l.reset(m);
+            for i in 0..m {
+                l.fe[i] = ((c * 13 + i) as f64 * 0.71).sin() * 1e3;
+                for j in 0..m {
+                    l.ke[i * m + j] = ((c * 31 + i * 7 + j * 3) as f64 * 0.37).sin() * 10f64.powi((c % 5) as i32);
+                }
+            }
+            Ok(())
+        };
+        let pattern = Pattern::from_cells(n, mesh.num_cells(), cell_dofs);
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let (mut full, mut full_rhs) = (CscMatrix::zeros(&pattern), vec![0.0; n]);
+                assemble(&mut full, &mut full_rhs, &colouring, &skip, || (), kernel).unwrap();
+                for ranks in 1..=3 {
+                    let mut covered = 0;
+                    for rank in 0..ranks {
+                        let rows = n * rank / ranks..n * (rank + 1) / ranks;
+                        let touches = |c: usize| {
+                            let mut dofs = Vec::new();
+                            cell_dofs(c, &mut dofs);
+                            dofs.iter().any(|&d| rows.contains(&to_global[d]))
+                        };
+                        let cells: Vec<usize> = (0..mesh.num_cells()).filter(|&c| touches(c)).collect();
+                        let global_dofs = |c: usize, out: &mut Vec<usize>| {
+                            cell_dofs(c, out);
+                            out.iter_mut().for_each(|d| *d = to_global[*d]);
+                        };
+                        let rp = RowPattern::from_cells(n, rows.clone(), &cells, global_dofs);
+                        let (mut a, mut rhs) = (RowMatrix::zeros(&rp), vec![0.0; rows.len()]);
+                        let restricted = colouring.restricted(|c| cells.binary_search(&c).is_ok());
+                        assemble_rows(&mut a, &mut rhs, &restricted, &skip, &|d| to_global[d], || (), kernel).unwrap();
+                        // `A x` in the held rows, `x` in the partition's numbering.
+                        let x: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
+                        let (mut y, mut y_rows) = (vec![0.0; n], vec![0.0; rows.len()]);
+                        full.mul_vec(&x, &mut y);
+                        let x_global: Vec<f64> = (0..n).map(|p| x[by_key[p]]).collect();
+                        a.mul_rows(&x_global, &mut y_rows);
+                        for p in rows.clone() {
+                            assert!((y_rows[p - rows.start] - y[by_key[p]]).abs() <= 1e-12 * (1.0 + y[by_key[p]].abs()), "A x in row {p}");
+                        }
+                        for p in rows.clone() {
+                            let i = by_key[p];
+                            assert_eq!(rhs[p - rows.start].to_bits(), full_rhs[i].to_bits(), "rhs row {p}, {ranks} ranks, {threads} threads");
+                            let (cols, start) = rp.row(p);
+                            let mut expected: Vec<usize> = (0..n).filter(|&j| pattern.find(i, j).is_some()).map(|j| to_global[j]).collect();
+                            expected.sort_unstable();
+                            assert!(cols.iter().map(|&q| q as usize).eq(expected.iter().copied()), "row {p}'s columns");
+                            for (k, &q) in cols.iter().enumerate() {
+                                let v = full.get(i, by_key[q as usize]);
+                                assert_eq!(a.values[start + k].to_bits(), v.to_bits(), "entry ({p}, {q}), {ranks} ranks, {threads} threads");
+                            }
+                            covered += cols.len();
+                        }
+                    }
+                    assert_eq!(covered, pattern.nnz());
+                }
+            });
+        }
     }
 
     #[test]
