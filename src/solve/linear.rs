@@ -175,6 +175,12 @@ pub trait LinearSolver {
     /// method's forcing term); iterative solvers stop there or at their own tolerance, whichever
     /// is larger; direct solvers ignore it. `0` restores the solver's own tolerance.
     fn set_forcing(&mut self, _relative_residual: f64) {}
+    /// This solver as one of a partitioned assembly's systems ([`super::partition::RowSolver`]:
+    /// each rank's own rows), where it takes those; `None` (the default): the whole system on
+    /// every rank only.
+    fn rows(&mut self) -> Option<&mut dyn super::partition::RowSolver> {
+        None
+    }
 }
 
 /// Which factorisation [`FaerLu`] uses.

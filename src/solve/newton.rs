@@ -21,8 +21,9 @@
 //! again there, until it does (Armijo) or [`MAX_HALVINGS`] halvings found no decrease
 //! ([`NewtonError::LineSearch`]).
 
-use super::linear::{LinearSolveError, LinearSolver};
-use fdfsi_fem::sparse::{CscMatrix, Pattern};
+use super::linear::{LinearSolveError, LinearSolver, SolveStats};
+use super::partition::{Partition, RowSolver};
+use fdfsi_fem::sparse::{CscMatrix, Pattern, RowMatrix, RowPattern};
 use thiserror::Error;
 
 /// Newton options.
@@ -117,6 +118,9 @@ impl NewtonReport {
 pub enum NewtonError<E: std::error::Error + 'static> {
     #[error("assembly failed: {0}")]
     Assembly(#[source] E),
+    /// A partitioned assembly failed on another MPI rank (which reports the cause).
+    #[error("assembly failed on another MPI rank (its error tells the cause)")]
+    AssemblyOnAnotherRank,
     #[error(transparent)]
     Linear(#[from] LinearSolveError),
     #[error("Newton did not converge in {iterations} iterations: residual {residual:.3e} (tolerance {tolerance:.1e}); raise solver.newton.max_iterations, or reduce the time step (time-dependent runs)")]
@@ -159,7 +163,7 @@ pub fn forcing_term(norms: &[f64], tol: f64) -> f64 {
 }
 
 fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    sum_of_squares(v).sqrt()
 }
 
 /// Solves `R(x) = 0` from the initial iterate `x`. `assemble(x, K, rhs)` must zero and fill the
@@ -176,40 +180,158 @@ where
     E: std::error::Error + 'static,
     F: FnMut(&[f64], &mut CscMatrix<'_>, &mut [f64]) -> Result<(), E>,
 {
-    let result = iterate(x, pattern, solver, options, assemble);
-    solver.set_forcing(0.0);
+    let mut system = Replicated { k: CscMatrix::zeros(pattern), solver };
+    let result = iterate(x, &mut system, options, assemble);
+    system.solver.set_forcing(0.0);
     result
 }
 
-fn iterate<E, F>(
+/// [`solve`] with a partitioned assembly: `assemble(x, K, rhs)` fills this rank's rows of the
+/// Jacobian and of `rhs = -R(x)` (those of `partition`, on `pattern`), from all of `x` (the
+/// system's numbering, alike on every rank). Every rank calls this alike; the residual norms are
+/// sums over the ranks ([`RowSolver::sum`]), so every rank takes the same branches, and each
+/// update is the whole `dx` on every rank. On one rank it does the arithmetic of [`solve`].
+pub fn solve_rows<E, F>(
     x: &mut [f64],
-    pattern: &Pattern,
-    solver: &mut dyn LinearSolver,
+    partition: &Partition,
+    pattern: &RowPattern,
+    solver: &mut dyn RowSolver,
     options: &NewtonOptions,
-    mut assemble: F,
+    assemble: F,
 ) -> Result<NewtonReport, NewtonError<E>>
 where
     E: std::error::Error + 'static,
-    F: FnMut(&[f64], &mut CscMatrix<'_>, &mut [f64]) -> Result<(), E>,
+    F: FnMut(&[f64], &mut RowMatrix<'_>, &mut [f64]) -> Result<(), E>,
 {
-    let mut k = CscMatrix::zeros(pattern);
-    let mut rhs = vec![0.0; x.len()];
+    let mut system = Rows { k: RowMatrix::zeros(pattern), solver, partition };
+    let result = iterate(x, &mut system, options, assemble);
+    system.solver.set_forcing(0.0);
+    result
+}
+
+/// The Jacobians and right-hand sides of one Newton solve: where they are held (whole on every
+/// process, or each rank's rows) and how they are solved.
+trait NewtonSystem {
+    type Matrix;
+    /// The Jacobian, zeroed.
+    fn zeroed_matrix(&mut self) -> &mut Self::Matrix;
+    /// The length of the right-hand side.
+    fn rhs_len(&self) -> usize;
+    /// The Euclidean norm of the right-hand side `rhs`.
+    fn norm(&self, rhs: &[f64]) -> Result<f64, LinearSolveError>;
+    /// Whether any rank's assembly `failed`.
+    fn any_failed(&self, failed: bool) -> Result<bool, LinearSolveError>;
+    fn solver(&mut self) -> &mut dyn LinearSolver;
+    /// [`LinearSolver::offer_held_factorization`] for this system's matrix.
+    fn offer_held_factorization(&mut self) -> bool;
+    fn factorize(&mut self) -> Result<(), LinearSolveError>;
+    /// `dx` (all unknowns) from the right-hand side `rhs`.
+    fn solve(&self, rhs: &[f64], dx: &mut [f64]) -> Result<SolveStats, LinearSolveError>;
+}
+
+/// The whole system on every process, solved by a [`LinearSolver`].
+struct Replicated<'p, 's> {
+    k: CscMatrix<'p>,
+    solver: &'s mut dyn LinearSolver,
+}
+
+impl<'p> NewtonSystem for Replicated<'p, '_> {
+    type Matrix = CscMatrix<'p>;
+    fn zeroed_matrix(&mut self) -> &mut CscMatrix<'p> {
+        self.k.values.iter_mut().for_each(|v| *v = 0.0);
+        &mut self.k
+    }
+    fn rhs_len(&self) -> usize {
+        self.k.pattern.n
+    }
+    fn norm(&self, rhs: &[f64]) -> Result<f64, LinearSolveError> {
+        Ok(sum_of_squares(rhs).sqrt())
+    }
+    fn any_failed(&self, failed: bool) -> Result<bool, LinearSolveError> {
+        Ok(failed)
+    }
+    fn solver(&mut self) -> &mut dyn LinearSolver {
+        self.solver
+    }
+    fn offer_held_factorization(&mut self) -> bool {
+        self.solver.offer_held_factorization(&self.k)
+    }
+    fn factorize(&mut self) -> Result<(), LinearSolveError> {
+        self.solver.factorize(&self.k)
+    }
+    fn solve(&self, rhs: &[f64], dx: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+        dx.copy_from_slice(rhs);
+        self.solver.solve_in_place(&self.k, dx)
+    }
+}
+
+/// Each rank's rows of the system, solved by a [`RowSolver`].
+struct Rows<'p, 's> {
+    k: RowMatrix<'p>,
+    solver: &'s mut dyn RowSolver,
+    partition: &'p Partition,
+}
+
+impl<'p> NewtonSystem for Rows<'p, '_> {
+    type Matrix = RowMatrix<'p>;
+    fn zeroed_matrix(&mut self) -> &mut RowMatrix<'p> {
+        self.k.values.iter_mut().for_each(|v| *v = 0.0);
+        &mut self.k
+    }
+    fn rhs_len(&self) -> usize {
+        self.k.pattern.rows.len()
+    }
+    fn norm(&self, rhs: &[f64]) -> Result<f64, LinearSolveError> {
+        Ok(self.solver.sum(sum_of_squares(rhs))?.sqrt())
+    }
+    fn any_failed(&self, failed: bool) -> Result<bool, LinearSolveError> {
+        Ok(self.solver.sum(f64::from(u8::from(failed)))? > 0.0)
+    }
+    fn solver(&mut self) -> &mut dyn LinearSolver {
+        self.solver.as_linear_solver()
+    }
+    /// A held factorisation is a [`LinearSolver`]'s of a whole matrix: none here.
+    fn offer_held_factorization(&mut self) -> bool {
+        false
+    }
+    fn factorize(&mut self) -> Result<(), LinearSolveError> {
+        self.solver.factorize_rows(self.partition, &self.k)
+    }
+    fn solve(&self, rhs: &[f64], dx: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+        self.solver.solve_rows(self.partition, &self.k, rhs, dx)
+    }
+}
+
+fn sum_of_squares(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>()
+}
+
+fn iterate<S, E, F>(x: &mut [f64], system: &mut S, options: &NewtonOptions, mut assemble: F) -> Result<NewtonReport, NewtonError<E>>
+where
+    S: NewtonSystem,
+    E: std::error::Error + 'static,
+    F: FnMut(&[f64], &mut S::Matrix, &mut [f64]) -> Result<(), E>,
+{
+    let mut rhs = vec![0.0; system.rhs_len()];
+    let mut dx = vec![0.0; x.len()];
     let mut report = NewtonReport::default();
     let mut r0 = None;
     // Whether the solver's factorisation may serve the next iteration: at first, one it holds
     // for this pattern (an earlier solve's), if it offers it.
-    let mut reusable = options.reuse_factorization && solver.offer_held_factorization(&k);
+    let mut reusable = options.reuse_factorization && system.offer_held_factorization();
     let mut held_trial = reusable;
-    let mut rhs_copy = Vec::new();
     // The last update and the fraction `l` of it taken, for the line search.
     let mut last_step: Option<(Vec<f64>, f64)> = None;
     loop {
         let t = std::time::Instant::now();
-        k.values.iter_mut().for_each(|v| *v = 0.0);
         rhs.iter_mut().for_each(|v| *v = 0.0);
-        assemble(x, &mut k, &mut rhs).map_err(NewtonError::Assembly)?;
+        let assembled = assemble(x, system.zeroed_matrix(), &mut rhs);
+        // Every rank returns an error where any failed (else the others would go on alone).
+        if system.any_failed(assembled.is_err())? {
+            return Err(assembled.err().map_or(NewtonError::AssemblyOnAnotherRank, NewtonError::Assembly));
+        }
         report.assemble_seconds += t.elapsed().as_secs_f64();
-        let r = norm(&rhs);
+        let r = system.norm(&rhs)?;
         if let (Some((dx, l)), Some(&previous), Some(&first)) = (last_step.as_mut(), report.residual_norms.last(), report.residual_norms.first()) {
             let decreased = r <= (1.0 - 1e-4 * *l) * previous; // false for NaN
                                                                // Near the tolerance the residual is round-off: no search there.
@@ -241,51 +363,44 @@ where
         if report.iterations >= options.max_iterations {
             return Err(NewtonError::NotConverged { iterations: report.iterations, residual: r, tolerance: tol });
         }
-        if options.inexact {
-            solver.set_forcing(forcing_term(&report.residual_norms, tol));
-        } else {
-            solver.set_forcing(0.0);
-        }
+        let forcing = if options.inexact { forcing_term(&report.residual_norms, tol) } else { 0.0 };
+        system.solver().set_forcing(forcing);
         let mut solved = false;
         // A reused factorisation must have contracted the residual well, or this step refactorises.
         let n = report.residual_norms.len();
         let contracting = n < 2 || report.residual_norms[n - 1] <= 0.25 * report.residual_norms[n - 2];
         if options.reuse_factorization && reusable && contracting {
             let t = std::time::Instant::now();
-            rhs_copy.clone_from(&rhs);
             // Any failure of the reused factors (inaccurate, or not finite) means: factorise.
-            match solver.solve_in_place(&k, &mut rhs) {
-                Ok(stats) => {
-                    solved = true;
-                    report.krylov_iterations.push(stats.krylov_iterations);
-                }
-                Err(_) => rhs.clone_from(&rhs_copy),
+            if let Ok(stats) = system.solve(&rhs, &mut dx) {
+                solved = true;
+                report.krylov_iterations.push(stats.krylov_iterations);
             }
             report.solve_seconds += t.elapsed().as_secs_f64();
             if held_trial {
                 report.held_factorization = Some(solved);
-                solver.held_factorization_served(solved);
+                system.solver().held_factorization_served(solved);
             }
         }
         held_trial = false;
         if !solved {
             let t = std::time::Instant::now();
-            solver.factorize(&k)?;
+            system.factorize()?;
             report.factorize_seconds += t.elapsed().as_secs_f64();
             report.factorizations += 1;
             let t = std::time::Instant::now();
-            let stats = solver.solve_in_place(&k, &mut rhs)?;
+            let stats = system.solve(&rhs, &mut dx)?;
             report.krylov_iterations.push(stats.krylov_iterations);
             report.solve_seconds += t.elapsed().as_secs_f64();
             reusable = true;
         }
-        for (xi, d) in x.iter_mut().zip(&rhs) {
+        for (xi, d) in x.iter_mut().zip(&dx) {
             *xi += d;
         }
         if options.line_search == Some(true) {
-            last_step = Some((rhs.clone(), 1.0));
+            last_step = Some((dx.clone(), 1.0));
         }
-        report.update_norms.push(norm(&rhs));
+        report.update_norms.push(norm(&dx));
         report.iterations += 1;
     }
 }
@@ -339,6 +454,45 @@ mod tests {
         })
         .unwrap();
         (x, report)
+    }
+
+    /// The chain through a partitioned assembly on one rank ([`solve_rows`] with
+    /// [`SerialRows`]): the same iterates and residuals as [`solve`], bit for bit, with and
+    /// without reused factorisations.
+    #[test]
+    fn a_partitioned_newton_on_one_rank_is_the_replicated_one() {
+        use crate::solve::partition::{Nodes, SerialRows, World};
+        let n = 40;
+        let chain = |c: usize, b: &mut Vec<usize>| {
+            b.clear();
+            b.extend([c, c + 1]);
+        };
+        let partition = Partition::from_cells(n, n - 1, chain, World { rank: 0, size: 1 }, Nodes::SCALAR);
+        let cells = partition.cells_of_rows(n - 1, chain);
+        let p = partition.row_pattern(&cells, chain);
+        let b: Vec<f64> = (0..n).map(|i| 1.0 + (i as f64 * 0.4).sin()).collect();
+        for reuse in [false, true] {
+            let options = NewtonOptions { abs_tol: 1e-12, rel_tol: 1e-14, reuse_factorization: reuse, ..Default::default() };
+            let mut x = vec![0.0; n];
+            let mut rows = SerialRows::new(FaerLu::default());
+            let report = solve_rows(&mut x, &partition, &p, &mut rows, &options, |x, k, rhs| {
+                for i in 0..n {
+                    let mut r = 2.0 * x[i] + 0.5 * x[i].powi(3) - b[i];
+                    k.values[p.find(i, i).unwrap()] += 2.0 + 1.5 * x[i] * x[i];
+                    for j in [i.wrapping_sub(1), i + 1].into_iter().filter(|&j| j < n) {
+                        r -= x[j];
+                        k.values[p.find(i, j).unwrap()] -= 1.0;
+                    }
+                    rhs[i] = -r;
+                }
+                Ok::<(), Infallible>(())
+            })
+            .unwrap();
+            let (expected, replicated) = solve_chain(reuse);
+            assert_eq!(x.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), expected.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+            assert_eq!(report.residual_norms, replicated.residual_norms);
+            assert_eq!(report.factorizations, replicated.factorizations);
+        }
     }
 
     /// `R(x) = atan(x)` from `x = 2`: full Newton steps overshoot further each time and diverge;

@@ -4,8 +4,13 @@
 //! together in it). Plain data and graph algorithms, no MPI: the `petsc` feature's engine
 //! (`solve::petsc`) hands them to PETSc, and a partitioned assembly can ask them which rows are
 //! its own (`docs/design/partitioned-assembly.md`).
+//!
+//! A partitioned assembly: each rank assembles the rows of its [`Partition`] (a
+//! [`fdfsi_fem::sparse::RowMatrix`]) and solves through a [`RowSolver`]; [`SerialRows`] is one on
+//! a single rank over any [`LinearSolver`], which shows the partitioned path without MPI.
 
-use fdfsi_fem::sparse::{DofCells, Pattern};
+use super::linear::{LinearSolveError, LinearSolver, SolveStats};
+use fdfsi_fem::sparse::{CscMatrix, DofCells, Pattern, RowMatrix, RowPattern};
 use std::ops::Range;
 
 /// This process among the MPI ranks of `MPI_COMM_WORLD` (those `mpirun` started; one alone
@@ -198,4 +203,186 @@ fn level_set_order(n: usize, nodes: Nodes, mut neighbours: impl FnMut(usize, &mu
         breadth_first(far, &mut seen, &mut order);
     }
     order
+}
+
+/// How a system's `n` unknowns are split over the ranks of a [`World`] for a partitioned assembly:
+/// the [`Numbering`] of the unknowns by [`Numbering::from_cells`] (a rank's rows are consecutive
+/// in it), and this rank's rows.
+#[derive(Clone, Debug)]
+pub struct Partition {
+    pub world: World,
+    /// The unknowns kept together (the velocity's nodes).
+    pub nodes: Nodes,
+    numbering: Numbering,
+    n: usize,
+}
+
+impl Partition {
+    /// The partition of the `n` unknowns of `num_cells` cells (`cell_dofs(c, out)` lists cell
+    /// `c`'s) over `world`, with `nodes` kept whole.
+    pub fn from_cells<F>(n: usize, num_cells: usize, cell_dofs: F, world: World, nodes: Nodes) -> Self
+    where
+        F: Fn(usize, &mut Vec<usize>),
+    {
+        Partition { world, nodes, numbering: Numbering::from_cells(n, num_cells, cell_dofs, world, nodes), n }
+    }
+
+    /// The number of unknowns.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// The numbering of the unknowns (the partition's, PETSc's).
+    pub fn numbering(&self) -> &Numbering {
+        &self.numbering
+    }
+
+    /// This rank's rows, in the partition's numbering.
+    pub fn rows(&self) -> Range<usize> {
+        self.numbering.rows(self.world.rank)
+    }
+
+    /// The cells of `num_cells` (`cell_dofs(c, out)` lists cell `c`'s unknowns) with an unknown
+    /// in this rank's rows, increasing: those this rank assembles (the cells along a cut between
+    /// two ranks' rows are assembled by both).
+    pub fn cells_of_rows<F>(&self, num_cells: usize, cell_dofs: F) -> Vec<usize>
+    where
+        F: Fn(usize, &mut Vec<usize>),
+    {
+        let (rows, mut dofs) = (self.rows(), Vec::new());
+        (0..num_cells)
+            .filter(|&c| {
+                cell_dofs(c, &mut dofs);
+                dofs.iter().any(|&d| rows.contains(&self.numbering.to_petsc(d)))
+            })
+            .collect()
+    }
+
+    /// The pattern of this rank's rows (in the partition's numbering) of the system whose
+    /// `cells` (those of [`Partition::cells_of_rows`]) couple their unknowns
+    /// ([`Pattern::from_cells`]).
+    pub fn row_pattern<F>(&self, cells: &[usize], cell_dofs: F) -> RowPattern
+    where
+        F: Fn(usize, &mut Vec<usize>) + Sync,
+    {
+        RowPattern::from_cells(self.n, self.rows(), cells, |c, out| {
+            cell_dofs(c, out);
+            out.iter_mut().for_each(|d| *d = self.numbering.to_petsc(*d));
+        })
+    }
+}
+
+/// A linear solver of systems assembled by rows (a partitioned assembly): every rank holds its
+/// own rows of the matrix and of the right-hand side (those of a [`Partition`]) and gets the
+/// whole solution. Each call is collective: every rank calls it alike.
+pub trait RowSolver: LinearSolver {
+    /// This solver as a [`LinearSolver`] (its forcing term, its held factorisations).
+    fn as_linear_solver(&mut self) -> &mut dyn LinearSolver;
+    /// The ranks this solver runs on.
+    fn world(&self) -> World;
+    /// The sum of every rank's `value`, with the same bits on every rank (the partial sums added
+    /// in rank order), so that the ranks take the same branches on it.
+    fn sum(&self, value: f64) -> Result<f64, LinearSolveError>;
+    /// Factorises (or sets up the preconditioner of) the matrix whose rows on this rank are `a`,
+    /// in `partition`'s numbering.
+    fn factorize_rows(&mut self, partition: &Partition, a: &RowMatrix<'_>) -> Result<(), LinearSolveError>;
+    /// Solves with the last factorisation of `a`: `b` is this rank's rows of the right-hand side
+    /// (the partition's numbering), `x` all the unknowns (the system's own numbering), alike on
+    /// every rank on return.
+    fn solve_rows(&self, partition: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError>;
+}
+
+/// A [`RowSolver`] on one rank over any [`LinearSolver`]: the rows (all of them) copied into a
+/// CSC matrix for it. For tests and checks of a partitioned assembly without MPI: its results
+/// equal the solver's on the whole system.
+pub struct SerialRows<S> {
+    pub solver: S,
+    /// The CSC pattern of the last row pattern, its key, and the CSC position of each row entry.
+    csc: Option<(Pattern, u64, Vec<usize>)>,
+}
+
+impl<S: LinearSolver> SerialRows<S> {
+    pub fn new(solver: S) -> Self {
+        SerialRows { solver, csc: None }
+    }
+
+    /// `a` (all rows) as a CSC matrix on `csc`, the pattern of the last factorisation.
+    #[allow(clippy::type_complexity, reason = "the field `csc`")]
+    fn csc_of<'s>(csc: &'s Option<(Pattern, u64, Vec<usize>)>, a: &RowMatrix<'_>) -> Result<CscMatrix<'s>, LinearSolveError> {
+        let (pattern, _, position) = csc.as_ref().ok_or_else(|| LinearSolveError::Numeric("solve before factorize".into()))?;
+        let mut values = vec![0.0; a.values.len()];
+        position.iter().zip(&a.values).for_each(|(&at, &v)| values[at] = v);
+        Ok(CscMatrix { pattern, values })
+    }
+}
+
+/// A key of a row pattern's structure (FNV-1a of its words).
+fn row_pattern_key(p: &RowPattern) -> u64 {
+    super::linear::fnv1a(
+        [p.n, p.rows.start, p.rows.end].into_iter().chain(p.row_ptr.iter().copied()).map(|w| w as u64).chain(p.cols.iter().map(|&c| u64::from(c))),
+    )
+}
+
+impl<S: LinearSolver> LinearSolver for SerialRows<S> {
+    fn factorize(&mut self, a: &CscMatrix<'_>) -> Result<(), LinearSolveError> {
+        self.solver.factorize(a)
+    }
+    fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+        self.solver.solve_in_place(a, rhs)
+    }
+    fn symbolic_factorizations(&self) -> usize {
+        self.solver.symbolic_factorizations()
+    }
+    fn set_split(&mut self, split: super::augmented::SaddlePointSplit) {
+        self.solver.set_split(split)
+    }
+    fn set_forcing(&mut self, relative_residual: f64) {
+        self.solver.set_forcing(relative_residual)
+    }
+    fn rows(&mut self) -> Option<&mut dyn RowSolver> {
+        Some(self)
+    }
+}
+
+impl<S: LinearSolver> RowSolver for SerialRows<S> {
+    fn as_linear_solver(&mut self) -> &mut dyn LinearSolver {
+        self
+    }
+    fn world(&self) -> World {
+        World { rank: 0, size: 1 }
+    }
+    fn sum(&self, value: f64) -> Result<f64, LinearSolveError> {
+        Ok(value)
+    }
+    fn factorize_rows(&mut self, partition: &Partition, a: &RowMatrix<'_>) -> Result<(), LinearSolveError> {
+        let p = a.pattern;
+        if partition.world.size != 1 || p.rows != (0..p.n) {
+            return Err(LinearSolveError::Numeric(format!(
+                "SerialRows takes all {} rows on one rank, not {:?} of rank {:?}",
+                p.n, p.rows, partition.world
+            )));
+        }
+        let key = row_pattern_key(p);
+        if self.csc.as_ref().is_none_or(|(_, k, _)| *k != key) {
+            // The CSC arrays of the transpose of the rows: the pattern's, which is symmetric.
+            let mut col_ptr = vec![0; p.n + 1];
+            p.cols.iter().for_each(|&j| col_ptr[j as usize + 1] += 1);
+            (0..p.n).for_each(|j| col_ptr[j + 1] += col_ptr[j]);
+            let (mut next, mut row_idx, mut position) = (col_ptr.clone(), vec![0; p.nnz()], vec![0; p.nnz()]);
+            for i in 0..p.n {
+                for k in p.row_ptr[i]..p.row_ptr[i + 1] {
+                    let at = &mut next[p.cols[k] as usize];
+                    (row_idx[*at], position[k]) = (i, *at);
+                    *at += 1;
+                }
+            }
+            self.csc = Some((Pattern { n: p.n, col_ptr, row_idx }, key, position));
+        }
+        let matrix = Self::csc_of(&self.csc, a)?;
+        self.solver.factorize(&matrix)
+    }
+    fn solve_rows(&self, _: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+        x.copy_from_slice(b);
+        self.solver.solve_in_place(&Self::csc_of(&self.csc, a)?, x)
+    }
 }
