@@ -36,7 +36,7 @@ fn time(solver: &mut dyn LinearSolver, k: &CscMatrix<'_>, rhs: &[f64]) -> ([f64;
 
 fn compare<const D: usize>(name: &str, disc: FlowDiscretization<D>, problem: FlowProblem<D>, newton_steps: usize) {
     let (system, mut x) = SteadySystem::new(&disc, &problem).expect("dirichlet dofs");
-    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut k = CscMatrix::zeros(disc.whole_pattern());
     let mut rhs = vec![0.0; x.len()];
     for _ in 0..newton_steps {
         system.assemble(&x, &mut k, &mut rhs).expect("assembly");
@@ -53,7 +53,7 @@ fn compare<const D: usize>(name: &str, disc: FlowDiscretization<D>, problem: Flo
     println!(
         "| {name} | {} | {} | {:.3} / {:.3} / {:.4} | {:.3} / {:.3} / {:.4} | {:.2} | {:.1e} |",
         x.len(),
-        disc.pattern.nnz(),
+        disc.nnz(),
         ours[0],
         ours[1],
         ours[2],

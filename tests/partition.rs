@@ -1,17 +1,25 @@
 //! `solve::partition`: the level-set numbering of a system's unknowns over MPI ranks, made from
 //! the cells' dofs alone (no pattern, as a rank holding only its own rows will), equals the one
 //! made from the pattern, on 2D and 3D flow systems, with every unknown on its own and with the
-//! velocity's nodes kept whole, on 1, 2 and 3 ranks. No MPI: the numbering is plain data.
+//! velocity's nodes kept whole, on 1, 2 and 3 ranks; and a flow's partitioned path on one rank
+//! is its whole path. No MPI: the numbering is plain data, and one rank needs no messages.
 
-use fdfsi::discretize::flow::FlowDiscretization;
+use fdfsi::case::Case;
+use fdfsi::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
 use fdfsi::physics::fluid::Formulation;
-use fdfsi::solve::partition::{Nodes, Numbering, World};
+use fdfsi::solve::linear::{FaerLu, LinearSolver};
+use fdfsi::solve::newton::NewtonOptions;
+use fdfsi::solve::partition::{Nodes, Numbering, SerialRows, World};
+use fdfsi::time::flow::{solve_unsteady, TimeOptions};
+use fdfsi::time::TimeScheme;
 use fdfsi_fem::generate::{box_tetrahedra, rectangle_triangles, DiagonalPattern};
+use fdfsi_fem::gmsh::{read_msh, AnyMesh};
+use std::path::Path;
 
 /// `Numbering::from_cells` against `Numbering::new` on `disc`'s system: the same index of every
 /// unknown and the same rows per rank.
 fn same_numberings<const D: usize>(disc: &FlowDiscretization<D>) {
-    let pattern = &disc.pattern;
+    let pattern = disc.whole_pattern();
     let n = pattern.n;
     let velocity = disc.velocity_field().range();
     let in_pressure: Vec<bool> = (0..n).map(|i| !velocity.contains(&i)).collect();
@@ -43,4 +51,55 @@ fn the_numbering_from_the_cells_is_the_numbering_from_the_pattern() {
     same_numberings(&FlowDiscretization::build(mesh, Formulation::Plane).unwrap());
     let mesh = box_tetrahedra(0.0, 4.0, 0.0, 2.0, 0.0, 1.0, 8, 4, 2);
     same_numberings(&FlowDiscretization::build(mesh, Formulation::ThreeD).unwrap());
+}
+
+/// Schaefer-Turek 2D-1's problem on the coarse mesh (Navier-Stokes, P2+/P1disc, 36 596
+/// unknowns), discretised whole and for a partitioned assembly on one rank.
+fn schaefer_turek_coarse() -> (FlowDiscretization<2>, FlowDiscretization<2>, FlowProblem<2>) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let case = Case::read(&root.join("cases/schaefer-turek-2d1.toml")).unwrap();
+    let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
+    let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
+    let whole = FlowDiscretization::build(mesh.clone(), Formulation::Plane).unwrap();
+    let rows = FlowDiscretization::build_with(mesh, Formulation::Plane, Some(World { rank: 0, size: 1 })).unwrap();
+    (whole, rows, problem)
+}
+
+fn bits(x: &[f64]) -> Vec<u64> {
+    x.iter().map(|v| v.to_bits()).collect()
+}
+
+/// The partitioned path of a flow (each rank's rows assembled, `newton::solve_rows`, a
+/// `RowSolver`) on one rank, through `SerialRows` over fdfsi's LU: Schaefer-Turek 2D-1's steady
+/// solve (Newton with its line search) and two BDF2 steps from rest give the whole system's
+/// iterates bit for bit, and so does the residual of the boundary forces.
+#[test]
+fn a_partitioned_flow_on_one_rank_is_the_whole_one() {
+    let (whole, rows, problem) = schaefer_turek_coarse();
+    assert!(rows.pattern().is_none() && rows.rows().is_some());
+    assert_eq!(rows.nnz(), whole.nnz());
+    let options = NewtonOptions::default();
+    let expected = solve_steady(&whole, &problem, &mut FaerLu::default(), &options).unwrap();
+    let got = solve_steady(&rows, &problem, &mut SerialRows::new(FaerLu::default()), &options).unwrap();
+    assert!(expected.newton.iterations >= 3, "{} Newton iterations", expected.newton.iterations);
+    assert_eq!(got.newton.residual_norms, expected.newton.residual_norms);
+    assert_eq!(bits(&got.x), bits(&expected.x));
+    let residual = |disc: &FlowDiscretization<2>| disc.raw_residual(&problem, &expected.x, &expected.x, 0.0).unwrap();
+    assert_eq!(bits(&residual(&rows)), bits(&residual(&whole)));
+
+    let time = TimeOptions { dt: 0.05, t_end: 0.1, scheme: TimeScheme::Bdf2, max_cuts: 0 };
+    let march = |disc: &FlowDiscretization<2>, solver: &mut dyn LinearSolver| {
+        let (mut x, mut norms) = (vec![0.0; disc.num_dofs()], Vec::new());
+        solve_unsteady(disc, &problem, &mut x, &time, solver, &options, |report, _| {
+            norms.extend(report.newton.iter().flat_map(|r| r.residual_norms.clone()));
+            Ok(())
+        })
+        .unwrap();
+        (x, norms)
+    };
+    let (x_whole, norms_whole) = march(&whole, &mut FaerLu::default());
+    let (x_rows, norms_rows) = march(&rows, &mut SerialRows::new(FaerLu::default()));
+    assert!(norms_whole.len() >= 4, "{norms_whole:?}");
+    assert_eq!(norms_rows, norms_whole);
+    assert_eq!(bits(&x_rows), bits(&x_whole));
 }

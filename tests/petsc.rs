@@ -18,7 +18,7 @@ use std::path::Path;
 /// one's set-up (one symbolic factorisation).
 fn compare<const D: usize>(label: &str, disc: &FlowDiscretization<D>, problem: &FlowProblem<D>, petsc: &mut PetscSolver, tol: f64) -> usize {
     let (system, mut x) = SteadySystem::new(disc, problem).expect("dirichlet dofs");
-    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut k = CscMatrix::zeros(disc.whole_pattern());
     let mut rhs = vec![0.0; x.len()];
     let mut lu = FaerLu::new(LinearSolverOptions::default());
     let mut iterations = 0;
@@ -86,7 +86,7 @@ fn a_fieldsplit_preconditioner_gets_the_saddle_point_fields() {
         -fdfsi_fieldsplit_multiplier_pc_type lu";
     let mut solver = PetscSolver::new(options, 1e-8);
     let mut unsplit = PetscSolver::new(options, 1e-8);
-    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut k = CscMatrix::zeros(disc.whole_pattern());
     let (system, x) = SteadySystem::new(&disc, &problem).unwrap();
     let mut rhs = vec![0.0; x.len()];
     system.assemble(&x, &mut k, &mut rhs).unwrap();
@@ -187,7 +187,7 @@ fn runs_with_petsc_match_the_direct_solve() {
 fn two_ranks_own_two_slices_of_the_domain() {
     use fdfsi::solve::petsc::{Nodes, Numbering, World};
     let disc = FlowDiscretization::build(box_tetrahedra(0.0, 4.0, 0.0, 2.0, 0.0, 1.0, 8, 4, 2), Formulation::ThreeD).unwrap();
-    let pattern = &disc.pattern;
+    let pattern = disc.whole_pattern();
     let n = pattern.n;
     let two = World { rank: 0, size: 2 };
     // The share of the entries that couple the two halves under a numbering.

@@ -8,13 +8,14 @@
 
 use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
 use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
-use crate::solve::linear::LinearSolver;
+use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use crate::solve::partition::{Nodes, Partition, World};
 use fdfsi_fem::dofs::{BlockLayout, Field, NodeMap};
 use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
-use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
+use fdfsi_fem::sparse::{assemble, assemble_residual, assemble_rows, Colouring, CscMatrix, LocalSystem, Pattern, RowMatrix, RowPattern};
 use fdfsi_fem::values::{p1disc_basis, p1disc_mass, CellValues, FacetValues, MapError};
 use std::sync::Arc;
 use thiserror::Error;
@@ -99,12 +100,34 @@ pub struct FlowDiscretization<const D: usize> {
     pub layout: BlockLayout,
     /// Physical coordinates of the velocity nodes.
     pub velocity_nodes: Vec<[f64; D]>,
-    pub pattern: Pattern,
+    /// The system's sparsity: the whole pattern, or this rank's rows ([`FlowDiscretization::build_with`]).
+    sparsity: Sparsity,
+    /// A colouring of all cells.
     pub colouring: Colouring,
     pub cell_rule: QuadratureRule<D>,
     facet_points: Vec<[f64; 2]>,
     facet_weights: Vec<f64>,
 }
+
+/// Where a [`FlowDiscretization`]'s systems are assembled.
+enum Sparsity {
+    /// The whole system, on every process.
+    Whole(Pattern),
+    /// This rank's rows of a partitioned assembly.
+    Rows(FlowRows),
+}
+
+/// This rank's part of a partitioned flow assembly: the [`Partition`] of the unknowns (the
+/// velocity's nodes kept whole), the pattern of this rank's rows, and the cells with an unknown in
+/// them, coloured (a [`Colouring::restricted`] of all cells').
+pub struct FlowRows {
+    pub partition: Partition,
+    pub pattern: RowPattern,
+    pub colouring: Colouring,
+}
+
+/// A cell kernel's scratch: cell values, coordinates, the old velocity and the cell's unknowns.
+type CellScratch<const D: usize> = (CellValues<D>, Vec<[f64; D]>, Vec<f64>, Vec<f64>);
 
 /// The P2+ velocity element of a fluid cell type.
 fn p2plus<const D: usize>(cell: ReferenceCell) -> Result<ReferenceElement<D>, FlowError> {
@@ -124,6 +147,13 @@ fn cell_degree(d: usize) -> usize {
 impl<const D: usize> FlowDiscretization<D> {
     /// Builds topology, dof maps, pattern and colouring for `mesh`.
     pub fn build(mesh: Mesh<D>, formulation: Formulation) -> Result<Self, FlowError> {
+        Self::build_with(mesh, formulation, None)
+    }
+
+    /// [`FlowDiscretization::build`], for a partitioned assembly over the ranks of `world`
+    /// where given: then the discretisation holds this rank's rows only ([`FlowRows`]; the
+    /// velocity's nodes kept whole in the partition), not the whole pattern.
+    pub fn build_with(mesh: Mesh<D>, formulation: Formulation, world: Option<World>) -> Result<Self, FlowError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(FlowError::Formulation { formulation, dim: D });
         }
@@ -136,8 +166,19 @@ impl<const D: usize> FlowDiscretization<D> {
         let mut layout = BlockLayout::default();
         layout.push("velocity", D, vmap);
         layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
-        let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
+        let (n, cell_dofs) = (layout.num_dofs(), |c, buf: &mut Vec<usize>| layout.cell_dofs_into(c, buf));
+        let sparsity = match world {
+            None => Sparsity::Whole(Pattern::from_cells(n, mesh.num_cells(), cell_dofs)),
+            Some(world) => {
+                let nodes = Nodes { size: D, end: layout.fields[0].num_dofs() };
+                let partition = Partition::from_cells(n, mesh.num_cells(), cell_dofs, world, nodes);
+                let cells = partition.cells_of_rows(mesh.num_cells(), cell_dofs);
+                let pattern = partition.row_pattern(&cells, cell_dofs);
+                let colouring = colouring.restricted(|c| cells.binary_search(&c).is_ok());
+                Sparsity::Rows(FlowRows { partition, pattern, colouring })
+            }
+        };
         let cell_rule = quadrature::for_cell::<D>(mesh.cell_type, cell_degree(D));
         let (facet_points, facet_weights) = quadrature::for_facets(mesh.cell_type, 6);
         Ok(FlowDiscretization {
@@ -147,7 +188,7 @@ impl<const D: usize> FlowDiscretization<D> {
             geometry_element,
             layout,
             velocity_nodes,
-            pattern,
+            sparsity,
             colouring,
             cell_rule,
             facet_points,
@@ -158,6 +199,39 @@ impl<const D: usize> FlowDiscretization<D> {
     /// Number of unknowns.
     pub fn num_dofs(&self) -> usize {
         self.layout.num_dofs()
+    }
+
+    /// The whole system's pattern; `None` for a partitioned assembly
+    /// ([`FlowDiscretization::rows`]).
+    pub fn pattern(&self) -> Option<&Pattern> {
+        match &self.sparsity {
+            Sparsity::Whole(pattern) => Some(pattern),
+            Sparsity::Rows(_) => None,
+        }
+    }
+
+    /// The whole system's pattern of a discretisation that [`FlowDiscretization::build`] made.
+    ///
+    /// # Panics
+    /// For a partitioned assembly ([`FlowDiscretization::build_with`] with a world).
+    pub fn whole_pattern(&self) -> &Pattern {
+        self.pattern().expect("a flow discretisation built whole (FlowDiscretization::build)")
+    }
+
+    /// This rank's part of a partitioned assembly ([`FlowDiscretization::build_with`]).
+    pub fn rows(&self) -> Option<&FlowRows> {
+        match &self.sparsity {
+            Sparsity::Whole(_) => None,
+            Sparsity::Rows(rows) => Some(rows),
+        }
+    }
+
+    /// The matrix entries held here: the whole pattern's, or this rank's rows'.
+    pub fn nnz(&self) -> usize {
+        match &self.sparsity {
+            Sparsity::Whole(pattern) => pattern.nnz(),
+            Sparsity::Rows(rows) => rows.pattern.nnz(),
+        }
     }
 
     /// The velocity field (P2+, `D` components per node): the first block of the layout.
@@ -237,12 +311,15 @@ impl<const D: usize> FlowDiscretization<D> {
         Ok(out)
     }
 
-    /// The residual `R(x)` with no rows constrained (Dirichlet rows included), for reaction forces.
+    /// The residual `R(x)` with no rows constrained (Dirichlet rows included), for reaction
+    /// forces: all of it, from all cells, on every process (no matrix), equal to
+    /// [`FlowDiscretization::assemble_system`]'s `-rhs` with nothing constrained.
     pub fn raw_residual(&self, problem: &FlowProblem<D>, x: &[f64], x_old: &[f64], t: f64) -> Result<Vec<f64>, FlowError> {
-        let mut k = CscMatrix::zeros(&self.pattern);
         let mut rhs = vec![0.0; self.num_dofs()];
         let free = vec![false; self.num_dofs()];
-        self.assemble_system(problem, x, x_old, t, &free, &mut k, &mut rhs).map_err(|e| FlowError::Map { cell: e.cell, source: e.source })?;
+        let map = |e: AssemblyError| FlowError::Map { cell: e.cell, source: e.source };
+        assemble_residual(&mut rhs, &self.colouring, &free, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t)).map_err(map)?;
+        self.add_tractions(problem, t, |dof, v| rhs[dof] -= v).map_err(map)?;
         rhs.iter_mut().for_each(|v| *v = -*v);
         Ok(rhs)
     }
@@ -260,42 +337,102 @@ impl<const D: usize> FlowDiscretization<D> {
         k: &mut CscMatrix<'_>,
         rhs: &mut [f64],
     ) -> Result<(), AssemblyError> {
-        let nv = self.velocity_element.num_dofs();
-        let nu = nv * D;
+        assemble(k, rhs, &self.colouring, constrained, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t))?;
+        self.add_tractions(problem, t, |dof, v| {
+            if !constrained[dof] {
+                rhs[dof] -= v;
+            }
+        })?;
+        for (dof, &c) in constrained.iter().enumerate() {
+            if c {
+                let pos = k.pattern.find(dof, dof).expect("diagonal in pattern");
+                k.values[pos] = 1.0;
+                rhs[dof] = 0.0;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`FlowDiscretization::assemble_system`] into this rank's rows of a partitioned assembly
+    /// (`k` on [`FlowRows::pattern`], `rhs` of the rows, in the partition's numbering; `x`,
+    /// `x_old` and `constrained` of all unknowns): those rows of that assembly, bit for bit.
+    ///
+    /// # Panics
+    /// If this discretisation is not partitioned ([`FlowDiscretization::rows`] is `None`).
+    #[allow(clippy::too_many_arguments, reason = "the state, the history, the time and the constraints of one system")]
+    pub fn assemble_rows(
+        &self,
+        problem: &FlowProblem<D>,
+        x: &[f64],
+        x_old: &[f64],
+        t: f64,
+        constrained: &[bool],
+        k: &mut RowMatrix<'_>,
+        rhs: &mut [f64],
+    ) -> Result<(), AssemblyError> {
+        let part = self.rows().expect("assemble_rows of a partitioned discretisation");
+        let (numbering, rows) = (part.partition.numbering(), part.partition.rows());
+        let to_global = |d: usize| numbering.to_petsc(d);
+        assemble_rows(k, rhs, &part.colouring, constrained, &to_global, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t))?;
+        self.add_tractions(problem, t, |dof, v| {
+            let p = to_global(dof);
+            if !constrained[dof] && rows.contains(&p) {
+                rhs[p - rows.start] -= v;
+            }
+        })?;
+        for (dof, &c) in constrained.iter().enumerate() {
+            let p = to_global(dof);
+            if c && rows.contains(&p) {
+                let pos = k.pattern.find(p, p).expect("diagonal in pattern");
+                k.values[pos] = 1.0;
+                rhs[p - rows.start] = 0.0;
+            }
+        }
+        Ok(())
+    }
+
+    /// A fresh scratch of [`FlowDiscretization::cell_kernel`], per thread.
+    fn cell_scratch(&self) -> impl Fn() -> CellScratch<D> + Sync + Send + '_ {
         let n = self.layout.dofs_per_cell();
-        let zero = |_: &[f64; D], _: f64| [0.0; D];
-        let force: &(dyn Fn(&[f64; D], f64) -> [f64; D] + Send + Sync) = match &problem.body_force {
-            Some(f) => f.as_ref(),
-            None => &zero,
-        };
-        let mesh = &self.mesh;
-        assemble(
-            k,
-            rhs,
-            &self.colouring,
-            constrained,
-            || (self.cell_values(self.cell_rule.clone()), Vec::new(), Vec::new(), vec![0.0; n], vec![0.0; n]),
-            |c, (cv, coords, u_old, u_loc, _), local: &mut LocalSystem| {
-                mesh.cell_coords_into(c, coords);
-                cv.reinit(coords).map_err(|source| AssemblyError { cell: c, source })?;
-                self.layout.cell_dofs_into(c, &mut local.dofs);
-                local.reset(n);
-                for (i, &d) in local.dofs.iter().enumerate() {
-                    u_loc[i] = x[d];
-                }
-                u_old.clear();
-                u_old.extend(local.dofs[..nu].iter().map(|&d| x_old[d]));
-                let state = CellState { u: &u_loc[..nu], u_old, p: &u_loc[nu..] };
-                let f = |p: &[f64; D]| force(p, t);
-                fluid_cell(cv, problem.formulation, &problem.params, &state, &f, &mut local.ke, &mut local.fe);
-                local.fe.iter_mut().for_each(|v| *v = -*v);
-                Ok(())
-            },
-        )?;
-        // Traction boundaries (few facets: serial).
+        move || (self.cell_values(self.cell_rule.clone()), Vec::new(), Vec::new(), vec![0.0; n])
+    }
+
+    /// The flow's cell kernel at `x` (history `x_old`, time `t`): the cell's unknowns, its
+    /// Jacobian and `-R` ([`fluid_cell`]).
+    fn cell_kernel<'a>(
+        &'a self,
+        problem: &'a FlowProblem<D>,
+        x: &'a [f64],
+        x_old: &'a [f64],
+        t: f64,
+    ) -> impl Fn(usize, &mut CellScratch<D>, &mut LocalSystem) -> Result<(), AssemblyError> + Sync + 'a {
+        let nu = self.velocity_element.num_dofs() * D;
+        let n = self.layout.dofs_per_cell();
+        move |c, (cv, coords, u_old, u_loc), local| {
+            self.mesh.cell_coords_into(c, coords);
+            cv.reinit(coords).map_err(|source| AssemblyError { cell: c, source })?;
+            self.layout.cell_dofs_into(c, &mut local.dofs);
+            local.reset(n);
+            for (i, &d) in local.dofs.iter().enumerate() {
+                u_loc[i] = x[d];
+            }
+            u_old.clear();
+            u_old.extend(local.dofs[..nu].iter().map(|&d| x_old[d]));
+            let state = CellState { u: &u_loc[..nu], u_old, p: &u_loc[nu..] };
+            let zero = [0.0; D];
+            let f = |p: &[f64; D]| problem.body_force.as_ref().map_or(zero, |force| force(p, t));
+            fluid_cell(cv, problem.formulation, &problem.params, &state, &f, &mut local.ke, &mut local.fe);
+            local.fe.iter_mut().for_each(|v| *v = -*v);
+            Ok(())
+        }
+    }
+
+    /// The traction boundaries' terms of `R` at time `t`: `add(dof, term)` for each (few facets:
+    /// serial, in facet order).
+    fn add_tractions(&self, problem: &FlowProblem<D>, t: f64, mut add: impl FnMut(usize, f64)) -> Result<(), AssemblyError> {
         let mut fv = self.facet_values();
         let mut coords = Vec::new();
-        let mut re = vec![0.0; nu];
+        let mut re = vec![0.0; self.velocity_element.num_dofs() * D];
         let vel = &self.velocity_field();
         for bc in &problem.traction {
             let facets = self.mesh.boundary_facets(&bc.boundary).unwrap_or_default();
@@ -307,22 +444,45 @@ impl<const D: usize> FlowDiscretization<D> {
                 traction_facet(&fv, problem.formulation, &tr, &mut re);
                 for (i, &node) in vel.nodes.cell(bf.cell).iter().enumerate() {
                     for a in 0..D {
-                        let dof = vel.dof(node, a);
-                        if !constrained[dof] {
-                            rhs[dof] -= re[i * D + a];
-                        }
+                        add(vel.dof(node, a), re[i * D + a]);
                     }
                 }
             }
         }
-        for (dof, &c) in constrained.iter().enumerate() {
-            if c {
-                let pos = self.pattern.find(dof, dof).expect("diagonal in pattern");
-                k.values[pos] = 1.0;
-                rhs[dof] = 0.0;
+        Ok(())
+    }
+
+    /// Solves `R(x) = 0` by Newton from `x` for the problem at time `t` (history `x_old`,
+    /// Dirichlet rows `constrained`): with `solver` on the whole system, or, for a partitioned
+    /// assembly, through its [`crate::solve::partition::RowSolver`] on this rank's rows
+    /// ([`newton::solve_rows`]).
+    #[allow(clippy::too_many_arguments, reason = "the state, the history, the time, the constraints, the solver and its options")]
+    pub fn solve_newton(
+        &self,
+        problem: &FlowProblem<D>,
+        x: &mut [f64],
+        x_old: &[f64],
+        t: f64,
+        constrained: &[bool],
+        solver: &mut dyn LinearSolver,
+        options: &NewtonOptions,
+    ) -> Result<NewtonReport, NewtonError<AssemblyError>> {
+        match &self.sparsity {
+            Sparsity::Whole(pattern) => {
+                newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble_system(problem, x, x_old, t, constrained, k, rhs))
+            }
+            Sparsity::Rows(part) => {
+                let rows = solver.rows().filter(|r| r.world() == part.partition.world).ok_or_else(|| {
+                    LinearSolveError::Numeric(format!(
+                        "a flow partitioned over {:?} needs a linear solver of its rows on those ranks",
+                        part.partition.world
+                    ))
+                })?;
+                newton::solve_rows(x, &part.partition, &part.pattern, rows, options, |x, k, rhs| {
+                    self.assemble_rows(problem, x, x_old, t, constrained, k, rhs)
+                })
             }
         }
-        Ok(())
     }
 }
 
@@ -372,6 +532,11 @@ impl<'a, const D: usize> SteadySystem<'a, D> {
         rhs.iter_mut().for_each(|v| *v = 0.0);
         self.disc.assemble_system(self.problem, x, &self.x_old, 0.0, &self.constrained, k, rhs)
     }
+
+    /// Newton from `x` on this system ([`FlowDiscretization::solve_newton`]).
+    pub fn solve(&self, x: &mut [f64], solver: &mut dyn LinearSolver, options: &NewtonOptions) -> Result<NewtonReport, NewtonError<AssemblyError>> {
+        self.disc.solve_newton(self.problem, x, &self.x_old, 0.0, &self.constrained, solver, options)
+    }
 }
 
 /// Solves the steady problem (`params.inv_dt` must be 0) with Newton from the Dirichlet values
@@ -393,7 +558,7 @@ pub fn solve_steady<const D: usize>(
     solver.set_split(disc.saddle_point_split(problem.formulation)?);
     let options = &NewtonOptions { line_search: Some(options.line_search.unwrap_or(true)), ..problem.newton_options(options) };
     let x0 = x.clone();
-    let report = match newton::solve(&mut x, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs)) {
+    let report = match system.solve(&mut x, solver, options) {
         Ok(report) => report,
         Err(NewtonError::NotConverged { .. } | NewtonError::NonFinite { .. } | NewtonError::LineSearch { .. })
             if options.continuation && problem.params.convection =>
@@ -434,7 +599,7 @@ fn continue_in_viscosity<const D: usize>(
         let (system, _) = SteadySystem::new(disc, &stage)?;
         tracing::debug!("continuation: viscosity {eta:.4e} (target {target:.4e})");
         let mut trial = x.clone();
-        let report = newton::solve(&mut trial, &disc.pattern, solver, options, |x, k, rhs| system.assemble(x, k, rhs))?;
+        let report = system.solve(&mut trial, solver, options)?;
         total.add(&report);
         *x = trial;
         Ok(report)

@@ -726,7 +726,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 buf.extend_from_slice(&coupling_dofs[c - nfc - nsc]);
             }
         });
-        let flow_map = position_map(&flow.pattern, &pattern, 0);
+        let flow_map = position_map(flow.whole_pattern(), &pattern, 0);
         let solid_map = position_map(&model.solid.pattern, &pattern, os);
         Ok(FsiDiscretization {
             surface,
@@ -894,7 +894,7 @@ impl<const D: usize> FsiDiscretization<D> {
     ) -> Result<(), FsiAssemblyError> {
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
         // Fluid block.
-        add_block(&self.block_values[0], &self.flow.pattern, &self.flow_map, k, |kb| {
+        add_block(&self.block_values[0], self.flow.whole_pattern(), &self.flow_map, k, |kb| {
             self.flow.assemble_system(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], kb, &mut rhs[..os])
         })?;
         // Solid block (updated Lagrangian: increment from X + u_n, F_n per point).

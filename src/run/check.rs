@@ -300,7 +300,7 @@ impl Ctx<'_> {
             case.title,
             name_of(&case.physics.model),
             name_of(&case.physics.formulation),
-            disc.pattern.nnz()
+            disc.nnz()
         );
         let (steps, step_kind, field_writes, rows) = time_steps(case).unwrap_or((1, "steady solve", 1, 1));
         Ok(CheckSummary {

@@ -48,7 +48,7 @@ fn export_flow<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir:
     let n = disc.num_dofs();
     let mut x = vec![0.0; n];
     let constrained = disc.impose_dirichlet(&problem, t, &mut x)?;
-    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut k = CscMatrix::zeros(disc.whole_pattern());
     let mut rhs = vec![0.0; n];
     disc.assemble_system(&problem, &x, &vec![0.0; n], t, &constrained, &mut k, &mut rhs)
         .map_err(|e| crate::discretize::flow::FlowError::Map { cell: e.cell, source: e.source })?;

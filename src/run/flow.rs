@@ -50,17 +50,23 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let problem = flow_problem(case, &mesh, &options.case_dir)?;
     let t = Instant::now();
     let cells = mesh.num_cells();
-    let disc = FlowDiscretization::build(mesh, case.physics.formulation)?;
+    // A solver of each rank's rows (PETSc's, under `mpirun` or not) takes a partitioned
+    // assembly: each rank then holds its rows only.
+    let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
+    let world = lu.rows().map(|rows| rows.world());
+    let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, world)?;
     let discretize = t.elapsed().as_secs_f64();
     let dofs = flow_dofs(&disc);
+    let entries = match world {
+        Some(w) => format!("nnz {} in rank {}'s rows of {}", disc.nnz(), w.rank, w.size),
+        None => format!("nnz {}", disc.nnz()),
+    };
     obs.log(&format!(
-        "mesh: {cells} cells; dofs: velocity {}, pressure {}, total {} (nnz {}); {discretize:.2} s",
+        "mesh: {cells} cells; dofs: velocity {}, pressure {}, total {} ({entries}); {discretize:.2} s",
         dofs[0].1,
         dofs[1].1,
         disc.num_dofs(),
-        disc.pattern.nnz()
     ));
-    let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let outputs = FlowOutputs { case, problem: &problem };
     let mut recorded = match &case.time {
         None => {

@@ -1549,7 +1549,7 @@ mod tests {
         let mesh = fdfsi_fem::generate::box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 4, 4, 4);
         let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).unwrap();
         let (system, x0) = crate::discretize::flow::SteadySystem::new(&disc, &problem).unwrap();
-        let mut k = CscMatrix::zeros(&disc.pattern);
+        let mut k = CscMatrix::zeros(disc.whole_pattern());
         let mut rhs = vec![0.0; x0.len()];
         system.assemble(&x0, &mut k, &mut rhs).unwrap();
         let mut sols = Vec::new();

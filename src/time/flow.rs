@@ -5,7 +5,7 @@ use super::march::{march, Advance, MarchError, MarchOptions, Schedule, StepDone,
 use super::{step_history, step_ratio, TimeLevel, TimeScheme, Timings};
 use crate::discretize::flow::{FlowDiscretization, FlowError, FlowProblem};
 use crate::solve::linear::LinearSolver;
-use crate::solve::newton::{self, NewtonOptions, NewtonReport};
+use crate::solve::newton::{NewtonOptions, NewtonReport};
 use thiserror::Error;
 
 /// A flow advanced step by step: the solution `x` and, for BDF2, the one before it.
@@ -116,9 +116,7 @@ fn solve_step<const D: usize>(
     step_problem.params.inv_dt = inv_dt;
     let constrained = disc.impose_dirichlet(&step_problem, t, x)?;
     let options = &step_problem.newton_options(options);
-    let report =
-        newton::solve(x, &disc.pattern, solver, options, |x, k, rhs| disc.assemble_system(&step_problem, x, u_star, t, &constrained, k, rhs))?;
-    Ok(report)
+    Ok(disc.solve_newton(&step_problem, x, u_star, t, &constrained, solver, options)?)
 }
 
 /// Options of [`solve_unsteady`].

@@ -423,6 +423,32 @@ where
     for_each_cell(colouring, make_scratch, kernel, |local, scratch| unsafe { scatter_rows(local, scratch, pattern, skip_row, to_global, &out) })
 }
 
+/// [`assemble`]'s right-hand side alone (the kernel's `ke` unused): `rhs` equals that
+/// assembly's, bit for bit.
+pub fn assemble_residual<S, E, K>(
+    rhs: &mut [f64],
+    colouring: &Colouring,
+    skip_row: &[bool],
+    make_scratch: impl Fn() -> S + Sync + Send,
+    kernel: K,
+) -> Result<(), E>
+where
+    E: Send,
+    K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+{
+    let n = rhs.len();
+    let out = &SharedOut { values: std::ptr::null_mut(), rhs: rhs.as_mut_ptr() };
+    for_each_cell(colouring, make_scratch, kernel, |local, _| {
+        for (i, &row) in local.dofs.iter().enumerate() {
+            assert!(row < n, "dof {row} of {n}");
+            if !skip_row[row] {
+                // SAFETY: as in `assemble`; `row` is in `rhs`.
+                unsafe { *out.rhs.add(row) += local.fe[i] };
+            }
+        }
+    })
+}
+
 /// Runs `kernel` on every cell of `colouring` and `write`s each cell's system: in cell order on
 /// one rayon thread, colour by colour in parallel on several (so `write` runs concurrently for
 /// cells of one colour only, which share no dof). Returns the first kernel error, if any.
