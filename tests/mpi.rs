@@ -144,7 +144,7 @@ fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
 /// BoomerAMG on the velocity, no LU): the serial run's quantities (the exact solution: centre
 /// velocity 1.5, pressures 18 and 6, flux 0.5), and on 2 ranks PETSc's velocity block, the
 /// field split's first field, of block size 3 (its view), so that BoomerAMG coarsens each
-/// component apart.
+/// component apart; each rank assembles its own rows only (a partitioned assembly).
 #[test]
 fn the_scaling_problem_on_two_ranks_gives_the_serial_quantities() {
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/scale3d/slab-3d-navier-stokes.toml");
@@ -158,6 +158,8 @@ fn the_scaling_problem_on_two_ranks_gives_the_serial_quantities() {
     assert!(views > 0, "no view of the velocity block in the log\n{log}");
     let velocity_rows = 6_087;
     assert!(log.contains(&format!("rows={velocity_rows}, cols={velocity_rows}, bs=3")), "the velocity block's block size\n{log}");
+    // Each rank assembled its own rows (a partitioned assembly), of 7 623 unknowns in all.
+    assert!(log.contains("total 7623 (nnz") && log.contains("in rank 0's rows of 2)"), "rank 0 held its own rows\n{log}");
 }
 
 /// On several ranks a case must solve through PETSc: any other linear method would solve the

@@ -317,7 +317,7 @@ impl<S: LinearSolver> SerialRows<S> {
 }
 
 /// A key of a row pattern's structure (FNV-1a of its words).
-fn row_pattern_key(p: &RowPattern) -> u64 {
+pub(crate) fn row_pattern_key(p: &RowPattern) -> u64 {
     super::linear::fnv1a(
         [p.n, p.rows.start, p.rows.end].into_iter().chain(p.row_ptr.iter().copied()).map(|w| w as u64).chain(p.cols.iter().map(|&c| u64::from(c))),
     )

@@ -6,13 +6,19 @@
 //! `-fdfsi_mat_mumps_icntl_14 50`, `-fdfsi_ksp_view`).
 //!
 //! One process (no `mpirun`, or `mpirun -n 1`): a sequential AIJ matrix. Several (`mpirun -n
-//! N fdfsi run`): every rank holds the same system (the run is replicated up to the linear
-//! solve) and each gives PETSc its rows ([`Numbering::rows`]), a contiguous block of PETSc's
-//! numbering of the unknowns (a level-set order of the matrix graph, [`Numbering`]: a slice of
-//! the domain), as its rows of a distributed AIJ matrix (preallocated from the pattern, so
-//! setting values sends nothing); each rank copies its rows of the right-hand side into PETSc's
-//! numbering, and after the solve every rank gathers the whole solution (`MPI_Allgatherv`) and
-//! takes it back to the layout's numbering, so the Newton update is the same on all. [`world`]
+//! N fdfsi run`): each rank gives PETSc its rows ([`Numbering::rows`]), a contiguous block of
+//! PETSc's numbering of the unknowns (a level-set order of the matrix graph, [`Numbering`]: a
+//! slice of the domain), as its rows of a distributed AIJ matrix (preallocated from the pattern,
+//! so setting values sends nothing), and after the solve every rank gathers the whole solution
+//! (`MPI_Allgatherv`) in the layout's numbering, so the Newton update is the same on all.
+//!
+//! Those rows come two ways. A flow without the augmented Lagrangian is a *partitioned
+//! assembly* ([`RowSolver`]: [`crate::discretize::flow::FlowDiscretization::build_with`]): each
+//! rank builds, assembles and holds only its rows (those of a [`Partition`], the same numbering)
+//! and the cells touching them, and the residual norms are sums over the ranks
+//! ([`RowSolver::sum`]); on one rank this is the whole system. Every other system (FSI, the
+//! solid, the augmented Lagrangian, which transforms the whole matrix) is replicated: every rank
+//! assembles the whole system and copies its rows out. [`world`]
 //! tells a process its rank; [`finalize`] and [`abort`] end MPI. An error that one rank may meet
 //! alone (a failed PETSc or MPI call) ends every rank at once, printed with its rank: returned, it
 //! would send that rank on while the others wait for it in a collective call. Errors the ranks
@@ -49,8 +55,9 @@ mod ffi;
 
 use super::augmented::{AlOptions, AugmentedLagrangian, SaddlePointSplit, TransformedSystem};
 use super::linear::{norm, pattern_key, LinearSolveError, LinearSolver, SolveStats};
+use super::partition::{row_pattern_key, Partition, RowSolver};
 pub use super::partition::{Nodes, Numbering, World};
-use fdfsi_fem::sparse::{CscMatrix, Pattern};
+use fdfsi_fem::sparse::{CscMatrix, Pattern, RowMatrix, RowPattern};
 use ffi::PetscInt;
 use std::ffi::{c_int, CStr, CString};
 use std::ops::Range;
@@ -162,6 +169,35 @@ impl World {
             return Err(end_ranks_on(LinearSolveError::Petsc(format!("MPI_Allreduce failed (MPI error {code})"))));
         }
         Ok(max)
+    }
+
+    /// The sum of every rank's `value`, with the same bits on every rank: the values gathered
+    /// and added in rank order (an `MPI_Allreduce` may add them in another order on each
+    /// rank; the caller holds the lock; collective).
+    fn sum(&self, value: f64) -> Result<f64, LinearSolveError> {
+        if self.size == 1 {
+            return Ok(value);
+        }
+        let mut values = vec![0.0; self.size];
+        let (counts, starts): (Vec<c_int>, Vec<c_int>) = (0..self.size as c_int).map(|r| (1, r)).unzip();
+        // SAFETY: one value sent, one received from each rank into its place in `values`.
+        let code = unsafe {
+            let double = ffi::mpi_double();
+            ffi::MPI_Allgatherv(
+                (&value as *const f64).cast(),
+                1,
+                double,
+                values.as_mut_ptr().cast(),
+                counts.as_ptr(),
+                starts.as_ptr(),
+                double,
+                ffi::comm_world(),
+            )
+        };
+        if code != 0 {
+            return Err(end_ranks_on(LinearSolveError::Petsc(format!("MPI_Allgatherv failed (MPI error {code})"))));
+        }
+        Ok(values.iter().sum())
     }
 
     /// Fills all of `x` (in PETSc's `numbering`) on every rank from each rank's rows
@@ -304,13 +340,24 @@ pub struct PetscSolver {
     fail_tolerance: f64,
     system: Option<PetscSystem>,
     symbolic: usize,
+    /// The ranks, once [`LinearSolver::rows`] found PETSc running.
+    world: Option<World>,
 }
 
 impl PetscSolver {
     /// A solver with PETSc `options` (`-fdfsi_...`, added after [`DEFAULT_OPTIONS`]) that fails
     /// a solve whose relative residual exceeds `fail_tolerance`.
     pub fn new(options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver { options: options.to_string(), multipliers: None, primal_components: 1, al: None, fail_tolerance, system: None, symbolic: 0 }
+        PetscSolver {
+            options: options.to_string(),
+            multipliers: None,
+            primal_components: 1,
+            al: None,
+            fail_tolerance,
+            system: None,
+            symbolic: 0,
+            world: None,
+        }
     }
 
     /// The augmented-Lagrangian preconditioner of `solve::augmented` (with `al`'s weight and
@@ -325,11 +372,39 @@ impl PetscSolver {
         PetscSolver { al: Some(AugmentedLagrangian::new(al)), ..Self::new(options, fail_tolerance) }
     }
 
-    /// `x = K^-1 b` by `system`'s `KSP` under this solver's options; the Krylov iterations.
+    /// `x = K^-1 b` by `system`'s `KSP` under this solver's options, `b` this rank's rows and
+    /// `x` all unknowns, both in PETSc's numbering; the Krylov iterations.
     fn petsc_solve(&self, system: &PetscSystem, b: &[f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
         let _petsc = lock();
         set_options(defaults(system.is_augmented()), &self.options)?;
         system.solve(b, x)
+    }
+
+    /// The nodes whose components PETSc's `fieldsplit` takes as the primal field's block size
+    /// for a system of `n` unknowns with `fields` (the split's, or the augmented Lagrangian's):
+    /// the nodes of the split's primal unknowns (`multipliers`, `primal_components`), where
+    /// the fields' first is exactly those (the augmented Lagrangian's may hold multipliers kept
+    /// primal too); every unknown on its own otherwise.
+    fn block_nodes(multipliers: Option<&[bool]>, primal_components: usize, fields: Option<&[bool]>, n: usize) -> Nodes {
+        let split = multipliers.map(|m| Nodes::of_split(m, n, primal_components));
+        match fields.map(|m| Nodes::of_split(m, n, primal_components)) {
+            Some(of_fields) if Some(of_fields) == split => of_fields,
+            _ => Nodes::SCALAR,
+        }
+    }
+}
+
+impl PetscSolver {
+    /// The stats of a solve that ended at relative `residual` with the solution `x`, or why it
+    /// failed (the ranks agree on both).
+    fn accept(&self, residual: f64, refinements: usize, iterations: usize, x: &[f64]) -> Result<SolveStats, LinearSolveError> {
+        if !residual.is_finite() || x.iter().any(|v| !v.is_finite()) {
+            return Err(LinearSolveError::NonFinite);
+        }
+        if residual > self.fail_tolerance {
+            return Err(LinearSolveError::Inaccurate { residual, refinements, tolerance: self.fail_tolerance });
+        }
+        Ok(SolveStats { residual, refinements, krylov_iterations: iterations })
     }
 }
 
@@ -344,13 +419,7 @@ impl LinearSolver for PetscSolver {
             None => (a.pattern, self.multipliers.as_deref()),
         };
         let augmented = transformed.is_some();
-        // The nodes of the split's primal unknowns, where the fields' first is exactly those
-        // (the augmented Lagrangian's may hold multipliers kept primal too).
-        let split_nodes = self.multipliers.as_deref().map(|m| Nodes::of_split(m, pattern.n, self.primal_components));
-        let nodes = match fields.map(|m| Nodes::of_split(m, pattern.n, self.primal_components)) {
-            Some(of_fields) if Some(of_fields) == split_nodes => of_fields,
-            _ => Nodes::SCALAR,
-        };
+        let nodes = Self::block_nodes(self.multipliers.as_deref(), self.primal_components, fields, pattern.n);
         if !self.system.as_ref().is_some_and(|s| s.is_for(pattern, fields, nodes, augmented)) {
             self.system = None;
             let _petsc = lock();
@@ -361,7 +430,7 @@ impl LinearSolver for PetscSolver {
         let system = self.system.as_mut().expect("set above");
         let _petsc = lock();
         set_options(defaults(augmented), &self.options)?;
-        system.factorize(&a.values, transformed.as_ref())
+        system.factorize(Values::Csc(&a.values), transformed.as_ref())
     }
 
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
@@ -388,28 +457,41 @@ impl LinearSolver for PetscSolver {
             let _petsc = lock();
             system.world.max(norm(r) / b_norm)
         };
-        let mut iterations = self.petsc_solve(system, &b, rhs)?;
+        // `K^-1 v` into `x`, both in fdfsi's numbering.
+        let numbering = &system.numbering;
+        let solve = |v: &[f64], x: &mut [f64]| {
+            let v_rows: Vec<f64> = system.rows().map(|p| v[numbering.to_fdfsi(p)]).collect();
+            let mut x_petsc = vec![0.0; system.n];
+            let iterations = self.petsc_solve(system, &v_rows, &mut x_petsc)?;
+            x_petsc.into_iter().enumerate().for_each(|(p, value)| x[numbering.to_fdfsi(p)] = value);
+            Ok::<_, LinearSolveError>(iterations)
+        };
+        let mut iterations = solve(&b, rhs)?;
         let mut r = vec![0.0; b.len()];
         let mut residual = relative_residual(rhs, &mut r)?;
         let mut refinements = 0;
         while residual > REFINE_ABOVE * self.fail_tolerance && refinements < MAX_REFINEMENTS && residual.is_finite() {
             let mut correction = vec![0.0; b.len()];
-            iterations += self.petsc_solve(system, &r, &mut correction)?;
+            iterations += solve(&r, &mut correction)?;
             rhs.iter_mut().zip(&correction).for_each(|(x, d)| *x += d);
             residual = relative_residual(rhs, &mut r)?;
             refinements += 1;
         }
-        if !residual.is_finite() || rhs.iter().any(|x| !x.is_finite()) {
-            return Err(LinearSolveError::NonFinite);
-        }
-        if residual > self.fail_tolerance {
-            return Err(LinearSolveError::Inaccurate { residual, refinements, tolerance: self.fail_tolerance });
-        }
-        Ok(SolveStats { residual, refinements, krylov_iterations: iterations })
+        self.accept(residual, refinements, iterations, rhs)
     }
 
     fn symbolic_factorizations(&self) -> usize {
         self.symbolic
+    }
+
+    /// This solver for a partitioned assembly, on one rank or several, unless it runs the
+    /// augmented Lagrangian (whose transformation needs the whole matrix) or PETSc does not start.
+    fn rows(&mut self) -> Option<&mut dyn RowSolver> {
+        if self.al.is_some() {
+            return None;
+        }
+        self.world = Some(world().ok()?);
+        Some(self)
     }
 
     /// Keeps the split's multipliers for the fields of a `fieldsplit` preconditioner (a system
@@ -429,6 +511,105 @@ impl LinearSolver for PetscSolver {
     }
 }
 
+impl RowSolver for PetscSolver {
+    fn as_linear_solver(&mut self) -> &mut dyn LinearSolver {
+        self
+    }
+
+    fn world(&self) -> World {
+        self.world.unwrap_or(World { rank: 0, size: 1 })
+    }
+
+    fn sum(&self, value: f64) -> Result<f64, LinearSolveError> {
+        let _petsc = lock();
+        initialize()?.sum(value)
+    }
+
+    /// Sets PETSc's system up from this rank's rows (again where their pattern, the split or the
+    /// nodes changed on any rank) and loads `a` straight into its matrix.
+    fn factorize_rows(&mut self, partition: &Partition, a: &RowMatrix<'_>) -> Result<(), LinearSolveError> {
+        if self.al.is_some() {
+            return Err(LinearSolveError::Petsc("the augmented Lagrangian needs the whole matrix, not a partitioned assembly's rows".into()));
+        }
+        let n = partition.n();
+        let fields = self.multipliers.as_deref();
+        // The block size where the partition kept the split's nodes whole.
+        let nodes = match Self::block_nodes(fields, self.primal_components, fields, n) {
+            nodes if nodes == partition.nodes => nodes,
+            _ => Nodes::SCALAR,
+        };
+        let key = row_pattern_key(a.pattern);
+        let current = self.system.as_ref().is_some_and(|s| s.is_for_rows(key, n, fields, nodes));
+        let rebuild = {
+            let _petsc = lock();
+            let world = initialize()?;
+            if world != partition.world {
+                return Err(LinearSolveError::Petsc(format!("rows partitioned over {:?} given to PETSc on {world:?}", partition.world)));
+            }
+            world.max(f64::from(u8::from(!current)))? > 0.0
+        };
+        if rebuild {
+            self.system = None;
+            let _petsc = lock();
+            self.system = Some(PetscSystem::from_rows(partition, a.pattern, key, fields, nodes)?);
+            self.symbolic += 1;
+        }
+        let system = self.system.as_mut().expect("set above");
+        let _petsc = lock();
+        set_options(defaults(false), &self.options)?;
+        system.factorize(Values::Rows(a), None)
+    }
+
+    /// Solves with PETSc and refines against `a` (each rank's rows of the residual, their norm
+    /// summed over the ranks), then takes the whole solution to fdfsi's numbering.
+    fn solve_rows(&self, partition: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+        let system = self.system.as_ref().ok_or_else(|| LinearSolveError::Petsc("solve before factorize".into()))?;
+        if b.len() != system.rows().len() || x.len() != system.n || a.pattern.rows != system.rows() {
+            return Err(LinearSolveError::Petsc(format!(
+                "rows {:?} (right-hand side of {}, solution of {}) given to a solver set up for rows {:?} of {}",
+                a.pattern.rows,
+                b.len(),
+                x.len(),
+                system.rows(),
+                system.n
+            )));
+        }
+        let norm = |v: &[f64]| -> Result<f64, LinearSolveError> { Ok(self.sum(v.iter().map(|x| x * x).sum())?.sqrt()) };
+        let b_norm = match norm(b)? {
+            0.0 => 1.0,
+            b_norm => b_norm,
+        };
+        let relative_residual = |x: &[f64], r: &mut [f64]| {
+            a.mul_rows(x, r);
+            r.iter_mut().zip(b).for_each(|(ax, b)| *ax = b - *ax);
+            Ok::<_, LinearSolveError>(norm(r)? / b_norm)
+        };
+        let mut x_petsc = vec![0.0; system.n];
+        let mut iterations = self.petsc_solve(system, b, &mut x_petsc)?;
+        let mut r = vec![0.0; b.len()];
+        let mut residual = relative_residual(&x_petsc, &mut r)?;
+        let mut refinements = 0;
+        while residual > REFINE_ABOVE * self.fail_tolerance && refinements < MAX_REFINEMENTS && residual.is_finite() {
+            let mut correction = vec![0.0; system.n];
+            iterations += self.petsc_solve(system, &r, &mut correction)?;
+            x_petsc.iter_mut().zip(&correction).for_each(|(x, d)| *x += d);
+            residual = relative_residual(&x_petsc, &mut r)?;
+            refinements += 1;
+        }
+        let numbering = partition.numbering();
+        x_petsc.iter().enumerate().for_each(|(p, &value)| x[numbering.to_fdfsi(p)] = value);
+        self.accept(residual, refinements, iterations, x)
+    }
+}
+
+/// The values of a system's matrix, as a [`PetscSystem`] loads them.
+enum Values<'a> {
+    /// A whole matrix's, in its pattern's CSC order.
+    Csc(&'a [f64]),
+    /// This rank's rows of a partitioned assembly.
+    Rows(&'a RowMatrix<'a>),
+}
+
 /// PETSc's objects for one pattern: the matrix (this rank's rows, [`Numbering::rows`], of the
 /// AIJ matrix on `MPI_COMM_WORLD`: sequential on one rank, distributed on several, in PETSc's
 /// [`Numbering`]), the right-hand side and solution vectors (their arrays placed for each
@@ -444,7 +625,8 @@ struct PetscSystem {
     numbering: Numbering,
     nodes: Nodes,
     /// The CSR arrays of those rows (global column indices) and the CSC position of each entry
-    /// (below the pattern's entry count, which fits a `PetscInt`).
+    /// (below the pattern's entry count, which fits a `PetscInt`); for a partitioned assembly's
+    /// rows only `row_ptr` (the columns are the rows' own, [`Values::Rows`]).
     row_ptr: Vec<PetscInt>,
     col_idx: Vec<PetscInt>,
     csc_of_csr: Vec<PetscInt>,
@@ -558,7 +740,7 @@ impl PetscSystem {
         let n = pattern.n;
         let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {} entries exceed PETSc's integer range", pattern.nnz()));
         let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
-        let size = int(n)?;
+        int(n)?;
         int(pattern.nnz())?;
         let numbering = Numbering::new(pattern, world, nodes);
         let rows = numbering.rows(world.rank);
@@ -586,17 +768,58 @@ impl PetscSystem {
             }
         }
         let row_ptr = row_ptr.into_iter().map(int).collect::<Result<Vec<_>, _>>()?;
-        let local = int(rows.len())?;
+        let csr = Csr { row_ptr, col_idx, csc_of_csr };
+        Self::create(numbering, world, nodes, (n, pattern.nnz(), pattern_key(pattern)), csr, None, multipliers, augmented)
+    }
+
+    /// The system of a partitioned assembly's rows on this rank (`pattern`, with `key`), in
+    /// `partition`'s numbering, for the `multipliers`' fields (the primal one with `nodes`'
+    /// block size; the caller holds the lock; collective over the ranks).
+    fn from_rows(
+        partition: &Partition,
+        pattern: &RowPattern,
+        key: u64,
+        multipliers: Option<&[bool]>,
+        nodes: Nodes,
+    ) -> Result<Self, LinearSolveError> {
+        let (n, nnz) = (partition.n(), pattern.nnz());
+        let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {nnz} entries on this rank exceed PETSc's integer range"));
+        let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
+        int(n)?;
+        let row_ptr = pattern.row_ptr.iter().map(|&k| int(k)).collect::<Result<Vec<_>, _>>()?;
+        // The columns as PETSc's integers for the preallocation only (PETSc keeps its own copy).
+        let cols: Vec<PetscInt> = pattern.cols.iter().map(|&j| j as PetscInt).collect();
+        let csr = Csr { row_ptr, col_idx: Vec::new(), csc_of_csr: Vec::new() };
+        Self::create(partition.numbering().clone(), partition.world, nodes, (n, nnz, key), csr, Some(&cols), multipliers, false)
+    }
+
+    /// The system of this rank's rows in `csr` (columns `cols`, or `csr.col_idx`) of the
+    /// `numbering` of `(n, nnz, key)` (its size, entries and pattern key) over `world`: the
+    /// matrix preallocated, the vectors and the `KSP` (the caller holds the lock; collective).
+    #[allow(clippy::too_many_arguments, reason = "the parts of a PetscSystem")]
+    fn create(
+        numbering: Numbering,
+        world: World,
+        nodes: Nodes,
+        (n, nnz, key): (usize, usize, u64),
+        csr: Csr,
+        cols: Option<&[PetscInt]>,
+        multipliers: Option<&[bool]>,
+        augmented: bool,
+    ) -> Result<Self, LinearSolveError> {
+        let rows = numbering.rows(world.rank);
+        let (size, local) = (n as PetscInt, rows.len() as PetscInt);
         let fields = multipliers.map(|m| {
             let of = |multiplier: bool| {
                 rows.clone().filter(|&p| m.get(numbering.to_fdfsi(p)).copied().unwrap_or(false) == multiplier).map(|p| p as PetscInt).collect()
             };
             [of(false), of(true)]
         });
+        let Csr { row_ptr, col_idx, csc_of_csr } = csr;
         let mut system = PetscSystem {
             n,
-            nnz: pattern.nnz(),
-            key: pattern_key(pattern),
+            nnz,
+            key,
             numbering,
             nodes,
             row_ptr,
@@ -609,6 +832,7 @@ impl PetscSystem {
             handles: Handles::NONE,
             shell_context: Box::new(Shell::NONE),
         };
+        let cols = cols.unwrap_or(&system.col_idx);
         let prefix = CString::new(OPTIONS_PREFIX).expect("no NUL");
         let al_prefix = CString::new(AL_OPTIONS_PREFIX).expect("no NUL");
         let s = &system;
@@ -617,10 +841,10 @@ impl PetscSystem {
         // arrays placed for each solve.
         let created = unsafe {
             let comm = ffi::comm_world();
-            create_aij(local, size, &s.row_ptr, &s.col_idx, None)
+            create_aij(local, size, &s.row_ptr, cols, None)
                 .map(|m| h.mat = m)
                 .and_then(|_| match augmented {
-                    true => create_aij(local, size, &s.row_ptr, &s.col_idx, None).map(|m| h.shell.tk = m),
+                    true => create_aij(local, size, &s.row_ptr, cols, None).map(|m| h.shell.tk = m),
                     false => Ok(()),
                 })
                 .and_then(|_| match augmented {
@@ -657,6 +881,17 @@ impl PetscSystem {
             && self.is_augmented() == augmented
     }
 
+    /// Whether this is the system of a partitioned assembly's rows with pattern `key` of `n`
+    /// unknowns, `fields` and `nodes`.
+    fn is_for_rows(&self, key: u64, n: usize, fields: Option<&[bool]>, nodes: Nodes) -> bool {
+        self.col_idx.is_empty()
+            && self.key == key
+            && self.n == n
+            && self.nodes == nodes
+            && self.field_mask.as_deref() == fields
+            && !self.is_augmented()
+    }
+
     /// Whether this is an augmented Lagrangian's system ([`PetscSolver::augmented_lagrangian`]).
     fn is_augmented(&self) -> bool {
         !self.handles.shell.tk.is_null()
@@ -672,20 +907,28 @@ impl PetscSystem {
         self.numbering.rows(self.world.rank)
     }
 
-    /// Copies this rank's rows of `values` (in the pattern's CSC order) into `mat` (the caller
-    /// holds the lock; collective).
-    fn load(&self, mat: ffi::Mat, values: &[f64]) -> Result<(), LinearSolveError> {
-        let mut row_values = Vec::new();
+    /// Copies this rank's rows of `values` into `mat` (the caller holds the lock; collective).
+    fn load(&self, mat: ffi::Mat, values: Values<'_>) -> Result<(), LinearSolveError> {
+        let (mut row_values, mut row_cols) = (Vec::new(), Vec::new());
         // SAFETY: the matrix is valid and was preallocated with exactly these rows and columns;
         // each row's slice of the CSR arrays lies within them.
         unsafe {
             for (i, row) in self.rows().enumerate() {
                 let (start, end) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
-                row_values.clear();
-                row_values.extend(self.csc_of_csr[start..end].iter().map(|&k| values[k as usize]));
+                let (cols, vals) = match values {
+                    Values::Csc(values) => {
+                        row_values.clear();
+                        row_values.extend(self.csc_of_csr[start..end].iter().map(|&k| values[k as usize]));
+                        (&self.col_idx[start..end], &row_values[..])
+                    }
+                    Values::Rows(a) => {
+                        row_cols.clear();
+                        row_cols.extend(a.pattern.cols[start..end].iter().map(|&j| j as PetscInt));
+                        (&row_cols[..], &a.values[start..end])
+                    }
+                };
                 let row = row as PetscInt;
-                let (cols, vals) = (self.col_idx[start..].as_ptr(), row_values.as_ptr());
-                check(ffi::MatSetValues(mat, 1, &row, (end - start) as PetscInt, cols, vals, ffi::INSERT_VALUES), "MatSetValues")?;
+                check(ffi::MatSetValues(mat, 1, &row, (end - start) as PetscInt, cols.as_ptr(), vals.as_ptr(), ffi::INSERT_VALUES), "MatSetValues")?;
             }
             check(ffi::MatAssemblyBegin(mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyBegin")?;
             check(ffi::MatAssemblyEnd(mat, ffi::MAT_FINAL_ASSEMBLY), "MatAssemblyEnd")
@@ -699,9 +942,9 @@ impl PetscSystem {
     /// around the field split of `T K`, whose Schur complement is preconditioned by the
     /// block-diagonal `S_p` (the caller holds the lock and has set the solver's options;
     /// collective).
-    fn factorize(&mut self, values: &[f64], al: Option<&TransformedSystem<'_>>) -> Result<(), LinearSolveError> {
+    fn factorize(&mut self, values: Values<'_>, al: Option<&TransformedSystem<'_>>) -> Result<(), LinearSolveError> {
         let (mat, tk, ksp) = (self.handles.mat, self.handles.shell.tk, self.handles.ksp);
-        self.load(mat, al.map_or(values, |t| &t.k_values))?;
+        self.load(mat, al.map_or(values, |t| Values::Csc(&t.k_values)))?;
         let (mut pc, mut failed) = (null_mut(), 0);
         let shell_type = CString::new("shell").expect("no NUL");
         // SAFETY: the handles are valid (`tk` and the shell's with `al` only); the shell's
@@ -712,7 +955,7 @@ impl PetscSystem {
             check(ffi::KSPGetPC(ksp, &mut pc), "KSPGetPC")?;
             let split = match al {
                 Some(t) => {
-                    self.load(tk, &t.values)?;
+                    self.load(tk, Values::Csc(&t.values))?;
                     let mut transform = self.transform_matrix(&t.transform)?;
                     std::mem::swap(&mut self.handles.shell.t, &mut transform);
                     ffi::MatDestroy(&mut transform);
@@ -783,17 +1026,14 @@ impl PetscSystem {
         create_aij(rows.len() as PetscInt, self.n() as PetscInt, &row_ptr, &cols, Some(&vals))
     }
 
-    /// Solves for `x` (all of it on every rank) with right-hand side `b` (of which this rank
-    /// reads its rows; PETSc gets a copy, which it may scale: `-ksp_diagonal_scale`); returns
-    /// PETSc's iteration count (the caller holds the lock; collective).
-    fn solve(&self, b: &[f64], x: &mut [f64]) -> Result<usize, LinearSolveError> {
+    /// Solves for `x_petsc` (all of it on every rank) with right-hand side `b` (this rank's
+    /// rows; PETSc gets a copy, which it may scale: `-ksp_diagonal_scale`), both in PETSc's
+    /// numbering; returns PETSc's iteration count (the caller holds the lock; collective).
+    fn solve(&self, b: &[f64], x_petsc: &mut [f64]) -> Result<usize, LinearSolveError> {
         let (mut iterations, mut reason): (PetscInt, c_int) = (0, 0);
         let h = &self.handles;
-        let rows = self.rows();
-        let lo = rows.start;
-        // This rank's rows of `b`, and all of `x`, in PETSc's numbering.
-        let mut b_petsc: Vec<f64> = rows.map(|p| b[self.numbering.to_fdfsi(p)]).collect();
-        let mut x_petsc = vec![0.0; self.n];
+        let lo = self.rows().start;
+        let mut b_petsc = b.to_vec();
         // SAFETY: `b_petsc` holds this rank's rows and `x_petsc` all, both outlive the solve;
         // whatever was placed is reset to no array before returning.
         unsafe {
@@ -814,10 +1054,7 @@ impl PetscSystem {
                 "KSPSolve diverged (KSPConvergedReason {reason}, after {iterations} iterations; -{OPTIONS_PREFIX}ksp_converged_reason tells more)"
             )));
         }
-        self.world.all_gather(&self.numbering, &mut x_petsc)?;
-        for (p, v) in x_petsc.into_iter().enumerate() {
-            x[self.numbering.to_fdfsi(p)] = v;
-        }
+        self.world.all_gather(&self.numbering, x_petsc)?;
         Ok(if reason == ffi::KSP_CONVERGED_ITS { 0 } else { iterations as usize })
     }
 
@@ -886,6 +1123,13 @@ fn set_fields(pc: ffi::Pc, fields: &[Vec<PetscInt>; 2], node_size: usize) -> Res
         }
     }
     Ok(())
+}
+
+/// The CSR arrays of a [`PetscSystem`].
+struct Csr {
+    row_ptr: Vec<PetscInt>,
+    col_idx: Vec<PetscInt>,
+    csc_of_csr: Vec<PetscInt>,
 }
 
 impl Drop for PetscSystem {
