@@ -100,7 +100,8 @@ pub struct FlowDiscretization<const D: usize> {
     pub layout: BlockLayout,
     /// Physical coordinates of the velocity nodes.
     pub velocity_nodes: Vec<[f64; D]>,
-    /// The system's sparsity: the whole pattern, or this rank's rows ([`FlowDiscretization::build_with`]).
+    /// The system's sparsity: the whole pattern, or this rank's rows
+    /// ([`FlowDiscretization::build_with`]).
     sparsity: Sparsity,
     /// A colouring of all cells.
     pub colouring: Colouring,
