@@ -1,8 +1,9 @@
 //! `mpirun -n 1` and `mpirun -n 2 fdfsi run CASE` (the `petsc` feature: every rank runs the case,
-//! the Newton systems are solved by PETSc on all of them together) reproduce the serial run's
-//! quantities on Schaefer-Turek 2D-1, model problem 3, the first steps of model problem 4 and
-//! the 3D Navier-Stokes problem of the scaling runs (with its iterative solve and the velocity's
-//! block size), and a PETSc error ends every rank
+//! the Newton systems are solved by PETSc on all of them together; a flow's systems are
+//! assembled by rows, each rank its own) reproduce the serial run's quantities on
+//! Schaefer-Turek 2D-1, the first steps of the cylinder at Re = 100, model problem 3, the first
+//! steps of model problem 4 and the 3D Navier-Stokes problem of the scaling runs (with its
+//! iterative solve and the velocity's block size), and a PETSc error ends every rank
 //! (`cargo test --release --features petsc --test mpi`; needs the system's PETSc and Open MPI's
 //! `mpirun`).
 #![cfg(feature = "petsc")]
@@ -106,6 +107,19 @@ fn schaefer_turek_2d1_on_two_ranks_gives_the_serial_quantities() {
     for solver in [PetscMethod::Mumps, PetscMethod::AugmentedLagrangian] {
         compare("schaefer-turek-2d1", solver, 1e-8, 1e-9, |c| c.mesh = Some(MeshSpec::Gmsh { file: mesh.clone() }));
     }
+}
+
+/// The Schaefer-Turek cylinder at Re = 100 (2D-2, unsteady Navier-Stokes, BDF2) on the coarse
+/// mesh, its first 5 steps, with MUMPS through PETSc: a partitioned assembly in time (each
+/// rank's rows of every step's Newton systems), the boundary forces from the whole residual on
+/// every rank. Its Newton stops at |R| <= 1e-10: the drag and lift agree to 1e-9 absolute.
+#[test]
+fn the_cylinder_at_re_100_on_two_ranks_gives_the_serial_quantities() {
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/dfg2d-coarse.msh");
+    compare("cylinder-re100", PetscMethod::Mumps, 1e-8, 1e-9, |c| {
+        c.mesh = Some(MeshSpec::Gmsh { file: mesh.clone() });
+        c.time.as_mut().unwrap().end = 0.05;
+    });
 }
 
 /// Model problem 3 (axisymmetric FSI, 60 steps), with MUMPS and with the augmented Lagrangian
