@@ -5,7 +5,7 @@
 //! is its whole path. No MPI: the numbering is plain data, and one rank needs no messages.
 
 use fdfsi::case::Case;
-use fdfsi::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
+use fdfsi::discretize::flow::{solve_steady, Entries, FlowDiscretization, FlowProblem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
@@ -61,7 +61,7 @@ fn schaefer_turek_coarse() -> (FlowDiscretization<2>, FlowDiscretization<2>, Flo
     let AnyMesh::D2(mesh) = read_msh(&root.join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
     let problem = fdfsi::setup::flow_problem(&case, &mesh, &root.join("cases")).unwrap();
     let whole = FlowDiscretization::build(mesh.clone(), Formulation::Plane).unwrap();
-    let rows = FlowDiscretization::build_with(mesh, Formulation::Plane, Some(World { rank: 0, size: 1 })).unwrap();
+    let rows = FlowDiscretization::build_with(mesh, Formulation::Plane, Entries::Rows(World { rank: 0, size: 1 })).unwrap();
     (whole, rows, problem)
 }
 

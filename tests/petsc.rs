@@ -3,7 +3,7 @@
 #![cfg(feature = "petsc")]
 
 use fdfsi::case::Case;
-use fdfsi::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem, SteadySystem};
+use fdfsi::discretize::flow::{solve_steady, Entries, FlowDiscretization, FlowProblem, SteadySystem};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, LinearSolveError, LinearSolver, LinearSolverOptions};
 use fdfsi::solve::petsc::PetscSolver;
@@ -256,7 +256,7 @@ fn a_partitioned_flow_through_petsc_solves_as_the_whole_one() {
     let mut petsc = PetscSolver::new("", 1e-8);
     let world = petsc.rows().map(|rows| rows.world()).expect("PETSc takes rows");
     let AnyMesh::D2(mesh) = read_msh(&Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
-    let rows = FlowDiscretization::build_with(mesh, Formulation::Plane, Some(world)).unwrap();
+    let rows = FlowDiscretization::build_with(mesh, Formulation::Plane, Entries::Rows(world)).unwrap();
     assert!(rows.pattern().is_none());
     let expected = solve_steady(&whole, &problem, &mut FaerLu::default(), &case.solver.newton).unwrap();
     let got = solve_steady(&rows, &problem, &mut petsc, &case.solver.newton).unwrap();

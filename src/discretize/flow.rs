@@ -110,12 +110,26 @@ pub struct FlowDiscretization<const D: usize> {
     facet_weights: Vec<f64>,
 }
 
+/// Which matrix entries a [`FlowDiscretization`] prepares ([`FlowDiscretization::build_with`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Entries {
+    /// The whole system's pattern, for an assembly of the whole system.
+    Whole,
+    /// This rank's rows, for a partitioned assembly over the ranks of the [`World`].
+    Rows(World),
+    /// None, only their number: a discretisation that tells its unknowns and entries but is not
+    /// assembled (`fdfsi check`).
+    Counted,
+}
+
 /// Where a [`FlowDiscretization`]'s systems are assembled.
 enum Sparsity {
     /// The whole system, on every process.
     Whole(Pattern),
     /// This rank's rows of a partitioned assembly.
     Rows(FlowRows),
+    /// Nowhere: the whole system's number of entries only ([`Entries::Counted`]).
+    Counted(usize),
 }
 
 /// This rank's part of a partitioned flow assembly: the [`Partition`] of the unknowns (the
@@ -148,13 +162,13 @@ fn cell_degree(d: usize) -> usize {
 impl<const D: usize> FlowDiscretization<D> {
     /// Builds topology, dof maps, pattern and colouring for `mesh`.
     pub fn build(mesh: Mesh<D>, formulation: Formulation) -> Result<Self, FlowError> {
-        Self::build_with(mesh, formulation, None)
+        Self::build_with(mesh, formulation, Entries::Whole)
     }
 
-    /// [`FlowDiscretization::build`], for a partitioned assembly over the ranks of `world`
-    /// where given: then the discretisation holds this rank's rows only ([`FlowRows`]; the
-    /// velocity's nodes kept whole in the partition), not the whole pattern.
-    pub fn build_with(mesh: Mesh<D>, formulation: Formulation, world: Option<World>) -> Result<Self, FlowError> {
+    /// [`FlowDiscretization::build`] with the matrix `entries` it prepares: the whole pattern,
+    /// this rank's rows only for a partitioned assembly ([`FlowRows`]; the velocity's nodes kept
+    /// whole in the partition), or their number only.
+    pub fn build_with(mesh: Mesh<D>, formulation: Formulation, entries: Entries) -> Result<Self, FlowError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(FlowError::Formulation { formulation, dim: D });
         }
@@ -169,9 +183,10 @@ impl<const D: usize> FlowDiscretization<D> {
         layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
         let (n, cell_dofs) = (layout.num_dofs(), |c, buf: &mut Vec<usize>| layout.cell_dofs_into(c, buf));
-        let sparsity = match world {
-            None => Sparsity::Whole(Pattern::from_cells(n, mesh.num_cells(), cell_dofs)),
-            Some(world) => {
+        let sparsity = match entries {
+            Entries::Whole => Sparsity::Whole(Pattern::from_cells(n, mesh.num_cells(), cell_dofs)),
+            Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, mesh.num_cells(), cell_dofs)),
+            Entries::Rows(world) => {
                 let nodes = Nodes { size: D, end: layout.fields[0].num_dofs() };
                 let partition = Partition::from_cells(n, mesh.num_cells(), cell_dofs, world, nodes);
                 let cells = partition.cells_of_rows(mesh.num_cells(), cell_dofs);
@@ -203,18 +218,19 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 
     /// The whole system's pattern; `None` for a partitioned assembly
-    /// ([`FlowDiscretization::rows`]).
+    /// ([`FlowDiscretization::rows`]) or a discretisation of counted entries.
     pub fn pattern(&self) -> Option<&Pattern> {
         match &self.sparsity {
             Sparsity::Whole(pattern) => Some(pattern),
-            Sparsity::Rows(_) => None,
+            Sparsity::Rows(_) | Sparsity::Counted(_) => None,
         }
     }
 
     /// The whole system's pattern of a discretisation that [`FlowDiscretization::build`] made.
     ///
     /// # Panics
-    /// For a partitioned assembly ([`FlowDiscretization::build_with`] with a world).
+    /// For another one ([`FlowDiscretization::build_with`] with [`Entries::Rows`] or
+    /// [`Entries::Counted`]).
     pub fn whole_pattern(&self) -> &Pattern {
         self.pattern().expect("a flow discretisation built whole (FlowDiscretization::build)")
     }
@@ -222,16 +238,17 @@ impl<const D: usize> FlowDiscretization<D> {
     /// This rank's part of a partitioned assembly ([`FlowDiscretization::build_with`]).
     pub fn rows(&self) -> Option<&FlowRows> {
         match &self.sparsity {
-            Sparsity::Whole(_) => None,
             Sparsity::Rows(rows) => Some(rows),
+            Sparsity::Whole(_) | Sparsity::Counted(_) => None,
         }
     }
 
-    /// The matrix entries held here: the whole pattern's, or this rank's rows'.
+    /// The matrix entries: the whole pattern's, or this rank's rows' for a partitioned assembly.
     pub fn nnz(&self) -> usize {
         match &self.sparsity {
             Sparsity::Whole(pattern) => pattern.nnz(),
             Sparsity::Rows(rows) => rows.pattern.nnz(),
+            Sparsity::Counted(nnz) => *nnz,
         }
     }
 
@@ -471,6 +488,9 @@ impl<const D: usize> FlowDiscretization<D> {
         match &self.sparsity {
             Sparsity::Whole(pattern) => {
                 newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble_system(problem, x, x_old, t, constrained, k, rhs))
+            }
+            Sparsity::Counted(_) => {
+                Err(LinearSolveError::Numeric("a flow discretisation of counted entries (Entries::Counted) is not solved".into()).into())
             }
             Sparsity::Rows(part) => {
                 let rows = solver.rows().filter(|r| r.world() == part.partition.world).ok_or_else(|| {

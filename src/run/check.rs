@@ -16,7 +16,7 @@
 
 use super::RunError;
 use crate::case::{name_of, BoundaryNames, Case, CaseError, ProbeField, RunKind, SolidSpec, TimeFn, TimeFunction};
-use crate::discretize::flow::FlowDiscretization;
+use crate::discretize::flow::{Entries, FlowDiscretization};
 use crate::discretize::fsi::FsiDiscretization;
 use crate::discretize::solid::SolidDiscretization;
 use crate::setup::{adapt_fluid, build_mesh, flow_problem, fsi_model, solid_problem, SetupError};
@@ -286,7 +286,8 @@ impl Ctx<'_> {
         self.probes_inside(&adapted)?;
         flow_problem(case, &adapted, self.dir)?;
         let adapted_cells = adapted.num_cells();
-        let disc = FlowDiscretization::build(adapted, case.physics.formulation)?;
+        // The entries counted, not stored: a run may hold only its rows of them.
+        let disc = FlowDiscretization::build_with(adapted, case.physics.formulation, Entries::Counted)?;
         let dofs = with_total(super::flow::flow_dofs(&disc));
         let solid_text = match &case.solid {
             Some(s) => format!(

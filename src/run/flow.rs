@@ -9,7 +9,7 @@
 use super::record::{march_and_record, record_once, Recorded, RunOutputs, Start};
 use super::{newton_lines, RunError, RunObserver, RunOptions, RunSummary};
 use crate::case::Case;
-use crate::discretize::flow::{solve_steady, FlowDiscretization, FlowProblem};
+use crate::discretize::flow::{solve_steady, Entries, FlowDiscretization, FlowProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::fluid_grid;
 use crate::io::picture::PictureError;
@@ -54,7 +54,8 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     // assembly: each rank then holds its rows only.
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let world = lu.rows().map(|rows| rows.world());
-    let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, world)?;
+    let entries = world.map_or(Entries::Whole, Entries::Rows);
+    let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, entries)?;
     let discretize = t.elapsed().as_secs_f64();
     let dofs = flow_dofs(&disc);
     let entries = match world {

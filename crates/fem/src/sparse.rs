@@ -154,6 +154,25 @@ impl Pattern {
         self.row_idx.len()
     }
 
+    /// The number of entries of [`Pattern::from_cells`]'s pattern, counted column by column
+    /// without storing it (memory: the dof-to-cells map).
+    pub fn count_from_cells<F>(n: usize, num_cells: usize, cell_dofs: F) -> usize
+    where
+        F: Fn(usize, &mut Vec<usize>) + Sync,
+    {
+        let dof_cells = DofCells::new(n, num_cells, &cell_dofs);
+        (0..n)
+            .into_par_iter()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(buf, column), j| {
+                    dof_cells.column_into(j, &cell_dofs, buf, column);
+                    column.len()
+                },
+            )
+            .sum()
+    }
+
     /// Position of entry `(row, col)` in the value array, if it is in the pattern.
     #[inline]
     pub fn find(&self, row: usize, col: usize) -> Option<usize> {
@@ -592,6 +611,11 @@ mod tests {
             }
         }
         assert_eq!(p.col_ptr.len(), n + 1);
+        let cell_dofs = |c: usize, buf: &mut Vec<usize>| {
+            buf.clear();
+            buf.extend_from_slice(&cells[c]);
+        };
+        assert_eq!(Pattern::count_from_cells(n, cells.len(), cell_dofs), p.nnz());
         for (j, column) in columns.iter().enumerate() {
             assert!(p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]].iter().eq(column.iter()), "column {j}");
         }
