@@ -254,7 +254,7 @@ fn two_ranks_own_two_slices_of_the_domain() {
 fn a_partitioned_flow_through_petsc_solves_as_the_whole_one() {
     let (case, whole, problem) = schaefer_turek_coarse();
     let mut petsc = PetscSolver::new("", 1e-8);
-    let world = petsc.rows().map(|rows| rows.world()).expect("PETSc takes rows");
+    let world = petsc.as_row_solver().map(|rows| rows.world()).expect("PETSc takes rows");
     let AnyMesh::D2(mesh) = read_msh(&Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes/dfg2d-coarse.msh")).unwrap() else { panic!("a 2D mesh") };
     let rows = FlowDiscretization::build_with(mesh, Formulation::Plane, Entries::Rows(world)).unwrap();
     assert!(rows.pattern().is_none());

@@ -2,9 +2,10 @@
 //! error norms.
 //!
 //! Data flows one way: a [`FlowProblem`] (physics and boundary conditions) and a mesh give a
-//! [`FlowDiscretization`] (everything derived from the mesh: topology, dof maps, sparsity
-//! pattern, colouring; built once, never patched); [`solve_steady`] runs Newton on it with the
-//! kernel of [`crate::physics::fluid`] and returns a [`FlowSolution`].
+//! [`FlowDiscretization`] (everything derived from the mesh: topology, dof maps, the sparsity
+//! pattern or this rank's rows of it, colouring; built once, never patched); [`solve_steady`]
+//! runs Newton on it with the kernel of [`crate::physics::fluid`] and returns a
+//! [`FlowSolution`].
 
 use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
 use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
@@ -74,6 +75,8 @@ pub enum FlowError {
     Formulation { formulation: Formulation, dim: usize },
     #[error("fluid meshes must be triangles (2D) or tetrahedra (3D), got {0:?}")]
     CellType(ReferenceCell),
+    #[error("{0} unknowns exceed the 2^32 column indices of a partitioned assembly")]
+    TooManyUnknowns(usize),
     #[error(transparent)]
     Newton(#[from] NewtonError<AssemblyError>),
     /// `reached` is the smallest viscosity solved (infinite when none converged from rest).
@@ -100,7 +103,7 @@ pub struct FlowDiscretization<const D: usize> {
     pub layout: BlockLayout,
     /// Physical coordinates of the velocity nodes.
     pub velocity_nodes: Vec<[f64; D]>,
-    /// The system's sparsity: the whole pattern, or this rank's rows
+    /// The system's sparsity: the whole pattern, this rank's rows, or the number of entries
     /// ([`FlowDiscretization::build_with`]).
     sparsity: Sparsity,
     /// A colouring of all cells.
@@ -186,6 +189,7 @@ impl<const D: usize> FlowDiscretization<D> {
         let sparsity = match entries {
             Entries::Whole => Sparsity::Whole(Pattern::from_cells(n, mesh.num_cells(), cell_dofs)),
             Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, mesh.num_cells(), cell_dofs)),
+            Entries::Rows(_) if u32::try_from(n).is_err() => return Err(FlowError::TooManyUnknowns(n)),
             Entries::Rows(world) => {
                 let nodes = Nodes { size: D, end: layout.fields[0].num_dofs() };
                 let partition = Partition::from_cells(n, mesh.num_cells(), cell_dofs, world, nodes);
@@ -243,7 +247,8 @@ impl<const D: usize> FlowDiscretization<D> {
         }
     }
 
-    /// The matrix entries: the whole pattern's, or this rank's rows' for a partitioned assembly.
+    /// The number of matrix entries: the whole pattern's, or this rank's rows' for a partitioned
+    /// assembly.
     pub fn nnz(&self) -> usize {
         match &self.sparsity {
             Sparsity::Whole(pattern) => pattern.nnz(),
@@ -391,16 +396,16 @@ impl<const D: usize> FlowDiscretization<D> {
         let part = self.rows().expect("assemble_rows of a partitioned discretisation");
         let (numbering, rows) = (part.partition.numbering(), part.partition.rows());
         let to_global = |d: usize| numbering.to_petsc(d);
-        assemble_rows(k, rhs, &part.colouring, constrained, &to_global, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t))?;
+        // SAFETY: the partition's numbering is a permutation of the unknowns.
+        unsafe { assemble_rows(k, rhs, &part.colouring, constrained, &to_global, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t)) }?;
         self.add_tractions(problem, t, |dof, v| {
             let p = to_global(dof);
             if !constrained[dof] && rows.contains(&p) {
                 rhs[p - rows.start] -= v;
             }
         })?;
-        for (dof, &c) in constrained.iter().enumerate() {
-            let p = to_global(dof);
-            if c && rows.contains(&p) {
+        for p in rows.clone() {
+            if constrained[numbering.to_fdfsi(p)] {
                 let pos = k.pattern.find(p, p).expect("diagonal in pattern");
                 k.values[pos] = 1.0;
                 rhs[p - rows.start] = 0.0;
@@ -490,13 +495,13 @@ impl<const D: usize> FlowDiscretization<D> {
                 newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble_system(problem, x, x_old, t, constrained, k, rhs))
             }
             Sparsity::Counted(_) => {
-                Err(LinearSolveError::Numeric("a flow discretisation of counted entries (Entries::Counted) is not solved".into()).into())
+                Err(LinearSolveError::Setup("a flow discretisation of counted entries (Entries::Counted) is not solved".into()).into())
             }
             Sparsity::Rows(part) => {
-                let rows = solver.rows().filter(|r| r.world() == part.partition.world).ok_or_else(|| {
-                    LinearSolveError::Numeric(format!(
+                let rows = solver.as_row_solver().filter(|r| r.world() == part.partition.world()).ok_or_else(|| {
+                    LinearSolveError::Setup(format!(
                         "a flow partitioned over {:?} needs a linear solver of its rows on those ranks",
-                        part.partition.world
+                        part.partition.world()
                     ))
                 })?;
                 newton::solve_rows(x, &part.partition, &part.pattern, rows, options, |x, k, rhs| {

@@ -53,7 +53,7 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     // A solver of each rank's rows (PETSc's, under `mpirun` or not) takes a partitioned
     // assembly: each rank then holds its rows only.
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
-    let world = lu.rows().map(|rows| rows.world());
+    let world = lu.as_row_solver().map(|rows| rows.world());
     let entries = world.map_or(Entries::Whole, Entries::Rows);
     let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, entries)?;
     let discretize = t.elapsed().as_secs_f64();

@@ -46,6 +46,10 @@ pub enum LinearSolveError {
     /// A PETSc call failed or its solve diverged (the `petsc` feature, `solve::petsc`).
     #[error("PETSc: {0}")]
     Petsc(String),
+    /// A system handed to a solver that is not set up for it (a partitioned assembly's rows on
+    /// other ranks, a solve before a factorisation).
+    #[error("linear solver set-up: {0}")]
+    Setup(String),
 }
 
 /// Options of the linear solve.
@@ -178,7 +182,7 @@ pub trait LinearSolver {
     /// This solver as one of a partitioned assembly's systems ([`super::partition::RowSolver`]:
     /// each rank's own rows), where it takes those; `None` (the default): the whole system on
     /// every rank only.
-    fn rows(&mut self) -> Option<&mut dyn super::partition::RowSolver> {
+    fn as_row_solver(&mut self) -> Option<&mut dyn super::partition::RowSolver> {
         None
     }
 }

@@ -166,9 +166,10 @@ fn norm(v: &[f64]) -> f64 {
     sum_of_squares(v).sqrt()
 }
 
-/// Solves `R(x) = 0` from the initial iterate `x`. `assemble(x, K, rhs)` must zero and fill the
-/// Jacobian `K` and `rhs = -R(x)`. The solver's forcing term ([`LinearSolver::set_forcing`]) is
-/// reset when it returns, so later solves outside Newton use the solver's own tolerance.
+/// Solves `R(x) = 0` from the initial iterate `x`. `assemble(x, K, rhs)` must fill the Jacobian
+/// `K` and `rhs = -R(x)` (both given zeroed). The solver's forcing term
+/// ([`LinearSolver::set_forcing`]) is reset when it returns, so later solves outside Newton use
+/// the solver's own tolerance.
 pub fn solve<E, F>(
     x: &mut [f64],
     pattern: &Pattern,
@@ -190,7 +191,9 @@ where
 /// Jacobian and of `rhs = -R(x)` (those of `partition`, on `pattern`), from all of `x` (the
 /// system's numbering, alike on every rank). Every rank calls this alike; the residual norms are
 /// sums over the ranks ([`RowSolver::sum`]), so every rank takes the same branches, and each
-/// update is the whole `dx` on every rank. On one rank it does the arithmetic of [`solve`].
+/// update is the whole `dx` on every rank. On one rank it does the arithmetic of [`solve`],
+/// except that no held factorisation is offered ([`LinearSolver::offer_held_factorization`]
+/// takes a whole matrix).
 pub fn solve_rows<E, F>(
     x: &mut [f64],
     partition: &Partition,

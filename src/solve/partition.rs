@@ -12,6 +12,7 @@
 use super::linear::{LinearSolveError, LinearSolver, SolveStats};
 use fdfsi_fem::sparse::{CscMatrix, DofCells, Pattern, RowMatrix, RowPattern};
 use std::ops::Range;
+use std::sync::Arc;
 
 /// This process among the MPI ranks of `MPI_COMM_WORLD` (those `mpirun` started; one alone
 /// without it).
@@ -25,7 +26,8 @@ pub struct World {
 
 /// Consecutive unknowns that PETSc's numbering keeps together and in order, on one rank: the
 /// components of a node. Unknowns `0..end` form nodes of `size` each, every later unknown a
-/// node of its own.
+/// node of its own. A node's components couple to the same unknowns (they have the same
+/// columns in the matrix pattern), as the components of a vector field's node do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Nodes {
     pub size: usize,
@@ -164,7 +166,8 @@ impl Numbering {
 /// columns (`i` a neighbour of `j` where `(i, j)` is an entry; `neighbours(j, out)` lists them,
 /// sorted), symmetric for finite-element systems; neighbours are visited in index order (no
 /// sorting by degree, as Cuthill-McKee's). An unknown reached brings its whole node (`nodes`),
-/// its components in order.
+/// its components in order; a node's neighbours are listed once, for its first component (its
+/// other components have the same).
 fn level_set_order(n: usize, nodes: Nodes, mut neighbours: impl FnMut(usize, &mut Vec<usize>)) -> Vec<usize> {
     let reach = |i: usize, seen: &mut [bool], order: &mut Vec<usize>| {
         let (first, size) = nodes.node_of(i);
@@ -180,6 +183,9 @@ fn level_set_order(n: usize, nodes: Nodes, mut neighbours: impl FnMut(usize, &mu
         while head < order.len() {
             let j = order[head];
             head += 1;
+            if nodes.node_of(j).0 != j {
+                continue; // a later component of a node: its neighbours are the first one's, reached
+            }
             neighbours(j, &mut column);
             for &i in &column {
                 if !seen[i] {
@@ -210,10 +216,11 @@ fn level_set_order(n: usize, nodes: Nodes, mut neighbours: impl FnMut(usize, &mu
 /// in it), and this rank's rows.
 #[derive(Clone, Debug)]
 pub struct Partition {
-    pub world: World,
+    world: World,
     /// The unknowns kept together (the velocity's nodes).
-    pub nodes: Nodes,
-    numbering: Numbering,
+    nodes: Nodes,
+    /// Shared with the solver's system, which numbers its unknowns alike.
+    numbering: Arc<Numbering>,
     n: usize,
 }
 
@@ -224,7 +231,22 @@ impl Partition {
     where
         F: Fn(usize, &mut Vec<usize>),
     {
-        Partition { world, nodes, numbering: Numbering::from_cells(n, num_cells, cell_dofs, world, nodes), n }
+        Partition { world, nodes, numbering: Arc::new(Numbering::from_cells(n, num_cells, cell_dofs, world, nodes)), n }
+    }
+
+    /// The ranks.
+    pub fn world(&self) -> World {
+        self.world
+    }
+
+    /// The unknowns kept together.
+    pub fn nodes(&self) -> Nodes {
+        self.nodes
+    }
+
+    /// The numbering, shared.
+    pub fn shared_numbering(&self) -> Arc<Numbering> {
+        Arc::clone(&self.numbering)
     }
 
     /// The number of unknowns.
@@ -286,19 +308,62 @@ pub trait RowSolver: LinearSolver {
     /// Factorises (or sets up the preconditioner of) the matrix whose rows on this rank are `a`,
     /// in `partition`'s numbering.
     fn factorize_rows(&mut self, partition: &Partition, a: &RowMatrix<'_>) -> Result<(), LinearSolveError>;
-    /// Solves with the last factorisation of `a`: `b` is this rank's rows of the right-hand side
-    /// (the partition's numbering), `x` all the unknowns (the system's own numbering), alike on
-    /// every rank on return.
+    /// Solves with the last factorisation, refined against `a` (the matrix of this system, which
+    /// may be newer than the one factorised): `b` is this rank's rows of the right-hand side (the
+    /// partition's numbering), `x` all the unknowns (the system's own numbering), alike on every
+    /// rank on return.
     fn solve_rows(&self, partition: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError>;
 }
 
 /// A [`RowSolver`] on one rank over any [`LinearSolver`]: the rows (all of them) copied into a
 /// CSC matrix for it. For tests and checks of a partitioned assembly without MPI: its results
-/// equal the solver's on the whole system.
+/// equal the solver's on the whole system, except that a factorisation held from an earlier
+/// Newton solve is never offered ([`LinearSolver::offer_held_factorization`] takes a whole
+/// matrix), so with `reuse_factorization` the first iteration of each solve factorises.
 pub struct SerialRows<S> {
     pub solver: S,
-    /// The CSC pattern of the last row pattern, its key, and the CSC position of each row entry.
-    csc: Option<(Pattern, u64, Vec<usize>)>,
+    /// The CSC form of the last rows' pattern.
+    csc: Option<CscOfRows>,
+}
+
+/// The CSC pattern of a [`RowPattern`] that holds all rows, its key, and the CSC position of
+/// each of its entries.
+struct CscOfRows {
+    pattern: Pattern,
+    key: u64,
+    position: Vec<usize>,
+}
+
+impl CscOfRows {
+    /// The CSC arrays of `p` (all rows): a counting sort of its entries by column.
+    fn new(p: &RowPattern, key: u64) -> Self {
+        let mut col_ptr = vec![0; p.n + 1];
+        p.cols.iter().for_each(|&j| col_ptr[j as usize + 1] += 1);
+        (0..p.n).for_each(|j| col_ptr[j + 1] += col_ptr[j]);
+        let (mut next, mut row_idx, mut position) = (col_ptr.clone(), vec![0; p.nnz()], vec![0; p.nnz()]);
+        for i in 0..p.n {
+            for k in p.row_ptr[i]..p.row_ptr[i + 1] {
+                let at = &mut next[p.cols[k] as usize];
+                (row_idx[*at], position[k]) = (i, *at);
+                *at += 1;
+            }
+        }
+        CscOfRows { pattern: Pattern { n: p.n, col_ptr, row_idx }, key, position }
+    }
+
+    /// `a` (on the pattern this was made of) as a CSC matrix.
+    fn matrix(&self, a: &RowMatrix<'_>) -> Result<CscMatrix<'_>, LinearSolveError> {
+        if a.values.len() != self.position.len() || a.pattern.n != self.pattern.n {
+            return Err(LinearSolveError::Setup(format!(
+                "rows of {} entries given to SerialRows set up for {}",
+                a.values.len(),
+                self.position.len()
+            )));
+        }
+        let mut values = vec![0.0; a.values.len()];
+        self.position.iter().zip(&a.values).for_each(|(&at, &v)| values[at] = v);
+        Ok(CscMatrix { pattern: &self.pattern, values })
+    }
 }
 
 impl<S: LinearSolver> SerialRows<S> {
@@ -306,13 +371,9 @@ impl<S: LinearSolver> SerialRows<S> {
         SerialRows { solver, csc: None }
     }
 
-    /// `a` (all rows) as a CSC matrix on `csc`, the pattern of the last factorisation.
-    #[allow(clippy::type_complexity, reason = "the field `csc`")]
-    fn csc_of<'s>(csc: &'s Option<(Pattern, u64, Vec<usize>)>, a: &RowMatrix<'_>) -> Result<CscMatrix<'s>, LinearSolveError> {
-        let (pattern, _, position) = csc.as_ref().ok_or_else(|| LinearSolveError::Numeric("solve before factorize".into()))?;
-        let mut values = vec![0.0; a.values.len()];
-        position.iter().zip(&a.values).for_each(|(&at, &v)| values[at] = v);
-        Ok(CscMatrix { pattern, values })
+    /// `a` as a CSC matrix on the pattern of the last factorisation.
+    fn csc_of<'s>(csc: &'s Option<CscOfRows>, a: &RowMatrix<'_>) -> Result<CscMatrix<'s>, LinearSolveError> {
+        csc.as_ref().ok_or_else(|| LinearSolveError::Setup("solve before factorize".into()))?.matrix(a)
     }
 }
 
@@ -339,7 +400,7 @@ impl<S: LinearSolver> LinearSolver for SerialRows<S> {
     fn set_forcing(&mut self, relative_residual: f64) {
         self.solver.set_forcing(relative_residual)
     }
-    fn rows(&mut self) -> Option<&mut dyn RowSolver> {
+    fn as_row_solver(&mut self) -> Option<&mut dyn RowSolver> {
         Some(self)
     }
 }
@@ -357,26 +418,14 @@ impl<S: LinearSolver> RowSolver for SerialRows<S> {
     fn factorize_rows(&mut self, partition: &Partition, a: &RowMatrix<'_>) -> Result<(), LinearSolveError> {
         let p = a.pattern;
         if partition.world.size != 1 || p.rows != (0..p.n) {
-            return Err(LinearSolveError::Numeric(format!(
+            return Err(LinearSolveError::Setup(format!(
                 "SerialRows takes all {} rows on one rank, not {:?} of rank {:?}",
                 p.n, p.rows, partition.world
             )));
         }
         let key = row_pattern_key(p);
-        if self.csc.as_ref().is_none_or(|(_, k, _)| *k != key) {
-            // The CSC arrays of the transpose of the rows: the pattern's, which is symmetric.
-            let mut col_ptr = vec![0; p.n + 1];
-            p.cols.iter().for_each(|&j| col_ptr[j as usize + 1] += 1);
-            (0..p.n).for_each(|j| col_ptr[j + 1] += col_ptr[j]);
-            let (mut next, mut row_idx, mut position) = (col_ptr.clone(), vec![0; p.nnz()], vec![0; p.nnz()]);
-            for i in 0..p.n {
-                for k in p.row_ptr[i]..p.row_ptr[i + 1] {
-                    let at = &mut next[p.cols[k] as usize];
-                    (row_idx[*at], position[k]) = (i, *at);
-                    *at += 1;
-                }
-            }
-            self.csc = Some((Pattern { n: p.n, col_ptr, row_idx }, key, position));
+        if self.csc.as_ref().is_none_or(|c| c.key != key) {
+            self.csc = Some(CscOfRows::new(p, key));
         }
         let matrix = Self::csc_of(&self.csc, a)?;
         self.solver.factorize(&matrix)

@@ -11,6 +11,10 @@
 //! Assembly runs in parallel over cells with a colouring: cells of one colour share no vertex,
 //! hence no dof, so they write disjoint matrix entries and the threads of one colour never touch
 //! the same memory ([`assemble`]).
+//!
+//! For a partitioned assembly (each MPI rank its own rows), [`RowPattern`] and [`RowMatrix`] hold
+//! some consecutive rows in compressed sparse *row* storage, and [`assemble_rows`] assembles
+//! them from the cells that touch them; [`assemble_residual`] assembles a right-hand side alone.
 
 use rayon::prelude::*;
 use std::ops::Range;
@@ -23,7 +27,8 @@ pub struct Pattern {
     pub row_idx: Vec<usize>,
 }
 
-/// The fewest columns [`Pattern::from_cells`] builds into one vector: 6.1e6 entries, 49 MB, in
+/// The fewest columns (or rows) [`Pattern::from_cells`] (or [`RowPattern::from_cells`]) builds
+/// into one vector: 6.1e6 entries, 49 MB, in
 /// 3D (P2+/P1disc, 93 per column), above the largest size below which the allocator may keep
 /// freed memory (glibc's mmap threshold rises up to 32 MiB).
 const MIN_CHUNK: usize = 1 << 16;
@@ -215,7 +220,7 @@ impl<'p> CscMatrix<'p> {
 /// Some consecutive rows of a pattern like [`Pattern::from_cells`]'s, in compressed sparse *row*
 /// storage with sorted column indices: the rows one MPI rank assembles and owns (a partitioned
 /// assembly; the numbering is the partition's, in which each rank's rows are consecutive). Column
-/// indices are `u32` (half the memory of `usize`; PETSc's own indices are 32-bit too).
+/// indices are `u32` (half the memory of `usize`).
 #[derive(Clone, Debug)]
 pub struct RowPattern {
     /// The number of unknowns (of columns).
@@ -301,7 +306,8 @@ impl<'p> RowMatrix<'p> {
     /// `y = A x` in the held rows: `x` of all `n` unknowns, `y` of the held rows.
     pub fn mul_rows(&self, x: &[f64], y: &mut [f64]) {
         let p = self.pattern;
-        for (i, yi) in y.iter_mut().enumerate().take(p.rows.len()) {
+        assert!(x.len() == p.n && y.len() == p.rows.len(), "x of {} unknowns, y of {} rows", p.n, p.rows.len());
+        for (i, yi) in y.iter_mut().enumerate() {
             let range = p.row_ptr[i]..p.row_ptr[i + 1];
             *yi = p.cols[range.clone()].iter().zip(&self.values[range]).map(|(&j, v)| v * x[j as usize]).sum();
         }
@@ -411,6 +417,7 @@ where
     K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
 {
     let pattern = matrix.pattern;
+    assert!(matrix.values.len() == pattern.nnz() && rhs.len() == pattern.n, "a matrix and a right-hand side of the pattern");
     let out = SharedOut { values: matrix.values.as_mut_ptr(), rhs: rhs.as_mut_ptr() };
     // SAFETY: `for_each_cell` writes the cells of one colour at once only, which share no row.
     for_each_cell(colouring, make_scratch, kernel, |local, scratch| unsafe { scatter(local, &mut scratch.order, pattern, skip_row, &out) })
@@ -422,7 +429,12 @@ where
 /// in the held rows ([`Colouring::restricted`]): then each held entry is the sum of the same
 /// terms in the same order as in [`assemble`] over all cells, so the held rows equal that
 /// assembly's bit for bit.
-pub fn assemble_rows<S, E, K>(
+///
+/// # Safety
+/// `to_global` must be one-to-one on the kernel's dofs: the cells of one colour are scattered by
+/// several threads at once, each into the rows of its own dofs, which a map that sends two dofs
+/// to one row would make the same memory.
+pub unsafe fn assemble_rows<S, E, K>(
     matrix: &mut RowMatrix<'_>,
     rhs: &mut [f64],
     colouring: &Colouring,
@@ -436,9 +448,9 @@ where
     K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
 {
     let pattern = matrix.pattern;
-    assert_eq!(rhs.len(), pattern.rows.len(), "a right-hand side of the held rows");
+    assert!(matrix.values.len() == pattern.nnz() && rhs.len() == pattern.rows.len(), "a matrix and a right-hand side of the held rows");
     let out = SharedOut { values: matrix.values.as_mut_ptr(), rhs: rhs.as_mut_ptr() };
-    // SAFETY: as in `assemble`.
+    // SAFETY: as in `assemble`, `to_global` one-to-one (the caller's promise).
     for_each_cell(colouring, make_scratch, kernel, |local, scratch| unsafe { scatter_rows(local, scratch, pattern, skip_row, to_global, &out) })
 }
 
@@ -681,7 +693,8 @@ mod tests {
                         let rp = RowPattern::from_cells(n, rows.clone(), &cells, global_dofs);
                         let (mut a, mut rhs) = (RowMatrix::zeros(&rp), vec![0.0; rows.len()]);
                         let restricted = colouring.restricted(|c| cells.binary_search(&c).is_ok());
-                        assemble_rows(&mut a, &mut rhs, &restricted, &skip, &|d| to_global[d], || (), kernel).unwrap();
+                        // SAFETY: `to_global` is a permutation.
+                        unsafe { assemble_rows(&mut a, &mut rhs, &restricted, &skip, &|d| to_global[d], || (), kernel) }.unwrap();
                         // `A x` in the held rows, `x` in the partition's numbering.
                         let x: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
                         let (mut y, mut y_rows) = (vec![0.0; n], vec![0.0; rows.len()]);

@@ -62,7 +62,7 @@ use ffi::PetscInt;
 use std::ffi::{c_int, CStr, CString};
 use std::ops::Range;
 use std::ptr::{null, null_mut};
-use std::sync::{Mutex, MutexGuard, OnceLock};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 /// The options prefix of fdfsi's `KSP`: `-fdfsi_ksp_type`, `-fdfsi_pc_type`, ...
 pub const OPTIONS_PREFIX: &str = "fdfsi_";
@@ -340,24 +340,13 @@ pub struct PetscSolver {
     fail_tolerance: f64,
     system: Option<PetscSystem>,
     symbolic: usize,
-    /// The ranks, once [`LinearSolver::rows`] found PETSc running.
-    world: Option<World>,
 }
 
 impl PetscSolver {
     /// A solver with PETSc `options` (`-fdfsi_...`, added after [`DEFAULT_OPTIONS`]) that fails
     /// a solve whose relative residual exceeds `fail_tolerance`.
     pub fn new(options: &str, fail_tolerance: f64) -> Self {
-        PetscSolver {
-            options: options.to_string(),
-            multipliers: None,
-            primal_components: 1,
-            al: None,
-            fail_tolerance,
-            system: None,
-            symbolic: 0,
-            world: None,
-        }
+        PetscSolver { options: options.to_string(), multipliers: None, primal_components: 1, al: None, fail_tolerance, system: None, symbolic: 0 }
     }
 
     /// The augmented-Lagrangian preconditioner of `solve::augmented` (with `al`'s weight and
@@ -395,6 +384,32 @@ impl PetscSolver {
 }
 
 impl PetscSolver {
+    /// `x` from `b` by `solve(v, x)` (`x = K^-1 v`; its Krylov iterations), then refined while
+    /// `relative_residual(x, r)` (`r = b - A x`, of `b`'s length, and `|r| / |b|`, the same on
+    /// every rank) is above [`REFINE_ABOVE`] times the fail tolerance, at most
+    /// [`MAX_REFINEMENTS`] times: the last relative residual, the refinements and the
+    /// iterations.
+    fn refined(
+        &self,
+        b: &[f64],
+        x: &mut [f64],
+        solve: impl Fn(&[f64], &mut [f64]) -> Result<usize, LinearSolveError>,
+        relative_residual: impl Fn(&[f64], &mut [f64]) -> Result<f64, LinearSolveError>,
+    ) -> Result<(f64, usize, usize), LinearSolveError> {
+        let mut iterations = solve(b, x)?;
+        let mut r = vec![0.0; b.len()];
+        let mut residual = relative_residual(x, &mut r)?;
+        let mut refinements = 0;
+        while residual > REFINE_ABOVE * self.fail_tolerance && refinements < MAX_REFINEMENTS && residual.is_finite() {
+            let mut correction = vec![0.0; x.len()];
+            iterations += solve(&r, &mut correction)?;
+            x.iter_mut().zip(&correction).for_each(|(x, d)| *x += d);
+            residual = relative_residual(x, &mut r)?;
+            refinements += 1;
+        }
+        Ok((residual, refinements, iterations))
+    }
+
     /// The stats of a solve that ended at relative `residual` with the solution `x`, or why it
     /// failed (the ranks agree on both).
     fn accept(&self, residual: f64, refinements: usize, iterations: usize, x: &[f64]) -> Result<SolveStats, LinearSolveError> {
@@ -466,17 +481,7 @@ impl LinearSolver for PetscSolver {
             x_petsc.into_iter().enumerate().for_each(|(p, value)| x[numbering.to_fdfsi(p)] = value);
             Ok::<_, LinearSolveError>(iterations)
         };
-        let mut iterations = solve(&b, rhs)?;
-        let mut r = vec![0.0; b.len()];
-        let mut residual = relative_residual(rhs, &mut r)?;
-        let mut refinements = 0;
-        while residual > REFINE_ABOVE * self.fail_tolerance && refinements < MAX_REFINEMENTS && residual.is_finite() {
-            let mut correction = vec![0.0; b.len()];
-            iterations += solve(&r, &mut correction)?;
-            rhs.iter_mut().zip(&correction).for_each(|(x, d)| *x += d);
-            residual = relative_residual(rhs, &mut r)?;
-            refinements += 1;
-        }
+        let (residual, refinements, iterations) = self.refined(&b, rhs, solve, relative_residual)?;
         self.accept(residual, refinements, iterations, rhs)
     }
 
@@ -486,11 +491,11 @@ impl LinearSolver for PetscSolver {
 
     /// This solver for a partitioned assembly, on one rank or several, unless it runs the
     /// augmented Lagrangian (whose transformation needs the whole matrix) or PETSc does not start.
-    fn rows(&mut self) -> Option<&mut dyn RowSolver> {
+    fn as_row_solver(&mut self) -> Option<&mut dyn RowSolver> {
         if self.al.is_some() {
             return None;
         }
-        self.world = Some(world().ok()?);
+        world().ok()?;
         Some(self)
     }
 
@@ -516,8 +521,9 @@ impl RowSolver for PetscSolver {
         self
     }
 
+    /// The ranks, once PETSc runs (one rank where it cannot start: then every solve fails).
     fn world(&self) -> World {
-        self.world.unwrap_or(World { rank: 0, size: 1 })
+        world().unwrap_or(World { rank: 0, size: 1 })
     }
 
     fn sum(&self, value: f64) -> Result<f64, LinearSolveError> {
@@ -534,8 +540,8 @@ impl RowSolver for PetscSolver {
         let n = partition.n();
         let fields = self.multipliers.as_deref();
         // The block size where the partition kept the split's nodes whole.
-        let nodes = match Self::block_nodes(fields, self.primal_components, fields, n) {
-            nodes if nodes == partition.nodes => nodes,
+        let nodes = match fields.map(|m| Nodes::of_split(m, n, self.primal_components)) {
+            Some(nodes) if nodes == partition.nodes() => nodes,
             _ => Nodes::SCALAR,
         };
         let key = row_pattern_key(a.pattern);
@@ -543,8 +549,10 @@ impl RowSolver for PetscSolver {
         let rebuild = {
             let _petsc = lock();
             let world = initialize()?;
-            if world != partition.world {
-                return Err(LinearSolveError::Petsc(format!("rows partitioned over {:?} given to PETSc on {world:?}", partition.world)));
+            if world != partition.world() {
+                // Every rank's own check, before collective calls.
+                let message = format!("rows partitioned over {:?} given to PETSc on {world:?}", partition.world());
+                return Err(end_ranks_on(LinearSolveError::Setup(message)));
             }
             world.max(f64::from(u8::from(!current)))? > 0.0
         };
@@ -562,17 +570,18 @@ impl RowSolver for PetscSolver {
 
     /// Solves with PETSc and refines against `a` (each rank's rows of the residual, their norm
     /// summed over the ranks), then takes the whole solution to fdfsi's numbering.
-    fn solve_rows(&self, partition: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
+    fn solve_rows(&self, _: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
         let system = self.system.as_ref().ok_or_else(|| LinearSolveError::Petsc("solve before factorize".into()))?;
         if b.len() != system.rows().len() || x.len() != system.n || a.pattern.rows != system.rows() {
-            return Err(LinearSolveError::Petsc(format!(
+            // This rank's check, before collective calls.
+            return Err(end_ranks_on(LinearSolveError::Setup(format!(
                 "rows {:?} (right-hand side of {}, solution of {}) given to a solver set up for rows {:?} of {}",
                 a.pattern.rows,
                 b.len(),
                 x.len(),
                 system.rows(),
                 system.n
-            )));
+            ))));
         }
         let norm = |v: &[f64]| -> Result<f64, LinearSolveError> { Ok(self.sum(v.iter().map(|x| x * x).sum())?.sqrt()) };
         let b_norm = match norm(b)? {
@@ -585,19 +594,9 @@ impl RowSolver for PetscSolver {
             Ok::<_, LinearSolveError>(norm(r)? / b_norm)
         };
         let mut x_petsc = vec![0.0; system.n];
-        let mut iterations = self.petsc_solve(system, b, &mut x_petsc)?;
-        let mut r = vec![0.0; b.len()];
-        let mut residual = relative_residual(&x_petsc, &mut r)?;
-        let mut refinements = 0;
-        while residual > REFINE_ABOVE * self.fail_tolerance && refinements < MAX_REFINEMENTS && residual.is_finite() {
-            let mut correction = vec![0.0; system.n];
-            iterations += self.petsc_solve(system, &r, &mut correction)?;
-            x_petsc.iter_mut().zip(&correction).for_each(|(x, d)| *x += d);
-            residual = relative_residual(&x_petsc, &mut r)?;
-            refinements += 1;
-        }
-        let numbering = partition.numbering();
-        x_petsc.iter().enumerate().for_each(|(p, &value)| x[numbering.to_fdfsi(p)] = value);
+        let solve = |v: &[f64], x: &mut [f64]| self.petsc_solve(system, v, x);
+        let (residual, refinements, iterations) = self.refined(b, &mut x_petsc, solve, relative_residual)?;
+        x_petsc.iter().enumerate().for_each(|(p, &value)| x[system.numbering.to_fdfsi(p)] = value);
         self.accept(residual, refinements, iterations, x)
     }
 }
@@ -622,7 +621,7 @@ struct PetscSystem {
     key: u64,
     /// PETSc's numbering of the unknowns, and the nodes it keeps whole (the primal field's
     /// block size).
-    numbering: Numbering,
+    numbering: Arc<Numbering>,
     nodes: Nodes,
     /// The CSR arrays of those rows (global column indices) and the CSC position of each entry
     /// (below the pattern's entry count, which fits a `PetscInt`); for a partitioned assembly's
@@ -630,6 +629,8 @@ struct PetscSystem {
     row_ptr: Vec<PetscInt>,
     col_idx: Vec<PetscInt>,
     csc_of_csr: Vec<PetscInt>,
+    /// Whether the rows are a partitioned assembly's ([`PetscSystem::from_rows`]).
+    partitioned: bool,
     world: World,
     /// Which unknowns are in the second of [`FIELDS`] (as given; none without a split), and this
     /// rank's rows of each field, given to the preconditioner at the first factorisation.
@@ -769,7 +770,7 @@ impl PetscSystem {
         }
         let row_ptr = row_ptr.into_iter().map(int).collect::<Result<Vec<_>, _>>()?;
         let csr = Csr { row_ptr, col_idx, csc_of_csr };
-        Self::create(numbering, world, nodes, (n, pattern.nnz(), pattern_key(pattern)), csr, None, multipliers, augmented)
+        Self::create(Arc::new(numbering), world, nodes, (n, pattern.nnz(), pattern_key(pattern)), csr, None, multipliers, augmented)
     }
 
     /// The system of a partitioned assembly's rows on this rank (`pattern`, with `key`), in
@@ -783,14 +784,16 @@ impl PetscSystem {
         nodes: Nodes,
     ) -> Result<Self, LinearSolveError> {
         let (n, nnz) = (partition.n(), pattern.nnz());
-        let too_big = || LinearSolveError::Petsc(format!("{n} unknowns with {nnz} entries on this rank exceed PETSc's integer range"));
+        // This rank's entries alone may not fit: its check ends every rank (the others would
+        // wait in the creation of the matrix).
+        let too_big = || end_ranks_on(LinearSolveError::Petsc(format!("{n} unknowns with {nnz} entries on this rank exceed PETSc's integer range")));
         let int = |v: usize| PetscInt::try_from(v).map_err(|_| too_big());
         int(n)?;
         let row_ptr = pattern.row_ptr.iter().map(|&k| int(k)).collect::<Result<Vec<_>, _>>()?;
         // The columns as PETSc's integers for the preallocation only (PETSc keeps its own copy).
         let cols: Vec<PetscInt> = pattern.cols.iter().map(|&j| j as PetscInt).collect();
         let csr = Csr { row_ptr, col_idx: Vec::new(), csc_of_csr: Vec::new() };
-        Self::create(partition.numbering().clone(), partition.world, nodes, (n, nnz, key), csr, Some(&cols), multipliers, false)
+        Self::create(partition.shared_numbering(), partition.world(), nodes, (n, nnz, key), csr, Some(&cols), multipliers, false)
     }
 
     /// The system of this rank's rows in `csr` (columns `cols`, or `csr.col_idx`) of the
@@ -798,7 +801,7 @@ impl PetscSystem {
     /// matrix preallocated, the vectors and the `KSP` (the caller holds the lock; collective).
     #[allow(clippy::too_many_arguments, reason = "the parts of a PetscSystem")]
     fn create(
-        numbering: Numbering,
+        numbering: Arc<Numbering>,
         world: World,
         nodes: Nodes,
         (n, nnz, key): (usize, usize, u64),
@@ -815,6 +818,7 @@ impl PetscSystem {
             };
             [of(false), of(true)]
         });
+        let partitioned = cols.is_some();
         let Csr { row_ptr, col_idx, csc_of_csr } = csr;
         let mut system = PetscSystem {
             n,
@@ -825,6 +829,7 @@ impl PetscSystem {
             row_ptr,
             col_idx,
             csc_of_csr,
+            partitioned,
             world,
             field_mask: multipliers.map(<[bool]>::to_vec),
             fields,
@@ -873,7 +878,8 @@ impl PetscSystem {
     }
 
     fn is_for(&self, pattern: &Pattern, fields: Option<&[bool]>, nodes: Nodes, augmented: bool) -> bool {
-        self.n == pattern.n
+        !self.partitioned
+            && self.n == pattern.n
             && self.nodes == nodes
             && self.nnz == pattern.nnz()
             && self.key == pattern_key(pattern)
@@ -884,12 +890,7 @@ impl PetscSystem {
     /// Whether this is the system of a partitioned assembly's rows with pattern `key` of `n`
     /// unknowns, `fields` and `nodes`.
     fn is_for_rows(&self, key: u64, n: usize, fields: Option<&[bool]>, nodes: Nodes) -> bool {
-        self.col_idx.is_empty()
-            && self.key == key
-            && self.n == n
-            && self.nodes == nodes
-            && self.field_mask.as_deref() == fields
-            && !self.is_augmented()
+        self.partitioned && self.key == key && self.n == n && self.nodes == nodes && self.field_mask.as_deref() == fields && !self.is_augmented()
     }
 
     /// Whether this is an augmented Lagrangian's system ([`PetscSolver::augmented_lagrangian`]).
