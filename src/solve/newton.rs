@@ -428,6 +428,21 @@ mod tests {
         assert!((forcing_term(&[1.0, 1e-4, 1e-8], 1e-12) - 5e-5).abs() < 1e-16);
     }
 
+    /// The chain's Jacobian (added into `values` at the positions `find(i, j)`) and `-R(x)`
+    /// (into `rhs`; see [`solve_chain`]) for the right-hand side `b`.
+    fn chain_system(x: &[f64], b: &[f64], find: impl Fn(usize, usize) -> usize, values: &mut [f64], rhs: &mut [f64]) {
+        let n = x.len();
+        for i in 0..n {
+            let mut r = 2.0 * x[i] + 0.5 * x[i].powi(3) - b[i];
+            values[find(i, i)] += 2.0 + 1.5 * x[i] * x[i];
+            for j in [i.wrapping_sub(1), i + 1].into_iter().filter(|&j| j < n) {
+                r -= x[j];
+                values[find(i, j)] -= 1.0;
+            }
+            rhs[i] = -r;
+        }
+    }
+
     /// `R(x)_i = 2 x_i - x_{i-1} - x_{i+1} + 0.5 x_i^3 - b_i` on a chain: nonlinear, with a
     /// Jacobian that changes from iteration to iteration.
     fn solve_chain(reuse: bool) -> (Vec<f64>, NewtonReport) {
@@ -444,15 +459,7 @@ mod tests {
         let b: Vec<f64> = (0..n).map(|i| scale * (1.0 + (i as f64 * 0.4).sin())).collect();
         let options = NewtonOptions { abs_tol: 1e-12, rel_tol: 1e-14, reuse_factorization: reuse, ..Default::default() };
         let report = solve(&mut x, &p, lu, &options, |x, k, rhs| {
-            for i in 0..n {
-                let mut r = 2.0 * x[i] + 0.5 * x[i].powi(3) - b[i];
-                k.values[p.find(i, i).unwrap()] += 2.0 + 1.5 * x[i] * x[i];
-                for j in [i.wrapping_sub(1), i + 1].into_iter().filter(|&j| j < n) {
-                    r -= x[j];
-                    k.values[p.find(i, j).unwrap()] -= 1.0;
-                }
-                rhs[i] = -r;
-            }
+            chain_system(x, &b, |i, j| p.find(i, j).unwrap(), &mut k.values, rhs);
             Ok::<(), Infallible>(())
         })
         .unwrap();
@@ -479,15 +486,7 @@ mod tests {
             let mut x = vec![0.0; n];
             let mut rows = SerialRows::new(FaerLu::default());
             let report = solve_rows(&mut x, &partition, &p, &mut rows, &options, |x, k, rhs| {
-                for i in 0..n {
-                    let mut r = 2.0 * x[i] + 0.5 * x[i].powi(3) - b[i];
-                    k.values[p.find(i, i).unwrap()] += 2.0 + 1.5 * x[i] * x[i];
-                    for j in [i.wrapping_sub(1), i + 1].into_iter().filter(|&j| j < n) {
-                        r -= x[j];
-                        k.values[p.find(i, j).unwrap()] -= 1.0;
-                    }
-                    rhs[i] = -r;
-                }
+                chain_system(x, &b, |i, j| p.find(i, j).unwrap(), &mut k.values, rhs);
                 Ok::<(), Infallible>(())
             })
             .unwrap();
