@@ -58,12 +58,12 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, entries)?;
     let discretize = t.elapsed().as_secs_f64();
     let dofs = flow_dofs(&disc);
-    let entries = match world {
+    let nnz = match world {
         Some(w) => format!("nnz {} in rank {}'s rows of {}", disc.nnz(), w.rank, w.size),
         None => format!("nnz {}", disc.nnz()),
     };
     obs.log(&format!(
-        "mesh: {cells} cells; dofs: velocity {}, pressure {}, total {} ({entries}); {discretize:.2} s",
+        "mesh: {cells} cells; dofs: velocity {}, pressure {}, total {} ({nnz}); {discretize:.2} s",
         dofs[0].1,
         dofs[1].1,
         disc.num_dofs(),

@@ -291,7 +291,7 @@ impl<'p> NewtonSystem for Rows<'p, '_> {
         Ok(self.solver.sum(f64::from(u8::from(failed)))? > 0.0)
     }
     fn solver(&mut self) -> &mut dyn LinearSolver {
-        self.solver.as_linear_solver()
+        self.solver
     }
     /// A held factorisation is a [`LinearSolver`]'s of a whole matrix: none here.
     fn offer_held_factorization(&mut self) -> bool {

@@ -298,8 +298,6 @@ impl Partition {
 /// own rows of the matrix and of the right-hand side (those of a [`Partition`]) and gets the
 /// whole solution. Each call is collective: every rank calls it alike.
 pub trait RowSolver: LinearSolver {
-    /// This solver as a [`LinearSolver`] (its forcing term, its held factorisations).
-    fn as_linear_solver(&mut self) -> &mut dyn LinearSolver;
     /// The ranks this solver runs on.
     fn world(&self) -> World;
     /// The sum of every rank's `value`, with the same bits on every rank (the partial sums added
@@ -406,9 +404,6 @@ impl<S: LinearSolver> LinearSolver for SerialRows<S> {
 }
 
 impl<S: LinearSolver> RowSolver for SerialRows<S> {
-    fn as_linear_solver(&mut self) -> &mut dyn LinearSolver {
-        self
-    }
     fn world(&self) -> World {
         World { rank: 0, size: 1 }
     }

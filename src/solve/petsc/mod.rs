@@ -517,10 +517,6 @@ impl LinearSolver for PetscSolver {
 }
 
 impl RowSolver for PetscSolver {
-    fn as_linear_solver(&mut self) -> &mut dyn LinearSolver {
-        self
-    }
-
     /// The ranks, once PETSc runs (one rank where it cannot start: then every solve fails).
     fn world(&self) -> World {
         world().unwrap_or(World { rank: 0, size: 1 })
