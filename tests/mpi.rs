@@ -57,8 +57,8 @@ fn quantities(summary: &Value) -> BTreeMap<String, f64> {
 /// method) and by `mpirun -n 1` and `-n 2` with `method = "petsc"` and `solver`: the same
 /// steps and quantities, to `tol` relative (plus `floor` absolute, for quantities that are zero
 /// up to the solver tolerance) against the serial run and to 1e-9 between the two MPI runs.
-fn compare(name: &str, solver: PetscMethod, tol: f64, floor: f64, edit: impl Fn(&mut Case)) {
-    compare_file(name, &cases_dir().join(format!("{name}.toml")), solver, tol, floor, edit);
+fn compare(name: &str, solver: PetscMethod, tol: f64, floor: f64, edit: impl Fn(&mut Case)) -> String {
+    compare_file(name, &cases_dir().join(format!("{name}.toml")), solver, tol, floor, edit)
 }
 
 /// [`compare`] for the case file `file`; returns the log of the run on 2 ranks.
@@ -122,33 +122,44 @@ fn the_cylinder_at_re_100_on_two_ranks_gives_the_serial_quantities() {
     });
 }
 
+/// An FSI run on 2 ranks logs a partitioned assembly with MUMPS, not with the augmented
+/// Lagrangian (which takes the whole system).
+fn assert_by_rows(log: &str, solver: PetscMethod) {
+    let by_rows = log.contains("assembly: each rank its own rows of every step's system (this is rank 0 of 2)");
+    assert_eq!(by_rows, matches!(solver, PetscMethod::Mumps), "{solver:?}: partitioned assembly\n{log}");
+}
+
 /// Model problem 3 (axisymmetric FSI, 60 steps), with MUMPS and with the augmented Lagrangian
 /// through PETSc: the adapted mesh changes with the membrane, so
-/// each rank adapts alike and the system's pattern is new from step to step. The equilibrium
-/// quantities that vanish (downstream pressure, speed, flux: 1e-7 to 1e-8) agree to 1e-11
-/// absolute.
+/// each rank adapts alike and the system's pattern is new from step to step. With MUMPS each
+/// rank assembles its own rows of every step's system (the partition rebuilt every step); the
+/// augmented Lagrangian takes the whole system. The equilibrium quantities that vanish
+/// (downstream pressure, speed, flux: 1e-7 to 1e-8) agree to 1e-11 absolute.
 #[test]
 fn model_problem_3_on_two_ranks_gives_the_serial_quantities() {
     for solver in [PetscMethod::Mumps, PetscMethod::AugmentedLagrangian] {
-        compare("model-problem-3", solver, 1e-8, 1e-11, |_| {});
+        let log = compare("model-problem-3", solver, 1e-8, 1e-11, |_| {});
+        assert_by_rows(&log, solver);
     }
 }
 
 /// Model problem 4 (3D FSI) on the coarser mesh of tests/cases.rs, 3 steps, with MUMPS and with
 /// the augmented Lagrangian through PETSc (its 3D placements: the boundary groups and the
 /// coupling multiplier in the Schur block, where FGMRES needs refined Gram-Schmidt and a
-/// refinement of some solves; both failed the third step of the case's mesh). The case's Newton
+/// refinement of some solves; both failed the third step of the case's mesh); with MUMPS each
+/// rank assembles its own rows. The case's Newton
 /// stops at |R| <= 1e-9 (its serial linear solves: the augmented-Lagrangian FGMRES, inexact):
 /// the forces on gamma_f (about 0.01-0.14) agree to 1e-8 absolute (measured 1.6e-9).
 #[test]
 fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
     for solver in [PetscMethod::Mumps, PetscMethod::AugmentedLagrangian] {
-        compare("model-problem-4", solver, 1e-8, 1e-8, |c| {
+        let log = compare("model-problem-4", solver, 1e-8, 1e-8, |c| {
             c.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
             let solid = c.solid.as_mut().unwrap();
             solid.mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
             c.time.as_mut().unwrap().end = 0.3;
         });
+        assert_by_rows(&log, solver);
     }
 }
 

@@ -1,11 +1,14 @@
 //! `solve::partition`: the level-set numbering of a system's unknowns over MPI ranks, made from
 //! the cells' dofs alone (no pattern, as a rank holding only its own rows will), equals the one
 //! made from the pattern, on 2D and 3D flow systems, with every unknown on its own and with the
-//! velocity's nodes kept whole, on 1, 2 and 3 ranks; and a flow's partitioned path on one rank
-//! is its whole path. No MPI: the numbering is plain data, and one rank needs no messages.
+//! velocity's nodes kept whole, on 1, 2 and 3 ranks; each rank's rows of a flow's and an FSI
+//! system's partitioned assembly are the whole assembly's; and the partitioned path of a flow
+//! and of an FSI run on one rank is its whole path. No MPI: the numbering is plain data, and one
+//! rank needs no messages.
 
 use fdfsi::case::Case;
 use fdfsi::discretize::flow::{solve_steady, Entries, FlowDiscretization, FlowProblem, TractionBc};
+use fdfsi::discretize::fsi::{step_with, FsiDiscretization, FsiModel, FsiState, StepStart};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
@@ -148,4 +151,97 @@ fn each_ranks_rows_of_a_flow_are_the_whole_assemblys() {
         }
         assert_eq!(covered, whole.nnz(), "{size} ranks' rows cover the pattern");
     }
+}
+
+/// A case's FSI model (`cases/NAME.toml`) and its time step.
+fn fsi_case(name: &str) -> (FsiModel<2>, f64) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let case = Case::read(&dir.join(format!("{name}.toml"))).unwrap();
+    let AnyMesh::D2(mesh) = fdfsi::setup::build_mesh(&case, &dir).unwrap() else { panic!("a 2D case") };
+    (fdfsi::setup::fsi_model(&case, &mesh, &dir).unwrap(), case.time.unwrap().dt)
+}
+
+/// Each rank's rows of an FSI system's partitioned assembly (`FsiDiscretization::assemble_rows`
+/// with `Entries::Rows` of 2 and 3 ranks) are the whole assembly's rows bit for bit: the first
+/// step of model problem 2 (the trace-mode multiplier, with inactive multipliers and the
+/// multiplier kernel's unknowns; fluid and solid Dirichlet rows) and of model problem 3
+/// (axisymmetric), at a state with every unknown nonzero; and the residual needs no matrix.
+#[test]
+fn each_ranks_rows_of_an_fsi_system_are_the_whole_assemblys() {
+    let mut kernels = 0;
+    for name in ["model-problem-2", "model-problem-3"] {
+        let (model, dt) = fsi_case(name);
+        let state = FsiState::at_rest(&model);
+        let start = StepStart::new(&model, &state, dt).unwrap();
+        let (disc, input) = (&start.disc, start.input(&state));
+        let n = disc.num_dofs();
+        println!(
+            "{name}: {n} unknowns, {} entries, {} constrained, {} kernel unknowns, {} trace modes",
+            disc.nnz(),
+            start.constrained.iter().filter(|&&c| c).count(),
+            disc.kernel.len(),
+            disc.coupling.num_chains
+        );
+        kernels += disc.kernel.len();
+        let x: Vec<f64> = start.x.iter().enumerate().map(|(i, &v)| if start.constrained[i] { v } else { 1e-3 * (i as f64 * 0.37).sin() }).collect();
+        let mut k = CscMatrix::zeros(disc.whole_pattern());
+        let mut rhs = vec![0.0; n];
+        disc.assemble(&model, &input, &x, &start.constrained, &mut k, &mut rhs).unwrap();
+        let residual = disc.residual(&model, &input, &x).unwrap();
+        let mut unconstrained = CscMatrix::zeros(disc.whole_pattern());
+        let mut minus_r = vec![0.0; n];
+        disc.assemble(&model, &input, &x, &vec![false; n], &mut unconstrained, &mut minus_r).unwrap();
+        assert_eq!(bits(&residual), bits(&minus_r.iter().map(|v| -v).collect::<Vec<_>>()), "{name}: the residual alone");
+        for size in [2, 3] {
+            let mut covered = 0;
+            for rank in 0..size {
+                let rows_disc =
+                    FsiDiscretization::build_with(&model, &state.solid_x, &state.coupling_pattern, Entries::Rows(World { rank, size })).unwrap();
+                assert_eq!(rows_disc.num_dofs(), n);
+                assert!(rows_disc.pattern().is_none());
+                let part = rows_disc.rows().unwrap();
+                let (numbering, rows) = (part.partition.numbering(), part.partition.rows());
+                let mut a = RowMatrix::zeros(&part.pattern);
+                let mut rhs_rows = vec![0.0; rows.len()];
+                rows_disc.assemble_rows(&model, &input, &x, &start.constrained, &mut a, &mut rhs_rows).unwrap();
+                for p in rows.clone() {
+                    let i = numbering.to_fdfsi(p);
+                    assert_eq!(rhs_rows[p - rows.start].to_bits(), rhs[i].to_bits(), "{name}, rank {rank} of {size}: rhs of unknown {i}");
+                    let (cols, start) = part.pattern.row(p);
+                    for (e, &q) in cols.iter().enumerate() {
+                        let j = numbering.to_fdfsi(q as usize);
+                        assert_eq!(a.values[start + e].to_bits(), k.get(i, j).to_bits(), "{name}, rank {rank} of {size}: entry ({i}, {j})");
+                    }
+                    covered += cols.len();
+                }
+            }
+            assert_eq!(covered, disc.nnz(), "{name}: {size} ranks' rows cover the pattern");
+        }
+    }
+    assert!(kernels > 0, "the multiplier kernel's unknowns are exercised");
+}
+
+/// The partitioned path of an FSI run on one rank, through `SerialRows` over fdfsi's LU: three
+/// steps of model problem 2 (implicit Euler; the adapted mesh, the pattern and the partition
+/// rebuilt every step) give the whole system's Newton residuals, solutions and solid states bit
+/// for bit.
+#[test]
+fn a_partitioned_fsi_run_on_one_rank_is_the_whole_one() {
+    let (model, dt) = fsi_case("model-problem-2");
+    let options = NewtonOptions::default();
+    let march = |solver: &mut dyn LinearSolver| {
+        let (mut state, mut norms, mut last) = (FsiState::at_rest(&model), Vec::new(), Vec::new());
+        for _ in 0..3 {
+            let (next, step) = step_with(&model, &state, dt, TimeScheme::Euler, solver, &options).unwrap();
+            norms.extend(step.report.newton.residual_norms.clone());
+            (state, last) = (next, step.x);
+        }
+        (state.solid_x, last, norms)
+    };
+    let (solid_whole, x_whole, norms_whole) = march(&mut FaerLu::default());
+    let (solid_rows, x_rows, norms_rows) = march(&mut SerialRows::new(FaerLu::default()));
+    assert!(norms_whole.len() >= 6, "{norms_whole:?}");
+    assert_eq!(norms_rows, norms_whole);
+    assert_eq!(bits(&x_rows), bits(&x_whole));
+    assert_eq!(bits(&solid_rows), bits(&solid_whole));
 }

@@ -11,12 +11,12 @@ use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, 
 use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
-use crate::solve::partition::{Nodes, Partition, World};
+use crate::solve::partition::{row_solver_of, Nodes, Partition, World};
 use fdfsi_fem::dofs::{BlockLayout, Field, NodeMap};
 use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
-use fdfsi_fem::sparse::{assemble, assemble_residual, assemble_rows, Colouring, CscMatrix, LocalSystem, Pattern, RowMatrix, RowPattern};
+use fdfsi_fem::sparse::{Colouring, CscMatrix, HeldRows, LocalSystem, Pattern, ResidualOnly, RowMatrix, RowPattern, SystemTarget, WholeSystem};
 use fdfsi_fem::values::{p1disc_basis, p1disc_mass, CellValues, FacetValues, MapError};
 use std::sync::Arc;
 use thiserror::Error;
@@ -340,9 +340,8 @@ impl<const D: usize> FlowDiscretization<D> {
     pub fn raw_residual(&self, problem: &FlowProblem<D>, x: &[f64], x_old: &[f64], t: f64) -> Result<Vec<f64>, FlowError> {
         let mut rhs = vec![0.0; self.num_dofs()];
         let free = vec![false; self.num_dofs()];
-        let map = |e: AssemblyError| FlowError::Map { cell: e.cell, source: e.source };
-        assemble_residual(&mut rhs, &self.colouring, &free, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t)).map_err(map)?;
-        self.add_tractions(problem, t, |dof, v| rhs[dof] -= v).map_err(map)?;
+        let target = &mut ResidualOnly { rhs: &mut rhs };
+        self.assemble_into(problem, x, x_old, t, &free, &self.colouring, target).map_err(|e| FlowError::Map { cell: e.cell, source: e.source })?;
         rhs.iter_mut().for_each(|v| *v = -*v);
         Ok(rhs)
     }
@@ -360,20 +359,7 @@ impl<const D: usize> FlowDiscretization<D> {
         k: &mut CscMatrix<'_>,
         rhs: &mut [f64],
     ) -> Result<(), AssemblyError> {
-        assemble(k, rhs, &self.colouring, constrained, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t))?;
-        self.add_tractions(problem, t, |dof, v| {
-            if !constrained[dof] {
-                rhs[dof] -= v;
-            }
-        })?;
-        for (dof, &c) in constrained.iter().enumerate() {
-            if c {
-                let pos = k.pattern.find(dof, dof).expect("diagonal in pattern");
-                k.values[pos] = 1.0;
-                rhs[dof] = 0.0;
-            }
-        }
-        Ok(())
+        self.assemble_into(problem, x, x_old, t, constrained, &self.colouring, &mut WholeSystem { k, rhs })
     }
 
     /// [`FlowDiscretization::assemble_system`] into this rank's rows of a partitioned assembly
@@ -394,22 +380,36 @@ impl<const D: usize> FlowDiscretization<D> {
         rhs: &mut [f64],
     ) -> Result<(), AssemblyError> {
         let part = self.rows().expect("assemble_rows of a partitioned discretisation");
-        let (numbering, rows) = (part.partition.numbering(), part.partition.rows());
+        let numbering = part.partition.numbering();
         let to_global = |d: usize| numbering.to_petsc(d);
         // SAFETY: the partition's numbering is a permutation of the unknowns.
-        unsafe { assemble_rows(k, rhs, &part.colouring, constrained, &to_global, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t)) }?;
+        let target = &mut unsafe { HeldRows::new(k, rhs, &to_global) };
+        self.assemble_into(problem, x, x_old, t, constrained, &part.colouring, target)
+    }
+
+    /// The flow system at `x` (history `x_old`, time `t`) assembled into `target` from the cells
+    /// of `colouring` (all of them, or those with an unknown in the target's rows), the traction
+    /// boundaries, and identity rows with a zero right-hand side for the `constrained` unknowns
+    /// (whose rows the cells and tractions leave out): `K = dR/dx` and `rhs = -R(x)`.
+    #[allow(clippy::too_many_arguments, reason = "the state, the history, the time, the constraints and where they go")]
+    pub fn assemble_into(
+        &self,
+        problem: &FlowProblem<D>,
+        x: &[f64],
+        x_old: &[f64],
+        t: f64,
+        constrained: &[bool],
+        colouring: &Colouring,
+        target: &mut impl SystemTarget,
+    ) -> Result<(), AssemblyError> {
+        target.add_cells(colouring, constrained, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t))?;
         self.add_tractions(problem, t, |dof, v| {
-            let p = to_global(dof);
-            if !constrained[dof] && rows.contains(&p) {
-                rhs[p - rows.start] -= v;
+            if !constrained[dof] {
+                target.add_rhs(dof, -v);
             }
         })?;
-        for p in rows.clone() {
-            if constrained[numbering.to_fdfsi(p)] {
-                let pos = k.pattern.find(p, p).expect("diagonal in pattern");
-                k.values[pos] = 1.0;
-                rhs[p - rows.start] = 0.0;
-            }
+        for (dof, _) in constrained.iter().enumerate().filter(|(_, &c)| c) {
+            target.identity_row(dof);
         }
         Ok(())
     }
@@ -498,12 +498,7 @@ impl<const D: usize> FlowDiscretization<D> {
                 Err(LinearSolveError::Setup("a flow discretisation of counted entries (Entries::Counted) is not solved".into()).into())
             }
             Sparsity::Rows(part) => {
-                let rows = solver.as_row_solver().filter(|r| r.world() == part.partition.world()).ok_or_else(|| {
-                    LinearSolveError::Setup(format!(
-                        "a flow partitioned over {:?} needs a linear solver of its rows on those ranks",
-                        part.partition.world()
-                    ))
-                })?;
+                let rows = row_solver_of(solver, &part.partition)?;
                 newton::solve_rows(x, &part.partition, &part.pattern, rows, options, |x, k, rhs| {
                     self.assemble_rows(problem, x, x_old, t, constrained, k, rhs)
                 })

@@ -43,7 +43,7 @@
 
 use super::layout::{Block, SystemLayout};
 pub use crate::adapt::CoveredFluid;
-use crate::discretize::flow::{AssemblyError, FlowDiscretization, FlowError, FlowProblem};
+use crate::discretize::flow::{AssemblyError, Entries, FlowDiscretization, FlowError, FlowProblem};
 use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::discretize::time_scheme::{step_history, step_ratio, TimeScheme};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
@@ -51,6 +51,7 @@ use crate::physics::solid::{Mat3, IDENTITY};
 use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
+use crate::solve::partition::{row_solver_of, Nodes, Partition};
 use fdfsi_fem::adapt::{
     adapt_with, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, Surface, GAMMA_F_REL_TOL,
 };
@@ -59,7 +60,7 @@ use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
 use fdfsi_fem::locate::simplex_reference_coords;
 use fdfsi_fem::mesh::{Mesh, MeshError, NO_CELL};
 use fdfsi_fem::quadrature;
-use fdfsi_fem::sparse::{CscMatrix, Pattern};
+use fdfsi_fem::sparse::{Colouring, CscMatrix, HeldRows, Pattern, ResidualOnly, RowMatrix, RowPattern, SystemTarget, WholeSystem};
 use fdfsi_fem::values::det_inv;
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
@@ -399,7 +400,7 @@ impl<const D: usize> FluidSnapshot<D> {
     /// The snapshot of a checkpoint: its adapted mesh rebuilt from the solid position it was
     /// made for, which reproduces it exactly (the adaptation is deterministic).
     fn from_restart(model: &FsiModel<D>, f: &FluidRestart) -> Result<Self, FsiError> {
-        let disc = FsiDiscretization::build(model, &f.solid_base, &CouplingPattern::default())?;
+        let disc = FsiDiscretization::build_with(model, &f.solid_base, &CouplingPattern::default(), Entries::Counted)?;
         let vel = &disc.flow.velocity_field();
         if vel.num_dofs() != f.velocity.len() {
             return Err(FsiError::Restart(format!(
@@ -556,15 +557,37 @@ pub struct FsiDiscretization<const D: usize> {
     /// and `(M z_j) . lambda = 0`: lambda is M-orthogonal to the kernel and the constraints are
     /// tested only with its M-orthogonal complement.
     pub kernel: Vec<Vec<(usize, f64)>>,
-    /// The coupling elements' solid cells in `pattern`.
+    /// The coupling elements' solid cells in the system's pattern.
     pub coupling_pattern: CouplingPattern,
-    pub pattern: Pattern,
-    flow_map: Vec<usize>,
-    solid_map: Vec<usize>,
-    /// The values of the fluid and the solid block matrices, reused by every assembly.
-    block_values: [Mutex<Vec<f64>>; 2],
+    /// The system's sparsity: the whole pattern, this rank's rows, or the number of entries
+    /// ([`FsiDiscretization::build_with`]).
+    sparsity: Sparsity,
     /// Seconds spent on gamma_s and the adaptation in [`Self::build`].
     pub adapt_seconds: f64,
+}
+
+/// Where an [`FsiDiscretization`]'s systems are assembled.
+enum Sparsity {
+    /// The whole system, on every process: its pattern, the positions in it of the fluid's and
+    /// the solid's block entries (`flow_map`, `solid_map`), and the values of those blocks,
+    /// reused by every assembly.
+    Whole { pattern: Pattern, flow_map: Vec<usize>, solid_map: Vec<usize>, block_values: [Mutex<Vec<f64>>; 2] },
+    /// This rank's rows of a partitioned assembly.
+    Rows(FsiRows),
+    /// Nowhere: the whole system's number of entries only ([`Entries::Counted`]).
+    Counted(usize),
+}
+
+/// This rank's part of a partitioned FSI assembly: the [`Partition`] of the unknowns (the fluid
+/// velocity's nodes kept whole), the pattern of this rank's rows, and the fluid and the solid
+/// cells with an unknown in them, coloured (restrictions of the fluid's and the solid's
+/// colourings). The fluid and the solid assemble straight into the rows, the coupling and the
+/// kernel of the multiplier space their terms of the held rows.
+pub struct FsiRows {
+    pub partition: Partition,
+    pub pattern: RowPattern,
+    fluid_colouring: Colouring,
+    solid_colouring: Colouring,
 }
 
 /// Assembles a block on `pattern` into `values` (reused from call to call: no allocation after
@@ -633,6 +656,14 @@ impl<const D: usize> FsiDiscretization<D> {
     /// and builds the monolithic discretisation; its pattern keeps the coupling cells of
     /// `carried` if the adapted mesh has their topology ([`CouplingPattern`]).
     pub fn build(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern) -> Result<Self, FsiError> {
+        Self::build_with(model, solid_x, carried, Entries::Whole)
+    }
+
+    /// [`FsiDiscretization::build`] with the matrix `entries` it prepares: the whole pattern,
+    /// this rank's rows only for a partitioned assembly ([`FsiRows`]), or their number only. The
+    /// fluid's own discretisation has its pattern for the whole system only (it is assembled
+    /// into it as a block); otherwise it counts its entries.
+    pub fn build_with(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern, entries: Entries) -> Result<Self, FsiError> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
         let adapted = model.covered_fluid.apply(adapt_with(&model.background, &surface, &model.problem.adapt)?, &surface)?;
@@ -640,7 +671,8 @@ impl<const D: usize> FsiDiscretization<D> {
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
         }
-        let flow = FlowDiscretization::build(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation)?;
+        let flow_entries = if entries == Entries::Whole { Entries::Whole } else { Entries::Counted };
+        let flow = FlowDiscretization::build_with(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation, flow_entries)?;
         let mut coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
         let fluid_dofs = flow.num_dofs();
         let solid_dofs = model.solid.num_dofs();
@@ -709,8 +741,11 @@ impl<const D: usize> FsiDiscretization<D> {
                 d
             })
             .collect();
+        // The system's "cells", whose unknowns are coupled: the fluid cells, the solid cells, the
+        // coupling elements and the kernel's columns (each kernel unknown with its multipliers).
         let (nfc, nsc) = (flow.mesh.num_cells(), model.solid.mesh.num_cells());
-        let pattern = Pattern::from_cells(n, nfc + nsc + ne + kernel.len(), |c, buf| {
+        let num_cells = nfc + nsc + ne + kernel.len();
+        let cell_dofs = |c: usize, buf: &mut Vec<usize>| {
             if c >= nfc + nsc + ne {
                 let j = c - nfc - nsc - ne;
                 buf.clear();
@@ -725,9 +760,27 @@ impl<const D: usize> FsiDiscretization<D> {
                 buf.clear();
                 buf.extend_from_slice(&coupling_dofs[c - nfc - nsc]);
             }
-        });
-        let flow_map = position_map(flow.whole_pattern(), &pattern, 0);
-        let solid_map = position_map(&model.solid.pattern, &pattern, os);
+        };
+        let sparsity = match entries {
+            Entries::Whole => {
+                let pattern = Pattern::from_cells(n, num_cells, cell_dofs);
+                let flow_map = position_map(flow.whole_pattern(), &pattern, 0);
+                let solid_map = position_map(&model.solid.pattern, &pattern, os);
+                Sparsity::Whole { pattern, flow_map, solid_map, block_values: Default::default() }
+            }
+            Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, num_cells, cell_dofs)),
+            Entries::Rows(_) if u32::try_from(n).is_err() => return Err(FlowError::TooManyUnknowns(n).into()),
+            Entries::Rows(world) => {
+                let nodes = Nodes { size: D, end: vel.num_dofs() };
+                let partition = Partition::from_cells(n, num_cells, cell_dofs, world, nodes);
+                let cells = partition.cells_of_rows(num_cells, cell_dofs);
+                let pattern = partition.row_pattern(&cells, cell_dofs);
+                let held = |c: usize| cells.binary_search(&c).is_ok();
+                let fluid_colouring = flow.colouring.restricted(held);
+                let solid_colouring = model.solid.colouring.restricted(|c| held(nfc + c));
+                Sparsity::Rows(FsiRows { partition, pattern, fluid_colouring, solid_colouring })
+            }
+        };
         Ok(FsiDiscretization {
             surface,
             adapted,
@@ -737,10 +790,7 @@ impl<const D: usize> FsiDiscretization<D> {
             inactive_multiplier_dofs,
             kernel,
             coupling_pattern,
-            pattern,
-            flow_map,
-            solid_map,
-            block_values: Default::default(),
+            sparsity,
             adapt_seconds,
         })
     }
@@ -881,8 +931,48 @@ impl<const D: usize> FsiDiscretization<D> {
         self.layout.offset(Block::TraceModes) + ch * D + a
     }
 
+    /// The whole system's pattern; `None` for a partitioned assembly
+    /// ([`FsiDiscretization::rows`]) or a discretisation of counted entries.
+    pub fn pattern(&self) -> Option<&Pattern> {
+        match &self.sparsity {
+            Sparsity::Whole { pattern, .. } => Some(pattern),
+            Sparsity::Rows(_) | Sparsity::Counted(_) => None,
+        }
+    }
+
+    /// The whole system's pattern of a discretisation that [`FsiDiscretization::build`] made.
+    ///
+    /// # Panics
+    /// For another one ([`FsiDiscretization::build_with`] with [`Entries::Rows`] or
+    /// [`Entries::Counted`]).
+    pub fn whole_pattern(&self) -> &Pattern {
+        self.pattern().expect("an FSI discretisation built whole (FsiDiscretization::build)")
+    }
+
+    /// This rank's part of a partitioned assembly ([`FsiDiscretization::build_with`]).
+    pub fn rows(&self) -> Option<&FsiRows> {
+        match &self.sparsity {
+            Sparsity::Rows(rows) => Some(rows),
+            Sparsity::Whole { .. } | Sparsity::Counted(_) => None,
+        }
+    }
+
+    /// The number of matrix entries: the whole pattern's, or this rank's rows' for a partitioned
+    /// assembly.
+    pub fn nnz(&self) -> usize {
+        match &self.sparsity {
+            Sparsity::Whole { pattern, .. } => pattern.nnz(),
+            Sparsity::Rows(rows) => rows.pattern.nnz(),
+            Sparsity::Counted(nnz) => *nnz,
+        }
+    }
+
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the coupled problem; rows of constrained
-    /// dofs become identity rows with zero right-hand side.
+    /// dofs become identity rows with zero right-hand side. The fluid and the solid are
+    /// assembled as blocks on their own patterns and added into `k`.
+    ///
+    /// # Panics
+    /// If this discretisation is not whole ([`FsiDiscretization::whole_pattern`]).
     pub fn assemble(
         &self,
         model: &FsiModel<D>,
@@ -892,18 +982,96 @@ impl<const D: usize> FsiDiscretization<D> {
         k: &mut CscMatrix<'_>,
         rhs: &mut [f64],
     ) -> Result<(), FsiAssemblyError> {
+        let Sparsity::Whole { flow_map, solid_map, block_values, .. } = &self.sparsity else {
+            panic!("FsiDiscretization::assemble of a discretisation not built whole");
+        };
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
-        // Fluid block.
-        add_block(&self.block_values[0], self.flow.whole_pattern(), &self.flow_map, k, |kb| {
-            self.flow.assemble_system(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], kb, &mut rhs[..os])
+        add_block(&block_values[0], self.flow.whole_pattern(), flow_map, k, |kb| {
+            self.add_fluid(input, x, constrained, &self.flow.colouring, &mut WholeSystem { k: kb, rhs: &mut rhs[..os] })
         })?;
-        // Solid block (updated Lagrangian: increment from X + u_n, F_n per point).
-        let inertia = input.solid_target.filter(|_| model.problem.solid.density > 0.0).map(|t| (model.problem.solid.density * input.a * input.a, t));
-        add_block(&self.block_values[1], &model.solid.pattern, &self.solid_map, k, |kb| {
-            let (base, f) = (Some(input.solid_base), Some(input.solid_f));
-            model.solid.assemble_system(&model.problem.solid, input.time, base, f, inertia, &x[os..ol], &constrained[os..ol], kb, &mut rhs[os..ol])
+        add_block(&block_values[1], &model.solid.pattern, solid_map, k, |kb| {
+            self.add_solid(model, input, x, constrained, &model.solid.colouring, &mut WholeSystem { k: kb, rhs: &mut rhs[os..ol] })
         })?;
-        // Coupling.
+        self.add_coupling(model, input, x, constrained, &mut WholeSystem { k, rhs });
+        Ok(())
+    }
+
+    /// [`FsiDiscretization::assemble`] into this rank's rows of a partitioned assembly (`k` on
+    /// [`FsiRows::pattern`], `rhs` of the rows, in the partition's numbering; `x` and
+    /// `constrained` of all unknowns): those rows of that assembly, bit for bit.
+    ///
+    /// # Panics
+    /// If this discretisation is not partitioned ([`FsiDiscretization::rows`] is `None`).
+    pub fn assemble_rows(
+        &self,
+        model: &FsiModel<D>,
+        input: &StepInput<'_, D>,
+        x: &[f64],
+        constrained: &[bool],
+        k: &mut RowMatrix<'_>,
+        rhs: &mut [f64],
+    ) -> Result<(), FsiAssemblyError> {
+        let part = self.rows().expect("assemble_rows of a partitioned discretisation");
+        let (numbering, os) = (part.partition.numbering(), self.solid_offset());
+        let of_system = |d: usize| numbering.to_petsc(d);
+        let of_solid = |d: usize| numbering.to_petsc(os + d);
+        // SAFETY (the three targets): the partition's numbering is a permutation of the unknowns,
+        // and the solid's unknowns are those after `os`.
+        self.add_fluid(input, x, constrained, &part.fluid_colouring, &mut unsafe { HeldRows::new(k, rhs, &of_system) })?;
+        self.add_solid(model, input, x, constrained, &part.solid_colouring, &mut unsafe { HeldRows::new(k, rhs, &of_solid) })?;
+        self.add_coupling(model, input, x, constrained, &mut unsafe { HeldRows::new(k, rhs, &of_system) });
+        Ok(())
+    }
+
+    /// The residual `R(x)` with no row constrained: all of it, on every process (no matrix).
+    pub fn residual(&self, model: &FsiModel<D>, input: &StepInput<'_, D>, x: &[f64]) -> Result<Vec<f64>, FsiAssemblyError> {
+        let (os, ol) = (self.solid_offset(), self.multiplier_offset());
+        let mut rhs = vec![0.0; self.num_dofs()];
+        let free = vec![false; self.num_dofs()];
+        self.add_fluid(input, x, &free, &self.flow.colouring, &mut ResidualOnly { rhs: &mut rhs[..os] })?;
+        self.add_solid(model, input, x, &free, &model.solid.colouring, &mut ResidualOnly { rhs: &mut rhs[os..ol] })?;
+        self.add_coupling(model, input, x, &free, &mut ResidualOnly { rhs: &mut rhs });
+        rhs.iter_mut().for_each(|v| *v = -*v);
+        Ok(rhs)
+    }
+
+    /// The fluid's part of the system, from the fluid cells of `colouring`, into `target` (by
+    /// fluid unknowns, the first of the system's).
+    fn add_fluid(
+        &self,
+        input: &StepInput<'_, D>,
+        x: &[f64],
+        constrained: &[bool],
+        colouring: &Colouring,
+        target: &mut impl SystemTarget,
+    ) -> Result<(), FsiAssemblyError> {
+        let os = self.solid_offset();
+        Ok(self.flow.assemble_into(input.fluid, &x[..os], input.u_old, input.time, &constrained[..os], colouring, target)?)
+    }
+
+    /// The solid's part of the system (updated Lagrangian: the increment from `X + u_n`, `F_n`
+    /// per point), from the solid cells of `colouring`, into `target` (by solid unknowns).
+    fn add_solid(
+        &self,
+        model: &FsiModel<D>,
+        input: &StepInput<'_, D>,
+        x: &[f64],
+        constrained: &[bool],
+        colouring: &Colouring,
+        target: &mut impl SystemTarget,
+    ) -> Result<(), FsiAssemblyError> {
+        let (os, ol) = (self.solid_offset(), self.multiplier_offset());
+        let solid = &model.problem.solid;
+        let inertia = input.solid_target.filter(|_| solid.density > 0.0).map(|t| (solid.density * input.a * input.a, t));
+        let (base, f) = (Some(input.solid_base), Some(input.solid_f));
+        Ok(model.solid.assemble_into(solid, input.time, base, f, inertia, &x[os..ol], &constrained[os..ol], colouring, target)?)
+    }
+
+    /// The coupling terms (every coupling point), the kernel of the multiplier space (see
+    /// [`FsiDiscretization::kernel`]) and the identity rows of the constrained multipliers, into
+    /// `target` (by the system's unknowns).
+    fn add_coupling(&self, model: &FsiModel<D>, input: &StepInput<'_, D>, x: &[f64], constrained: &[bool], target: &mut impl SystemTarget) {
+        let (os, ol) = (self.solid_offset(), self.multiplier_offset());
         let c = &self.coupling;
         let with_mode = !c.mode.is_empty();
         let (nm, nf, ns) = (D + usize::from(with_mode), c.nf, c.ns);
@@ -966,11 +1134,11 @@ impl<const D: usize> FsiDiscretization<D> {
                     if constrained[row] {
                         continue;
                     }
-                    rhs[row] -= re[i];
+                    target.add_rhs(row, -re[i]);
                     for j in 0..nloc {
                         let v = ke[i * nloc + j];
                         if v != 0.0 {
-                            k.values[self.pattern.find(row, dofs[j]).expect("coupling dofs are in the pattern")] += v;
+                            target.add_matrix(row, dofs[j], v);
                         }
                     }
                 }
@@ -984,28 +1152,43 @@ impl<const D: usize> FsiDiscretization<D> {
             for &(i, v) in y {
                 let li = ol + i;
                 r += v * x[li];
-                rhs[li] -= v * x[sj];
-                k.values[self.pattern.find(li, sj).expect("kernel entries are in the pattern")] += v;
-                k.values[self.pattern.find(sj, li).expect("kernel entries are in the pattern")] += v;
+                target.add_rhs(li, -(v * x[sj]));
+                target.add_matrix(li, sj, v);
+                target.add_matrix(sj, li, v);
             }
-            rhs[sj] -= r;
+            target.add_rhs(sj, -r);
         }
-        for (dof, &cn) in constrained.iter().enumerate().skip(ol) {
-            if cn {
-                k.values[self.pattern.find(dof, dof).expect("diagonal")] = 1.0;
-                rhs[dof] = 0.0;
-            }
+        for (dof, _) in constrained.iter().enumerate().skip(ol).filter(|(_, &cn)| cn) {
+            target.identity_row(dof);
         }
-        Ok(())
     }
 
-    /// The residual `R(x)` with no row constrained.
-    pub fn residual(&self, model: &FsiModel<D>, input: &StepInput<'_, D>, x: &[f64]) -> Result<Vec<f64>, FsiAssemblyError> {
-        let mut k = CscMatrix::zeros(&self.pattern);
-        let mut rhs = vec![0.0; self.num_dofs()];
-        self.assemble(model, input, x, &vec![false; self.num_dofs()], &mut k, &mut rhs)?;
-        rhs.iter_mut().for_each(|v| *v = -*v);
-        Ok(rhs)
+    /// Solves the step's `R(x) = 0` by Newton from `x` (constrained unknowns `constrained`):
+    /// with `solver` on the whole system, or, for a partitioned assembly, through its
+    /// [`crate::solve::partition::RowSolver`] on this rank's rows ([`newton::solve_rows`]).
+    pub fn solve_newton(
+        &self,
+        model: &FsiModel<D>,
+        input: &StepInput<'_, D>,
+        x: &mut [f64],
+        constrained: &[bool],
+        solver: &mut dyn LinearSolver,
+        options: &NewtonOptions,
+    ) -> Result<NewtonReport, NewtonError<FsiAssemblyError>> {
+        match &self.sparsity {
+            Sparsity::Whole { pattern, .. } => {
+                newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble(model, input, x, constrained, k, rhs))
+            }
+            Sparsity::Counted(_) => {
+                Err(LinearSolveError::Setup("an FSI discretisation of counted entries (Entries::Counted) is not solved".into()).into())
+            }
+            Sparsity::Rows(part) => {
+                let rows = row_solver_of(solver, &part.partition)?;
+                newton::solve_rows(x, &part.partition, &part.pattern, rows, options, |x, k, rhs| {
+                    self.assemble_rows(model, input, x, constrained, k, rhs)
+                })
+            }
+        }
     }
 
     /// `lambda` at coupling point `q` (of element `e`).
@@ -1356,18 +1539,19 @@ impl<const D: usize> StepStart<D> {
     /// Adapts, discretises and transfers for the implicit-Euler step from `state` (at `t_n`) to
     /// `t_n + dt`.
     pub fn new(model: &FsiModel<D>, state: &FsiState<D>, dt: f64) -> Result<Self, FsiError> {
-        Self::with_scheme(model, state, dt, TimeScheme::Euler)
+        Self::with_scheme(model, state, dt, TimeScheme::Euler, Entries::Whole)
     }
 
     /// [`Self::new`] with the time scheme `scheme` (BDF2 when the state holds `t_{n-1}`, else
-    /// implicit Euler).
-    pub fn with_scheme(model: &FsiModel<D>, state: &FsiState<D>, dt: f64, scheme: TimeScheme) -> Result<Self, FsiError> {
+    /// implicit Euler) and the matrix `entries` of its discretisation
+    /// ([`FsiDiscretization::build_with`]).
+    pub fn with_scheme(model: &FsiModel<D>, state: &FsiState<D>, dt: f64, scheme: TimeScheme, entries: Entries) -> Result<Self, FsiError> {
         let previous = state.previous.as_deref().filter(|_| scheme == TimeScheme::Bdf2);
         let scheme = if previous.is_some() { TimeScheme::Bdf2 } else { TimeScheme::Euler };
         let omega = step_ratio(dt, state.dt);
         let geometry = step_geometry(&state.solid_x, previous.map(|p| p.solid_x.as_slice()), omega);
         let clock = Instant::now();
-        let disc = FsiDiscretization::build(model, &geometry, &state.coupling_pattern)?;
+        let disc = FsiDiscretization::build_with(model, &geometry, &state.coupling_pattern, entries)?;
         let build = clock.elapsed().as_secs_f64();
         let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
         let time = state.time + dt;
@@ -1450,13 +1634,16 @@ pub fn step_with<const D: usize>(
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
 ) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
-    let mut start = StepStart::with_scheme(model, state, dt, scheme)?;
+    // A solver of each rank's rows (PETSc's, under `mpirun` or not) takes a partitioned
+    // assembly: each rank then holds its rows only.
+    let entries = solver.as_row_solver().map_or(Entries::Whole, |rows| Entries::Rows(rows.world()));
+    let mut start = StepStart::with_scheme(model, state, dt, scheme, entries)?;
     let mut x = std::mem::take(&mut start.x);
     let clock = Instant::now();
     let solved = {
         let (disc, input) = (&start.disc, start.input(state));
         solver.set_split(disc.saddle_point_split(model)?);
-        newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| disc.assemble(model, &input, xx, &start.constrained, k, rhs))
+        disc.solve_newton(model, &input, &mut x, &start.constrained, solver, options)
     };
     let report = solved.map_err(|e| match e {
         NewtonError::Linear(LinearSolveError::ZeroPivot { unknown, .. }) => {
@@ -1501,7 +1688,7 @@ pub fn step_with<const D: usize>(
         multiplier_dofs: disc.multiplier_dofs(),
         coupling_elements: disc.coupling.num_elements(),
         coupling_points: disc.coupling.num_points(),
-        pattern_nnz: disc.pattern.nnz(),
+        pattern_nnz: disc.nnz(),
         max_coupling_distance: disc.coupling.max_distance,
         multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
         max_solid_increment,

@@ -42,7 +42,7 @@ use fdfsi_fem::dofs::{BlockLayout, NodeMap};
 use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement, MAX_DOFS};
 use fdfsi_fem::mesh::{Mesh, MeshError, Topology};
 use fdfsi_fem::quadrature::{self, QuadratureRule};
-use fdfsi_fem::sparse::{assemble, Colouring, CscMatrix, LocalSystem, Pattern};
+use fdfsi_fem::sparse::{Colouring, CscMatrix, LocalSystem, Pattern, SystemTarget, WholeSystem};
 use fdfsi_fem::values::{CellValues, MapError};
 use std::sync::Arc;
 use thiserror::Error;
@@ -399,16 +399,33 @@ impl<const D: usize> SolidDiscretization<D> {
         k: &mut CscMatrix<'_>,
         rhs: &mut [f64],
     ) -> Result<(), SolidAssemblyError> {
+        self.assemble_into(problem, load, base, f_prev, inertia, x, constrained, &self.colouring, &mut WholeSystem { k, rhs })
+    }
+
+    /// [`SolidDiscretization::assemble_system`] into `target`, from the cells of `colouring` (all
+    /// of them, or those with an unknown in the target's rows), the boundary terms and the
+    /// constrained unknowns' identity rows.
+    #[allow(clippy::too_many_arguments)]
+    pub fn assemble_into(
+        &self,
+        problem: &SolidProblem<D>,
+        load: f64,
+        base: Option<&[f64]>,
+        f_prev: Option<&[Mat3]>,
+        inertia: Option<(f64, &[f64])>,
+        x: &[f64],
+        constrained: &[bool],
+        colouring: &Colouring,
+        target: &mut impl SystemTarget,
+    ) -> Result<(), SolidAssemblyError> {
         let nv = self.element.num_dofs();
         let nu = nv * D;
         let n = self.layout.dofs_per_cell();
         let nq = self.points_per_cell();
         let material = problem.material.as_ref();
         let formulation = self.formulation;
-        assemble(
-            k,
-            rhs,
-            &self.colouring,
+        target.add_cells(
+            colouring,
             constrained,
             || (self.cell_values(), Vec::new(), vec![0.0; n], vec![0.0; nu], vec![[0.0; D]; nq]),
             |c, (cv, coords, loc, tgt, bf), local: &mut LocalSystem| {
@@ -487,7 +504,7 @@ impl<const D: usize> SolidDiscretization<D> {
                     for a in 0..D {
                         let dof = vf.dof(node, a);
                         if !constrained[dof] {
-                            rhs[dof] -= re[i * D + a];
+                            target.add_rhs(dof, -re[i * D + a]);
                         }
                     }
                 }
@@ -533,24 +550,18 @@ impl<const D: usize> SolidDiscretization<D> {
                         if constrained[row] {
                             continue;
                         }
-                        rhs[row] -= re[i * D + a];
+                        target.add_rhs(row, -re[i * D + a]);
                         for j in 0..nv {
                             for b in 0..D {
-                                let col = vf.dof(nodes[j], b);
-                                let pos = self.pattern.find(row, col).expect("cell dofs are in the pattern");
-                                k.values[pos] += ke[(i * D + a) * nu + j * D + b];
+                                target.add_matrix(row, vf.dof(nodes[j], b), ke[(i * D + a) * nu + j * D + b]);
                             }
                         }
                     }
                 }
             }
         }
-        for (dof, &c) in constrained.iter().enumerate() {
-            if c {
-                let pos = self.pattern.find(dof, dof).expect("diagonal in pattern");
-                k.values[pos] = 1.0;
-                rhs[dof] = 0.0;
-            }
+        for (dof, _) in constrained.iter().enumerate().filter(|(_, &c)| c) {
+            target.identity_row(dof);
         }
         Ok(())
     }

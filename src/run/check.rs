@@ -250,7 +250,7 @@ impl Ctx<'_> {
             // The model `fdfsi run` builds, at t = 0: the same unknowns as its first step.
             let model = fsi_model(case, &mesh, self.dir)?;
             let material = model.problem.solid.material.name();
-            let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()], &Default::default())?;
+            let disc = FsiDiscretization::build_with(&model, &vec![0.0; model.solid.num_dofs()], &Default::default(), Entries::Counted)?;
             self.probes_inside(&disc.flow.mesh)?;
             let dofs = disc.layout.dofs_per_part();
             let ts = case.time.as_ref().ok_or_else(|| self.invalid("an FSI run needs a [time] table".into()))?;

@@ -63,7 +63,7 @@ fn export_fsi<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &Path
     let state = FsiState::at_rest(&model);
     let start = StepStart::new(&model, &state, dt)?;
     let disc = &start.disc;
-    let mut k = CscMatrix::zeros(&disc.pattern);
+    let mut k = CscMatrix::zeros(disc.whole_pattern());
     let mut rhs = vec![0.0; disc.num_dofs()];
     disc.assemble(&model, &start.input(&state), &start.x, &start.constrained, &mut k, &mut rhs)
         .map_err(|e| FsiError::Newton(NewtonError::Assembly(e)))?;

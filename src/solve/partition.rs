@@ -313,6 +313,16 @@ pub trait RowSolver: LinearSolver {
     fn solve_rows(&self, partition: &Partition, a: &RowMatrix<'_>, b: &[f64], x: &mut [f64]) -> Result<SolveStats, LinearSolveError>;
 }
 
+/// `solver` as a [`RowSolver`] of the ranks of `partition`, for a partitioned assembly's Newton
+/// solve; an error if it solves whole systems only, or on other ranks.
+pub fn row_solver_of<'s>(solver: &'s mut dyn LinearSolver, partition: &Partition) -> Result<&'s mut dyn RowSolver, LinearSolveError> {
+    let world = partition.world();
+    solver
+        .as_row_solver()
+        .filter(|r| r.world() == world)
+        .ok_or_else(|| LinearSolveError::Setup(format!("a system partitioned over {world:?} needs a linear solver of its rows on those ranks")))
+}
+
 /// A [`RowSolver`] on one rank over any [`LinearSolver`]: the rows (all of them) copied into a
 /// CSC matrix for it. For tests and checks of a partitioned assembly without MPI: its results
 /// equal the solver's on the whole system, except that a factorisation held from an earlier

@@ -480,6 +480,140 @@ where
     })
 }
 
+/// Where a discretisation assembles its part of a system `K dx = rhs`, addressed by its own
+/// unknowns: all of it ([`WholeSystem`]), the held rows of a partitioned one ([`HeldRows`]), or
+/// the right-hand side alone ([`ResidualOnly`]). Terms of rows a target does not hold, and
+/// matrix terms of [`ResidualOnly`], are dropped; the terms it keeps are summed in the order
+/// they are added, so one assembly written against this trait gives every target the same
+/// bits in the entries they share.
+pub trait SystemTarget {
+    /// The cells of `colouring` assembled as [`assemble`] does (rows with `skip_row` left out).
+    fn add_cells<S, E, K>(
+        &mut self,
+        colouring: &Colouring,
+        skip_row: &[bool],
+        make_scratch: impl Fn() -> S + Sync + Send,
+        kernel: K,
+    ) -> Result<(), E>
+    where
+        E: Send,
+        K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync;
+    /// `rhs[row] += v`.
+    fn add_rhs(&mut self, row: usize, v: f64);
+    /// `K[row][col] += v`.
+    ///
+    /// # Panics
+    /// If a held entry is not in the target's pattern.
+    fn add_matrix(&mut self, row: usize, col: usize, v: f64);
+    /// Row `row` becomes an identity row with a zero right-hand side.
+    fn identity_row(&mut self, row: usize);
+}
+
+/// The whole system: a matrix on a [`Pattern`] of the assembler's unknowns and its right-hand
+/// side.
+pub struct WholeSystem<'a, 'p> {
+    pub k: &'a mut CscMatrix<'p>,
+    pub rhs: &'a mut [f64],
+}
+
+impl SystemTarget for WholeSystem<'_, '_> {
+    fn add_cells<S, E, K>(&mut self, colouring: &Colouring, skip_row: &[bool], make_scratch: impl Fn() -> S + Sync + Send, kernel: K) -> Result<(), E>
+    where
+        E: Send,
+        K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+    {
+        assemble(self.k, self.rhs, colouring, skip_row, make_scratch, kernel)
+    }
+    fn add_rhs(&mut self, row: usize, v: f64) {
+        self.rhs[row] += v;
+    }
+    fn add_matrix(&mut self, row: usize, col: usize, v: f64) {
+        self.k.values[self.k.pattern.find(row, col).expect("the entry is in the pattern")] += v;
+    }
+    fn identity_row(&mut self, row: usize) {
+        self.k.values[self.k.pattern.find(row, row).expect("the diagonal is in the pattern")] = 1.0;
+        self.rhs[row] = 0.0;
+    }
+}
+
+/// The held rows of a partitioned system ([`assemble_rows`]): the matrix's and right-hand
+/// side's rows `k.pattern.rows` in the partition's numbering, to which `to_global` maps the
+/// assembler's unknowns.
+pub struct HeldRows<'a, 'p> {
+    k: &'a mut RowMatrix<'p>,
+    rhs: &'a mut [f64],
+    to_global: &'a (dyn Fn(usize) -> usize + Sync),
+}
+
+impl<'a, 'p> HeldRows<'a, 'p> {
+    /// The held rows `k` and `rhs` (of `k.pattern.rows`), the assembler's unknown `d` being
+    /// `to_global(d)` in them.
+    ///
+    /// # Safety
+    /// `to_global` must be one-to-one (see [`assemble_rows`]).
+    pub unsafe fn new(k: &'a mut RowMatrix<'p>, rhs: &'a mut [f64], to_global: &'a (dyn Fn(usize) -> usize + Sync)) -> Self {
+        assert_eq!(rhs.len(), k.pattern.rows.len(), "a right-hand side of the held rows");
+        HeldRows { k, rhs, to_global }
+    }
+
+    /// The index in the held rows of the assembler's unknown `row`, if held.
+    fn held(&self, row: usize) -> Option<usize> {
+        let p = (self.to_global)(row);
+        self.k.pattern.rows.contains(&p).then(|| p - self.k.pattern.rows.start)
+    }
+}
+
+impl SystemTarget for HeldRows<'_, '_> {
+    fn add_cells<S, E, K>(&mut self, colouring: &Colouring, skip_row: &[bool], make_scratch: impl Fn() -> S + Sync + Send, kernel: K) -> Result<(), E>
+    where
+        E: Send,
+        K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+    {
+        // SAFETY: `to_global` is one-to-one (`HeldRows::new`'s contract).
+        unsafe { assemble_rows(self.k, self.rhs, colouring, skip_row, self.to_global, make_scratch, kernel) }
+    }
+    fn add_rhs(&mut self, row: usize, v: f64) {
+        if let Some(i) = self.held(row) {
+            self.rhs[i] += v;
+        }
+    }
+    fn add_matrix(&mut self, row: usize, col: usize, v: f64) {
+        if self.held(row).is_some() {
+            let (p, q) = ((self.to_global)(row), (self.to_global)(col));
+            self.k.values[self.k.pattern.find(p, q).expect("the entry is in the rows' pattern")] += v;
+        }
+    }
+    fn identity_row(&mut self, row: usize) {
+        if let Some(i) = self.held(row) {
+            let p = i + self.k.pattern.rows.start;
+            self.k.values[self.k.pattern.find(p, p).expect("the diagonal is in the rows' pattern")] = 1.0;
+            self.rhs[i] = 0.0;
+        }
+    }
+}
+
+/// The right-hand side alone ([`assemble_residual`]), of all the assembler's unknowns.
+pub struct ResidualOnly<'a> {
+    pub rhs: &'a mut [f64],
+}
+
+impl SystemTarget for ResidualOnly<'_> {
+    fn add_cells<S, E, K>(&mut self, colouring: &Colouring, skip_row: &[bool], make_scratch: impl Fn() -> S + Sync + Send, kernel: K) -> Result<(), E>
+    where
+        E: Send,
+        K: Fn(usize, &mut S, &mut LocalSystem) -> Result<(), E> + Sync,
+    {
+        assemble_residual(self.rhs, colouring, skip_row, make_scratch, kernel)
+    }
+    fn add_rhs(&mut self, row: usize, v: f64) {
+        self.rhs[row] += v;
+    }
+    fn add_matrix(&mut self, _: usize, _: usize, _: f64) {}
+    fn identity_row(&mut self, row: usize) {
+        self.rhs[row] = 0.0;
+    }
+}
+
 /// Runs `kernel` on every cell of `colouring` and `write`s each cell's system: in cell order on
 /// one rayon thread, colour by colour in parallel on several (so `write` runs concurrently for
 /// cells of one colour only, which share no dof). Returns the first kernel error, if any.
