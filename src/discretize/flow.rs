@@ -113,7 +113,8 @@ pub struct FlowDiscretization<const D: usize> {
     facet_weights: Vec<f64>,
 }
 
-/// Which matrix entries a [`FlowDiscretization`] prepares ([`FlowDiscretization::build_with`]).
+/// Which matrix entries a discretisation prepares ([`FlowDiscretization::build_with`],
+/// [`crate::discretize::fsi::FsiDiscretization::build_with`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Entries {
     /// The whole system's pattern, for an assembly of the whole system.

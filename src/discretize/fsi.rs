@@ -11,16 +11,19 @@
 //! 3. [`FsiDiscretization::build`]: the fluid discretisation of the adapted mesh, the coupling
 //!    elements (one per gamma_f facet, with their quadrature points located in a fluid cell and on
 //!    the solid), the global numbering `[fluid (u, p) | solid (Delta u, p) | multiplier]` and one
-//!    sparse [`Pattern`] with the coupling blocks;
+//!    sparse [`Pattern`] with the coupling blocks, or this rank's rows of it
+//!    ([`FsiDiscretization::build_with`]);
 //! 4. the previous fluid velocity is transferred to the new velocity nodes
 //!    ([`transfer_p2plus_or`]; nodes the solid uncovered since take the old velocity's extension
 //!    up to a cell into the old mesh's hole and the solid's velocity farther in,
 //!    `FluidSnapshot::transferred_to`);
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
-//!    discretisations ([`FlowDiscretization::assemble_system`],
-//!    [`SolidDiscretization::assemble_system`], updated Lagrangian) into block matrices and
+//!    discretisations ([`FlowDiscretization::assemble_into`],
+//!    [`SolidDiscretization::assemble_into`], updated Lagrangian) into block matrices and
 //!    scattered into the global one through position maps precomputed with the pattern; the
-//!    coupling kernel ([`crate::physics::coupling`]) is assembled directly;
+//!    coupling kernel ([`crate::physics::coupling`]) is assembled directly. With a solver of each
+//!    MPI rank's rows, each rank assembles its own rows of the system instead, straight from the
+//!    cells that touch them ([`FsiDiscretization::assemble_rows`], [`FsiRows`]);
 //! 6. the solid is updated: `x_{n+1} = x_n + Delta u`, `F_{n+1} = (I + grad_n Delta u) F_n`.
 //!
 //! Time scheme: implicit Euler (the paper's) or BDF2, one formula for fluid and solid
