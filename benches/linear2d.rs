@@ -81,7 +81,7 @@ impl<const D: usize> System<D> {
         let stats = lu.solve_in_place(&k, &mut buf).expect("solve");
         eprintln!(
             "[linear2d] {name}: dofs={n} nnz={} first_factorize(symbolic+numeric)={:.3}s residual={:.2e} refinements={} ; {}",
-            self.disc.nnz(),
+            self.disc.whole_pattern().nnz(),
             first.as_secs_f64(),
             stats.residual,
             stats.refinements,

@@ -113,7 +113,7 @@ fn stokes3d(c: &mut Criterion) {
         let disc = FlowDiscretization::build(mesh, Formulation::ThreeD).expect("discretisation");
         let setup = t.elapsed();
         let ndofs = disc.num_dofs();
-        let nnz = disc.nnz();
+        let nnz = disc.whole_pattern().nnz();
 
         let (system, x) = SteadySystem::new(&disc, &problem).expect("dirichlet dofs");
         let mut k = CscMatrix::zeros(disc.whole_pattern());

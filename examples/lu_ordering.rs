@@ -78,9 +78,9 @@ fn run<const D: usize>(name: &str, disc: FlowDiscretization<D>, problem: FlowPro
     println!(
         "{name} {ordering:?}: dofs={n} nnz(A)={} nnz(L+U)={} fill={:.1} flops={:.3e} supernodes={} ordering={:.3}s symbolic={:.3}s \
          first_factorize={:.3}s numeric(min/median of {reps})={:.3}/{:.3}s numeric_cpu(min)={:.2}s solve={:.3}s residual={:.1e} refinements={} VmHWM={:.1}MiB [{}]",
-        disc.nnz(),
+        disc.whole_pattern().nnz(),
         fs.as_ref().map_or(0, |s| s.nnz_lu),
-        fs.as_ref().map_or(0.0, |s| s.nnz_lu as f64 / disc.nnz() as f64),
+        fs.as_ref().map_or(0.0, |s| s.nnz_lu as f64 / disc.whole_pattern().nnz() as f64),
         fs.as_ref().map_or(0.0, |s| s.flops),
         fs.as_ref().map_or(0, |s| s.supernodes),
         fs.as_ref().map_or(0.0, |s| s.ordering_seconds),

@@ -53,7 +53,7 @@ fn compare<const D: usize>(name: &str, disc: FlowDiscretization<D>, problem: Flo
     println!(
         "| {name} | {} | {} | {:.3} / {:.3} / {:.4} | {:.3} / {:.3} / {:.4} | {:.2} | {:.1e} |",
         x.len(),
-        disc.nnz(),
+        disc.whole_pattern().nnz(),
         ours[0],
         ours[1],
         ours[2],

@@ -114,7 +114,7 @@ fn monolithic_jacobian_matches_finite_differences_of_residual() {
         disc.solid_dofs(),
         disc.multiplier_dofs(),
         disc.coupling.num_elements(),
-        disc.nnz()
+        disc.whole_pattern().nnz()
     );
     let mut k = CscMatrix::zeros(disc.whole_pattern());
     let mut rhs = vec![0.0; n];

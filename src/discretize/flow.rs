@@ -124,6 +124,10 @@ pub enum Entries {
     /// None, only their number: a discretisation that tells its unknowns and entries but is not
     /// assembled (`fdfsi check`).
     Counted,
+    /// None: a discretisation assembled only as a part of another system, into that system's
+    /// target ([`FlowDiscretization::assemble_into`]: the fluid of an FSI system that is not
+    /// whole), or not at all (a mesh rebuilt from a checkpoint).
+    Unassembled,
 }
 
 /// Where a [`FlowDiscretization`]'s systems are assembled.
@@ -134,6 +138,8 @@ enum Sparsity {
     Rows(FlowRows),
     /// Nowhere: the whole system's number of entries only ([`Entries::Counted`]).
     Counted(usize),
+    /// Nowhere on its own ([`Entries::Unassembled`]).
+    Unassembled,
 }
 
 /// This rank's part of a partitioned flow assembly: the [`Partition`] of the unknowns (the
@@ -190,6 +196,7 @@ impl<const D: usize> FlowDiscretization<D> {
         let sparsity = match entries {
             Entries::Whole => Sparsity::Whole(Pattern::from_cells(n, mesh.num_cells(), cell_dofs)),
             Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, mesh.num_cells(), cell_dofs)),
+            Entries::Unassembled => Sparsity::Unassembled,
             Entries::Rows(_) if u32::try_from(n).is_err() => return Err(FlowError::TooManyUnknowns(n)),
             Entries::Rows(world) => {
                 let nodes = Nodes { size: D, end: layout.fields[0].num_dofs() };
@@ -227,15 +234,15 @@ impl<const D: usize> FlowDiscretization<D> {
     pub fn pattern(&self) -> Option<&Pattern> {
         match &self.sparsity {
             Sparsity::Whole(pattern) => Some(pattern),
-            Sparsity::Rows(_) | Sparsity::Counted(_) => None,
+            Sparsity::Rows(_) | Sparsity::Counted(_) | Sparsity::Unassembled => None,
         }
     }
 
-    /// The whole system's pattern of a discretisation that [`FlowDiscretization::build`] made.
+    /// The whole system's pattern of a discretisation that [`FlowDiscretization::build`] (or
+    /// `build_with` and [`Entries::Whole`]) made.
     ///
     /// # Panics
-    /// For another one ([`FlowDiscretization::build_with`] with [`Entries::Rows`] or
-    /// [`Entries::Counted`]).
+    /// For another one.
     pub fn whole_pattern(&self) -> &Pattern {
         self.pattern().expect("a flow discretisation built whole (FlowDiscretization::build)")
     }
@@ -244,17 +251,18 @@ impl<const D: usize> FlowDiscretization<D> {
     pub fn rows(&self) -> Option<&FlowRows> {
         match &self.sparsity {
             Sparsity::Rows(rows) => Some(rows),
-            Sparsity::Whole(_) | Sparsity::Counted(_) => None,
+            Sparsity::Whole(_) | Sparsity::Counted(_) | Sparsity::Unassembled => None,
         }
     }
 
     /// The number of matrix entries: the whole pattern's, or this rank's rows' for a partitioned
-    /// assembly.
-    pub fn nnz(&self) -> usize {
+    /// assembly; `None` for [`Entries::Unassembled`].
+    pub fn nnz(&self) -> Option<usize> {
         match &self.sparsity {
-            Sparsity::Whole(pattern) => pattern.nnz(),
-            Sparsity::Rows(rows) => rows.pattern.nnz(),
-            Sparsity::Counted(nnz) => *nnz,
+            Sparsity::Whole(pattern) => Some(pattern.nnz()),
+            Sparsity::Rows(rows) => Some(rows.pattern.nnz()),
+            Sparsity::Counted(nnz) => Some(*nnz),
+            Sparsity::Unassembled => None,
         }
     }
 
@@ -495,8 +503,9 @@ impl<const D: usize> FlowDiscretization<D> {
             Sparsity::Whole(pattern) => {
                 newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble_system(problem, x, x_old, t, constrained, k, rhs))
             }
-            Sparsity::Counted(_) => {
-                Err(LinearSolveError::Setup("a flow discretisation of counted entries (Entries::Counted) is not solved".into()).into())
+            Sparsity::Counted(_) | Sparsity::Unassembled => {
+                Err(LinearSolveError::Setup("a flow discretisation without its pattern or rows (Entries::Counted, Unassembled) is not solved".into())
+                    .into())
             }
             Sparsity::Rows(part) => {
                 let rows = row_solver_of(solver, &part.partition)?;

@@ -403,7 +403,7 @@ impl<const D: usize> FluidSnapshot<D> {
     /// The snapshot of a checkpoint: its adapted mesh rebuilt from the solid position it was
     /// made for, which reproduces it exactly (the adaptation is deterministic).
     fn from_restart(model: &FsiModel<D>, f: &FluidRestart) -> Result<Self, FsiError> {
-        let disc = FsiDiscretization::build_with(model, &f.solid_base, &CouplingPattern::default(), Entries::Counted)?;
+        let disc = FsiDiscretization::build_with(model, &f.solid_base, &CouplingPattern::default(), Entries::Unassembled)?;
         let vel = &disc.flow.velocity_field();
         if vel.num_dofs() != f.velocity.len() {
             return Err(FsiError::Restart(format!(
@@ -579,6 +579,8 @@ enum Sparsity {
     Rows(FsiRows),
     /// Nowhere: the whole system's number of entries only ([`Entries::Counted`]).
     Counted(usize),
+    /// Nowhere ([`Entries::Unassembled`]).
+    Unassembled,
 }
 
 /// This rank's part of a partitioned FSI assembly: the [`Partition`] of the unknowns (the fluid
@@ -663,9 +665,9 @@ impl<const D: usize> FsiDiscretization<D> {
     }
 
     /// [`FsiDiscretization::build`] with the matrix `entries` it prepares: the whole pattern,
-    /// this rank's rows only for a partitioned assembly ([`FsiRows`]), or their number only. The
-    /// fluid's own discretisation has its pattern for the whole system only (it is assembled
-    /// into it as a block); otherwise it counts its entries.
+    /// this rank's rows only for a partitioned assembly ([`FsiRows`]), their number only, or
+    /// none. The fluid's own discretisation has its pattern for the whole system only (it is
+    /// assembled into it as a block); otherwise it prepares none.
     pub fn build_with(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern, entries: Entries) -> Result<Self, FsiError> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
@@ -674,7 +676,7 @@ impl<const D: usize> FsiDiscretization<D> {
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
         }
-        let flow_entries = if entries == Entries::Whole { Entries::Whole } else { Entries::Counted };
+        let flow_entries = if entries == Entries::Whole { Entries::Whole } else { Entries::Unassembled };
         let flow = FlowDiscretization::build_with(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation, flow_entries)?;
         let mut coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
         let fluid_dofs = flow.num_dofs();
@@ -772,6 +774,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 Sparsity::Whole { pattern, flow_map, solid_map, block_values: Default::default() }
             }
             Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, num_cells, cell_dofs)),
+            Entries::Unassembled => Sparsity::Unassembled,
             Entries::Rows(_) if u32::try_from(n).is_err() => return Err(FlowError::TooManyUnknowns(n).into()),
             Entries::Rows(world) => {
                 let nodes = Nodes { size: D, end: vel.num_dofs() };
@@ -939,15 +942,15 @@ impl<const D: usize> FsiDiscretization<D> {
     pub fn pattern(&self) -> Option<&Pattern> {
         match &self.sparsity {
             Sparsity::Whole { pattern, .. } => Some(pattern),
-            Sparsity::Rows(_) | Sparsity::Counted(_) => None,
+            Sparsity::Rows(_) | Sparsity::Counted(_) | Sparsity::Unassembled => None,
         }
     }
 
-    /// The whole system's pattern of a discretisation that [`FsiDiscretization::build`] made.
+    /// The whole system's pattern of a discretisation that [`FsiDiscretization::build`] (or
+    /// `build_with` and [`Entries::Whole`]) made.
     ///
     /// # Panics
-    /// For another one ([`FsiDiscretization::build_with`] with [`Entries::Rows`] or
-    /// [`Entries::Counted`]).
+    /// For another one.
     pub fn whole_pattern(&self) -> &Pattern {
         self.pattern().expect("an FSI discretisation built whole (FsiDiscretization::build)")
     }
@@ -956,17 +959,18 @@ impl<const D: usize> FsiDiscretization<D> {
     pub fn rows(&self) -> Option<&FsiRows> {
         match &self.sparsity {
             Sparsity::Rows(rows) => Some(rows),
-            Sparsity::Whole { .. } | Sparsity::Counted(_) => None,
+            Sparsity::Whole { .. } | Sparsity::Counted(_) | Sparsity::Unassembled => None,
         }
     }
 
     /// The number of matrix entries: the whole pattern's, or this rank's rows' for a partitioned
-    /// assembly.
-    pub fn nnz(&self) -> usize {
+    /// assembly; `None` for [`Entries::Unassembled`].
+    pub fn nnz(&self) -> Option<usize> {
         match &self.sparsity {
-            Sparsity::Whole { pattern, .. } => pattern.nnz(),
-            Sparsity::Rows(rows) => rows.pattern.nnz(),
-            Sparsity::Counted(nnz) => *nnz,
+            Sparsity::Whole { pattern, .. } => Some(pattern.nnz()),
+            Sparsity::Rows(rows) => Some(rows.pattern.nnz()),
+            Sparsity::Counted(nnz) => Some(*nnz),
+            Sparsity::Unassembled => None,
         }
     }
 
@@ -1134,7 +1138,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 coupling_point::<D>(&pt, inv_dt, &state, &mut ke, &mut re);
                 for i in 0..nloc {
                     let row = dofs[i];
-                    if constrained[row] {
+                    if constrained[row] || !target.holds(row) {
                         continue;
                     }
                     target.add_rhs(row, -re[i]);
@@ -1182,8 +1186,9 @@ impl<const D: usize> FsiDiscretization<D> {
             Sparsity::Whole { pattern, .. } => {
                 newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble(model, input, x, constrained, k, rhs))
             }
-            Sparsity::Counted(_) => {
-                Err(LinearSolveError::Setup("an FSI discretisation of counted entries (Entries::Counted) is not solved".into()).into())
+            Sparsity::Counted(_) | Sparsity::Unassembled => {
+                Err(LinearSolveError::Setup("an FSI discretisation without its pattern or rows (Entries::Counted, Unassembled) is not solved".into())
+                    .into())
             }
             Sparsity::Rows(part) => {
                 let rows = row_solver_of(solver, &part.partition)?;
@@ -1454,6 +1459,8 @@ pub struct FsiStepReport {
     pub multiplier_dofs: usize,
     pub coupling_elements: usize,
     pub coupling_points: usize,
+    /// The system's matrix entries: the whole pattern's, or this rank's rows' for a partitioned
+    /// assembly.
     pub pattern_nnz: usize,
     /// Largest distance of a coupling point from gamma_s.
     pub max_coupling_distance: f64,
@@ -1637,8 +1644,8 @@ pub fn step_with<const D: usize>(
     solver: &mut dyn LinearSolver,
     options: &NewtonOptions,
 ) -> Result<(FsiState<D>, FsiStep<D>), FsiError> {
-    // A solver of each rank's rows (PETSc's, under `mpirun` or not) takes a partitioned
-    // assembly: each rank then holds its rows only.
+    // A solver of each rank's rows (PETSc's, under `mpirun` or not, unless it runs the augmented
+    // Lagrangian) takes a partitioned assembly: each rank then holds its rows only.
     let entries = solver.as_row_solver().map_or(Entries::Whole, |rows| Entries::Rows(rows.world()));
     let mut start = StepStart::with_scheme(model, state, dt, scheme, entries)?;
     let mut x = std::mem::take(&mut start.x);
@@ -1691,7 +1698,7 @@ pub fn step_with<const D: usize>(
         multiplier_dofs: disc.multiplier_dofs(),
         coupling_elements: disc.coupling.num_elements(),
         coupling_points: disc.coupling.num_points(),
-        pattern_nnz: disc.nnz(),
+        pattern_nnz: disc.nnz().unwrap_or_default(),
         max_coupling_distance: disc.coupling.max_distance,
         multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
         max_solid_increment,

@@ -405,7 +405,7 @@ impl<const D: usize> SolidDiscretization<D> {
     /// [`SolidDiscretization::assemble_system`] into `target`, from the cells of `colouring` (all
     /// of them, or those with an unknown in the target's rows), the boundary terms and the
     /// constrained unknowns' identity rows.
-    #[allow(clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments, reason = "the problem, the integration configuration, the state, the constraints and where they go")]
     pub fn assemble_into(
         &self,
         problem: &SolidProblem<D>,

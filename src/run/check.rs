@@ -259,7 +259,7 @@ impl Ctx<'_> {
             let description = format!(
                 "{}: FSI run, {} flow ({}) on a {D}D mesh of {cells} cells ({} after adaptation to the solid at t = 0); \
                  solid {} on {} cells, coupled on '{surface}' by {} coupling elements of the Lagrange multiplier; \
-                 unknowns by block: {}",
+                 unknowns by block: {}; nnz {}",
                 case.title,
                 name_of(&case.physics.model),
                 name_of(&case.physics.formulation),
@@ -267,7 +267,8 @@ impl Ctx<'_> {
                 material,
                 model.solid.mesh.num_cells(),
                 disc.coupling.num_elements(),
-                disc.layout.blocks().filter(|(_, r)| !r.is_empty()).map(|(b, r)| format!("{} {}", b.name(), r.len())).collect::<Vec<_>>().join(", ")
+                disc.layout.blocks().filter(|(_, r)| !r.is_empty()).map(|(b, r)| format!("{} {}", b.name(), r.len())).collect::<Vec<_>>().join(", "),
+                disc.nnz().unwrap_or_default() // counted
             );
             return Ok(CheckSummary {
                 description,
@@ -301,7 +302,7 @@ impl Ctx<'_> {
             case.title,
             name_of(&case.physics.model),
             name_of(&case.physics.formulation),
-            disc.nnz()
+            disc.nnz().unwrap_or_default() // counted
         );
         let (steps, step_kind, field_writes, rows) = time_steps(case).unwrap_or((1, "steady solve", 1, 1));
         Ok(CheckSummary {

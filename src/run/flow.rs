@@ -58,9 +58,10 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, entries)?;
     let discretize = t.elapsed().as_secs_f64();
     let dofs = flow_dofs(&disc);
+    let held = disc.nnz().unwrap_or_default(); // built whole or by rows: counted
     let nnz = match world {
-        Some(w) => format!("nnz {} in rank {}'s rows of {}", disc.nnz(), w.rank, w.size),
-        None => format!("nnz {}", disc.nnz()),
+        Some(w) => format!("nnz {held} in rank {}'s rows of {}", w.rank, w.size),
+        None => format!("nnz {held}"),
     };
     obs.log(&format!(
         "mesh: {cells} cells; dofs: velocity {}, pressure {}, total {} ({nnz}); {discretize:.2} s",

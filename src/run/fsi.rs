@@ -59,7 +59,8 @@ fn run_dim<const D: usize>(case: &Case, fluid_mesh: Mesh<D>, options: &RunOption
         pictures_not_drawn: Vec::new(),
     };
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
-    // A solver of each rank's rows takes a partitioned assembly (`discretize::fsi::step_with`).
+    // A solver of each rank's rows (PETSc's, unless it runs the augmented Lagrangian) takes a
+    // partitioned assembly (`discretize::fsi::step_with`).
     if let Some(world) = lu.as_row_solver().map(|rows| rows.world()) {
         obs.log(&format!("assembly: each rank its own rows of every step's system (this is rank {} of {})", world.rank, world.size));
     }

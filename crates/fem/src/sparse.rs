@@ -505,8 +505,14 @@ pub trait SystemTarget {
     /// # Panics
     /// If a held entry is not in the target's pattern.
     fn add_matrix(&mut self, row: usize, col: usize, v: f64);
-    /// Row `row` becomes an identity row with a zero right-hand side.
+    /// The diagonal entry of row `row` becomes 1 and its right-hand side 0 (the assembler
+    /// leaves the row's other terms out).
     fn identity_row(&mut self, row: usize);
+    /// Whether the target holds row `row` (terms of other rows are dropped).
+    fn holds(&self, row: usize) -> bool {
+        let _ = row;
+        true
+    }
 }
 
 /// The whole system: a matrix on a [`Pattern`] of the assembler's unknowns and its right-hand
@@ -556,10 +562,10 @@ impl<'a, 'p> HeldRows<'a, 'p> {
         HeldRows { k, rhs, to_global }
     }
 
-    /// The index in the held rows of the assembler's unknown `row`, if held.
+    /// The row of the assembler's unknown `row` in the partition's numbering, if held.
     fn held(&self, row: usize) -> Option<usize> {
         let p = (self.to_global)(row);
-        self.k.pattern.rows.contains(&p).then(|| p - self.k.pattern.rows.start)
+        self.k.pattern.rows.contains(&p).then_some(p)
     }
 }
 
@@ -573,22 +579,24 @@ impl SystemTarget for HeldRows<'_, '_> {
         unsafe { assemble_rows(self.k, self.rhs, colouring, skip_row, self.to_global, make_scratch, kernel) }
     }
     fn add_rhs(&mut self, row: usize, v: f64) {
-        if let Some(i) = self.held(row) {
-            self.rhs[i] += v;
+        if let Some(p) = self.held(row) {
+            self.rhs[p - self.k.pattern.rows.start] += v;
         }
     }
     fn add_matrix(&mut self, row: usize, col: usize, v: f64) {
-        if self.held(row).is_some() {
-            let (p, q) = ((self.to_global)(row), (self.to_global)(col));
+        if let Some(p) = self.held(row) {
+            let q = (self.to_global)(col);
             self.k.values[self.k.pattern.find(p, q).expect("the entry is in the rows' pattern")] += v;
         }
     }
     fn identity_row(&mut self, row: usize) {
-        if let Some(i) = self.held(row) {
-            let p = i + self.k.pattern.rows.start;
+        if let Some(p) = self.held(row) {
             self.k.values[self.k.pattern.find(p, p).expect("the diagonal is in the rows' pattern")] = 1.0;
-            self.rhs[i] = 0.0;
+            self.rhs[p - self.k.pattern.rows.start] = 0.0;
         }
+    }
+    fn holds(&self, row: usize) -> bool {
+        self.held(row).is_some()
     }
 }
 
