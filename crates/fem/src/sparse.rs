@@ -317,11 +317,17 @@ impl<'p> RowMatrix<'p> {
 /// A colouring of the cells such that two cells of one colour share no vertex.
 #[derive(Clone, Debug)]
 pub struct Colouring {
-    /// Cells of each colour.
-    pub colours: Vec<Vec<usize>>,
+    /// Cells of each colour (private: the parallel assemblies write the cells of one colour at
+    /// once, so a colouring is made only by [`Colouring::greedy`] and restricted from one).
+    colours: Vec<Vec<usize>>,
 }
 
 impl Colouring {
+    /// The cells of each colour.
+    pub fn colours(&self) -> &[Vec<usize>] {
+        &self.colours
+    }
+
     /// Greedy colouring; `cell_vertices(c)` lists the vertices of cell `c`.
     pub fn greedy<'a, F>(num_vertices: usize, num_cells: usize, cell_vertices: F) -> Self
     where
