@@ -12,7 +12,7 @@ use fdfsi::discretize::fsi::{step_with, FsiDiscretization, FsiModel, FsiState, S
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
-use fdfsi::solve::partition::{Nodes, Numbering, SerialRows, World};
+use fdfsi::solve::partition::{Nodes, Numbering, Partition, SerialRows, World};
 use fdfsi::time::flow::{solve_unsteady, TimeOptions};
 use fdfsi::time::TimeScheme;
 use fdfsi_fem::generate::{box_tetrahedra, rectangle_triangles, DiagonalPattern};
@@ -109,6 +109,22 @@ fn a_partitioned_flow_on_one_rank_is_the_whole_one() {
     assert_eq!(bits(&x_rows), bits(&x_whole));
 }
 
+/// Checks that the held rows `a` and `rhs_rows` of `partition` (in its numbering) are those
+/// rows of the whole system `k`, `rhs` bit for bit; returns the number of entries held.
+fn same_rows(partition: &Partition, a: &RowMatrix<'_>, rhs_rows: &[f64], k: &CscMatrix<'_>, rhs: &[f64], label: &str) -> usize {
+    let (numbering, rows) = (partition.numbering(), partition.rows());
+    for p in rows.clone() {
+        let i = numbering.to_fdfsi(p);
+        assert_eq!(rhs_rows[p - rows.start].to_bits(), rhs[i].to_bits(), "{label}: rhs of unknown {i}");
+        let (cols, start) = a.pattern.row(p);
+        for (e, &q) in cols.iter().enumerate() {
+            let j = numbering.to_fdfsi(q as usize);
+            assert_eq!(a.values[start + e].to_bits(), k.get(i, j).to_bits(), "{label}: entry ({i}, {j})");
+        }
+    }
+    a.pattern.nnz()
+}
+
 /// Each rank's rows of a flow's partitioned assembly (`FlowDiscretization::assemble_rows` with
 /// `Entries::Rows` of 2 and 3 ranks: the level-set numbering, no MPI needed to assemble) are the
 /// whole assembly's rows bit for bit: Schaefer-Turek 2D-1 on the coarse mesh with a traction on
@@ -134,20 +150,10 @@ fn each_ranks_rows_of_a_flow_are_the_whole_assemblys() {
         for rank in 0..size {
             let disc = FlowDiscretization::build_with(mesh.clone(), Formulation::Plane, Entries::Rows(World { rank, size })).unwrap();
             let part = disc.rows().unwrap();
-            let (numbering, rows) = (part.partition.numbering(), part.partition.rows());
             let mut a = RowMatrix::zeros(&part.pattern);
-            let mut rhs_rows = vec![0.0; rows.len()];
+            let mut rhs_rows = vec![0.0; part.pattern.rows.len()];
             disc.assemble_rows(&problem, &state, &x_old, 0.5, &constrained, &mut a, &mut rhs_rows).unwrap();
-            for p in rows.clone() {
-                let i = numbering.to_fdfsi(p);
-                assert_eq!(rhs_rows[p - rows.start].to_bits(), rhs[i].to_bits(), "rank {rank} of {size}: rhs of unknown {i}");
-                let (cols, start) = part.pattern.row(p);
-                for (e, &q) in cols.iter().enumerate() {
-                    let j = numbering.to_fdfsi(q as usize);
-                    assert_eq!(a.values[start + e].to_bits(), k.get(i, j).to_bits(), "rank {rank} of {size}: entry ({i}, {j})");
-                }
-                covered += cols.len();
-            }
+            covered += same_rows(&part.partition, &a, &rhs_rows, &k, &rhs, &format!("rank {rank} of {size}"));
         }
         assert_eq!(Some(covered), whole.nnz(), "{size} ranks' rows cover the pattern");
     }
@@ -201,20 +207,10 @@ fn each_ranks_rows_of_an_fsi_system_are_the_whole_assemblys() {
                 assert_eq!(rows_disc.num_dofs(), n);
                 assert!(rows_disc.pattern().is_none());
                 let part = rows_disc.rows().unwrap();
-                let (numbering, rows) = (part.partition.numbering(), part.partition.rows());
                 let mut a = RowMatrix::zeros(&part.pattern);
-                let mut rhs_rows = vec![0.0; rows.len()];
+                let mut rhs_rows = vec![0.0; part.pattern.rows.len()];
                 rows_disc.assemble_rows(&model, &input, &x, &start.constrained, &mut a, &mut rhs_rows).unwrap();
-                for p in rows.clone() {
-                    let i = numbering.to_fdfsi(p);
-                    assert_eq!(rhs_rows[p - rows.start].to_bits(), rhs[i].to_bits(), "{name}, rank {rank} of {size}: rhs of unknown {i}");
-                    let (cols, start) = part.pattern.row(p);
-                    for (e, &q) in cols.iter().enumerate() {
-                        let j = numbering.to_fdfsi(q as usize);
-                        assert_eq!(a.values[start + e].to_bits(), k.get(i, j).to_bits(), "{name}, rank {rank} of {size}: entry ({i}, {j})");
-                    }
-                    covered += cols.len();
-                }
+                covered += same_rows(&part.partition, &a, &rhs_rows, &k, &rhs, &format!("{name}, rank {rank} of {size}"));
             }
             assert_eq!(Some(covered), disc.nnz(), "{name}: {size} ranks' rows cover the pattern");
         }
