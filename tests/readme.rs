@@ -112,6 +112,7 @@ fn every_field_the_parser_accepts_is_documented() {
         "[solid]",
         "[[solid.boundary]]",
         "[solid.loading]",
+        "[solid.fibres]",
     ]
     .iter()
     .map(|t| format!("title = \"t\"\n{t}\n{UNKNOWN}\n"))

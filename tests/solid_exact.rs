@@ -4,10 +4,11 @@
 
 use fdfsi::discretize::solid::{solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidProblem};
 use fdfsi::physics::fluid::Formulation;
-use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
+use fdfsi::physics::solid::{FibreReinforced, NeoHookeanMixed, SolidMaterial};
 use fdfsi::solve::linear::FaerLu;
 use fdfsi::verify::solid_exact::{
-    cylinder_inflation, homogeneous_checks, quarter_annulus, rivlin_bending, study_newton, CylinderInflation, SolidRun, UniaxialPlaneStrain,
+    cook_mesh, cylinder_inflation, homogeneous_checks, quarter_annulus, rivlin_bending, study_newton, CylinderInflation, FibreUniaxial, SolidRun,
+    UniaxialPlaneStrain,
 };
 use fdfsi::verify::Effort;
 use std::sync::Arc;
@@ -30,6 +31,44 @@ fn homogeneous_states_are_reproduced_to_round_off() {
     // p_EXACT = G lambda^-2 in plane strain.
     let ex = UniaxialPlaneStrain { shear_modulus: 2.0, stretch: 1.5 };
     assert!((ex.pressure() + 2.0 - 2.0 / 2.25).abs() < 1e-15);
+}
+
+/// Newton on an inhomogeneous state of the fibre-reinforced law is quadratic, so its tangent is
+/// exact: Cook's membrane (left edge clamped, shear traction on the right), the paper's
+/// incompressible matrix with fibres at 30 degrees to the x axis, stretched by the load.
+#[test]
+fn fibre_reinforced_cook_membrane_newton_is_quadratic() {
+    let g = 1.0;
+    let (cos, sin) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    let fibres: Arc<dyn SolidMaterial> =
+        Arc::new(FibreReinforced { matrix: paper_solid(g), k1: 2.0 * g, k2: 5.0, direction: Arc::new(move |_| [cos, sin, 0.0]) });
+    let tip = |material: Arc<dyn SolidMaterial>| {
+        let disc = SolidDiscretization::build(cook_mesh(6), Formulation::Plane, material.as_ref()).unwrap();
+        let problem = SolidProblem::new(Formulation::Plane, material)
+            .with_displacement("left", &[0, 1], |_: &[f64; 2], _| [0.0; 2])
+            .with_traction("right", |_: &[f64; 2], l| [0.0, 0.1 * l]);
+        let sol =
+            solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Updated, 4), &mut FaerLu::default(), &study_newton()).unwrap();
+        (disc.displacement(&sol.x, disc.node_near(&[48.0, 60.0]))[1], sol.residual_history())
+    };
+    let (tip_fibres, residuals) = tip(fibres);
+    let (tip_matrix, _) = tip(paper_solid(g));
+    println!("tip uy: {tip_fibres:.6} with fibres, {tip_matrix:.6} without");
+    // The fibres carry load: the membrane is stiffer with them.
+    assert!(tip_fibres < 0.8 * tip_matrix && tip_fibres > 0.0, "{tip_fibres} vs {tip_matrix}");
+    let mut checked = 0;
+    for r in &residuals {
+        println!("residual norms {r:?}");
+        let rel: Vec<f64> = r.iter().map(|v| v / r[0]).collect();
+        for i in 1..rel.len() - 1 {
+            if rel[i] < 1e-2 && rel[i + 1] > 1e-13 {
+                let order = rel[i + 1].ln() / rel[i].ln();
+                assert!(order > 1.7, "Newton not quadratic: {rel:?}");
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 2, "no iteration in the quadratic regime: {residuals:?}");
 }
 
 fn check_rates(run: &SolidRun) {
@@ -106,4 +145,58 @@ fn follower_pressure_inflates_the_cylinder_to_the_exact_radius() {
     println!("follower pressure P_i = {pi}: a = {a:.10} (exact 1.3), b = {b:.10} (exact {:.10})", ex.b());
     assert!((a - 1.3).abs() < 1e-4);
     assert!((b - ex.b()).abs() < 1e-4);
+}
+
+/// `[solid.fibres]` through the case file: the plane-strain block stretched 1.3 along its
+/// fibres by the closed-form nominal traction ([`FibreUniaxial`]) ends at that stretch, and the
+/// solid's output carries `fibre_stretch = 1.3` in every cell.
+#[test]
+fn a_fibre_case_file_reaches_the_closed_form_stretch() {
+    use fdfsi::case::Case;
+    use fdfsi::fem::vtk::read_vtu;
+    use fdfsi::run::{run_case, RunOptions};
+    let fib = FibreUniaxial { shear_modulus: 2.0, k1: 3.0, k2: 2.0, stretch: 1.3, plane_strain: true };
+    let text = format!(
+        r#"title = "fibre block"
+[physics]
+formulation = "plane"
+[solid]
+mesh = {{ kind = "rectangle", x = [0.0, 1.0], y = [0.0, 1.0], n = [3, 2] }}
+model = "neo-hookean"
+shear_modulus = {g}
+fibres = {{ k1 = {k1}, k2 = {k2}, direction = ["1 + 0*y", 0.0] }}
+loading = {{ steps = 4 }}
+[[solid.boundary]]
+name = "left"
+type = "displacement"
+components = [0]
+value = [0.0, 0.0]
+[[solid.boundary]]
+name = "bottom"
+type = "displacement"
+components = [1]
+value = [0.0, 0.0]
+[[solid.boundary]]
+name = "right"
+type = "traction"
+value = [{t:e}, 0.0]
+[[output.probe]]
+name = "corner"
+field = "displacement"
+point = [1.0, 1.0]
+"#,
+        g = fib.shear_modulus,
+        k1 = fib.k1,
+        k2 = fib.k2,
+        t = fib.nominal_traction()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let case = Case::from_toml_str(&text, "fibres.toml").unwrap();
+    let out = dir.path().join("out");
+    let summary = run_case(&case, &RunOptions::new(out.clone(), dir.path()), &mut |_: &str| {}).unwrap();
+    let corner = summary.quantities["corner"];
+    assert!((corner - (fib.stretch - 1.0)).abs() < 1e-12, "corner u_x = {corner}");
+    let grid = read_vtu(&out.join("solution_solid_000000.vtu")).unwrap();
+    let stretch = &grid.cell_array("fibre_stretch").expect("the solid's fibre_stretch").values;
+    assert!(stretch.iter().all(|s| (s - fib.stretch).abs() < 1e-12), "{stretch:?}");
 }

@@ -167,6 +167,10 @@ pub struct SolidSpec {
     /// quasi-static runs, where the force is ramped with the load factor).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_force: Option<Vec<Scalar>>,
+    /// One family of fibres reinforcing the material law (Holzapfel-Gasser-Ogden form, see
+    /// [`crate::physics::solid::FibreReinforced`]): a valve leaflet's collagen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fibres: Option<FibreSpec>,
     /// Boundary conditions of the solid.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary: Vec<SolidBoundarySpec>,
@@ -198,6 +202,22 @@ pub struct SolidSpec {
     pub pivot: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translate: Option<Vec<f64>>,
+}
+
+/// `[solid.fibres]`: `Psi_f = k1 / (2 k2) (exp(k2 (I4 - 1)^2) - 1)` added to the law where the
+/// fibres are stretched (`I4 = a_0 . C a_0 > 1`).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FibreSpec {
+    /// Fibre stiffness k1 (a stress, > 0; small-strain fibre modulus `4 k1`).
+    pub k1: f64,
+    /// Fibre exponent k2 (dimensionless, >= 0; 0: the quadratic fibre `k1 / 2 (I4 - 1)^2`).
+    #[serde(default)]
+    pub k2: f64,
+    /// The fibre direction `a_0` in the reference configuration, one entry per dimension:
+    /// numbers (a constant direction) or expressions of the reference position `x`, `y`, `z`
+    /// (e.g. `["-y", "x"]`: circumferential about the z axis); normalised at every point.
+    pub direction: Vec<Scalar>,
 }
 
 /// The shear and bulk moduli of a solid law.

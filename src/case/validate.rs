@@ -2,8 +2,8 @@
 //! of the case file. The problems are collected in the order the tables are checked.
 
 use super::{
-    spelled, BoundaryIntegralKind, BoundaryType, Case, CaseError, Expr, MeshSpec, ProbeField, RunKind, Scalar, SolidBoundaryType, SolidMeshSpec,
-    SolidModel, SolidSpec, TimeFunction, MAX_CUTS, MAX_GENERATED_CELLS, MAX_STEPS,
+    spelled, BoundaryIntegralKind, BoundaryType, Case, CaseError, Expr, FibreSpec, MeshSpec, ProbeField, RunKind, Scalar, SolidBoundaryType,
+    SolidMeshSpec, SolidModel, SolidSpec, TimeFunction, MAX_CUTS, MAX_GENERATED_CELLS, MAX_STEPS,
 };
 use crate::discretize::fsi::MultiplierSpace;
 use crate::physics::fluid::Formulation;
@@ -305,6 +305,8 @@ fn solid(c: &Case, p: &mut Problems) {
     }
     if solid.model != SolidModel::Fixed {
         solid_material(c, solid, p);
+    } else if solid.fibres.is_some() {
+        p.push("solid.fibres reinforce a material law: give solid.model (e.g. \"neo-hookean\")");
     }
     if solid.multiplier == MultiplierSpace::P1DiscontinuousTraceMode && c.dim() == 3 {
         p.push("solid.multiplier = \"p1-discontinuous-trace-mode\" is 2D only (plane or axisymmetric)");
@@ -316,6 +318,26 @@ fn solid(c: &Case, p: &mut Problems) {
     solid_placement(c, solid, p);
     if solid.loading.steps > MAX_STEPS {
         p.push(format!("solid.loading.steps = {} is more than {MAX_STEPS}", solid.loading.steps));
+    }
+}
+
+/// `[solid.fibres]`: `k1 > 0`, `k2 >= 0`, one direction entry per dimension, not a constant zero.
+fn fibres(c: &Case, f: &FibreSpec, p: &mut Problems) {
+    p.positive(f.k1, "solid.fibres.k1");
+    if !(f.k2 >= 0.0 && f.k2.is_finite()) {
+        p.push(format!("solid.fibres.k2 must be a finite number >= 0, got {}", f.k2));
+    }
+    let d = c.dim();
+    if f.direction.len() != d {
+        p.push(format!("solid.fibres.direction needs {d} entries, got {}", f.direction.len()));
+    }
+    for v in &f.direction {
+        if let Err(e) = Expr::compile(v) {
+            p.push(format!("solid.fibres.direction: {e}"));
+        }
+    }
+    if f.direction.iter().all(|v| matches!(v, Scalar::Number(a) if *a == 0.0)) {
+        p.push("solid.fibres.direction is the zero vector: give the fibres a direction");
     }
 }
 
@@ -342,6 +364,9 @@ fn solid_material(c: &Case, solid: &SolidSpec, p: &mut Problems) {
             Ok(_) => {}
             Err(e) => p.push(e),
         }
+    }
+    if let Some(f) = &solid.fibres {
+        fibres(c, f, p);
     }
     if !(solid.density >= 0.0 && solid.density.is_finite()) {
         p.push(format!("solid.density must be a finite number >= 0, got {}", solid.density));

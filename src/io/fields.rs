@@ -83,7 +83,8 @@ pub fn gamma_f_grid<const D: usize>(disc: &crate::discretize::fsi::FsiDiscretiza
 /// The deformed solid as a VTK grid: 9-node quadrilaterals / 27-node hexahedra with point data
 /// `displacement` and cell data `pressure` (the mixed laws' pressure at the cell centre) and
 /// `cauchy_stress` (the cell mean of `sigma = P F^T / J - p I` over its quadrature points, 9
-/// components).
+/// components), and for a fibre-reinforced law `fibre_stretch` (the cell mean of
+/// `|F a_0| = sqrt(I4)`; 0 where the cell has no fibre).
 pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn SolidMaterial, x: &[f64]) -> Result<UnstructuredGrid, OutputError> {
     let field = disc.displacement_field();
     let n = field.nodes.num_nodes;
@@ -109,14 +110,21 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn 
     let f = disc.deformation_gradients(x)?;
     let nq = disc.points_per_cell();
     let (mut pressure, mut stress) = (Vec::with_capacity(nc), Vec::with_capacity(nc * 9));
+    let mut fibre_stretch = Vec::with_capacity(nc);
     let (mut p_mat, mut tangent) = ([[0.0; 3]; 3], [[[[0.0; 3]; 3]; 3]; 3]);
     for c in 0..nc {
         let p_c = if disc.mixed { pressure_at(disc, x, c, &disc.centroid_x0[c]) } else { 0.0 };
         pressure.push(p_c);
         let mut mean = [[0.0; 3]; 3];
+        let mut stretch = 0.0;
         for q in 0..nq {
             let fq = &f[c * nq + q];
-            material.stress_tangent(fq, &mut p_mat, &mut tangent);
+            let x0: [f64; 3] = std::array::from_fn(|d| if d < D { disc.qp_x0[c * nq + q][d] } else { 0.0 });
+            material.stress_tangent(fq, &x0, &mut p_mat, &mut tangent);
+            if let Some(a0) = material.fibre_direction(&x0) {
+                let fa: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| fq[i][j] * a0[j]).sum());
+                stretch += fa.iter().map(|v| v * v).sum::<f64>().sqrt() / nq as f64;
+            }
             let j = det3(fq);
             let p_q = if disc.mixed { pressure_at(disc, x, c, &disc.qp_x0[c * nq + q]) } else { 0.0 };
             let sigma = matmul(&p_mat, &transpose(fq));
@@ -127,8 +135,12 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn 
             }
         }
         stress.extend(mean.iter().flatten());
+        fibre_stretch.push(stretch);
     }
     grid.add_cell_data("pressure", 1, pressure)?;
     grid.add_cell_data("cauchy_stress", 9, stress)?;
+    if fibre_stretch.iter().any(|&s| s > 0.0) {
+        grid.add_cell_data("fibre_stretch", 1, fibre_stretch)?;
+    }
     Ok(grid)
 }

@@ -51,6 +51,7 @@
 
 use fdfsi_fem::element::MAX_DOFS;
 use fdfsi_fem::values::CellValues;
+use std::sync::Arc;
 
 pub use crate::physics::fluid::Formulation;
 
@@ -108,20 +109,24 @@ pub fn matmul(a: &Mat3, b: &Mat3) -> Mat3 {
 /// from [`Self::stress_tangent`]) or *mixed* (`Some(1/K)`): the kernel adds `-p J F^{-T}` with the
 /// independent P1disc pressure `p` and the constraint `J - 1 + p/K = 0`.
 ///
-/// Room for anisotropy: a fibre-reinforced law (e.g. Holzapfel-Gasser-Ogden, with fibre
-/// directions `a_0` per quadrature point) fits this trait once `stress_tangent` receives the
-/// material point's fibre data; the kernel already works with the full `P` and `dP/dF`.
+/// A law may vary with the material point `x0` (the reference position, zero-padded to three
+/// coordinates): the fibre-reinforced law ([`FibreReinforced`]) reads its fibre direction there.
 pub trait SolidMaterial: Send + Sync + std::fmt::Debug {
     /// A short name for logs.
     fn name(&self) -> &'static str;
-    /// First Piola-Kirchhoff stress `p` of the displacement part at `f`, and its tangent
-    /// `a = dP/dF`.
-    fn stress_tangent(&self, f: &Mat3, p: &mut Mat3, a: &mut Tangent);
+    /// First Piola-Kirchhoff stress `p` of the displacement part at `f` and the material point
+    /// `x0`, and its tangent `a = dP/dF`.
+    fn stress_tangent(&self, f: &Mat3, x0: &[f64; 3], p: &mut Mat3, a: &mut Tangent);
     /// `None`: displacement-based; `Some(c)`: mixed with pressure compliance `c = 1/K`
     /// (0 = incompressible).
     fn pressure_compliance(&self) -> Option<f64>;
     /// Shear modulus (small-strain), for scaling and reports.
     fn shear_modulus(&self) -> f64;
+    /// The unit fibre direction `a_0` at the material point `x0` of a fibre-reinforced law
+    /// (`None`: isotropic, or no fibre there).
+    fn fibre_direction(&self, _x0: &[f64; 3]) -> Option<[f64; 3]> {
+        None
+    }
 }
 
 /// Neo-Hookean, mixed u/p (Q2/P1disc): `Psi = G/2 (I_1 - 3) - G ln J` plus the pressure term,
@@ -168,7 +173,7 @@ impl SolidMaterial for NeoHookeanMixed {
             "nearly incompressible neo-Hookean (mixed)"
         }
     }
-    fn stress_tangent(&self, f: &Mat3, p: &mut Mat3, a: &mut Tangent) {
+    fn stress_tangent(&self, f: &Mat3, _x0: &[f64; 3], p: &mut Mat3, a: &mut Tangent) {
         let (_, inv_t) = cofactor(f);
         let g = self.shear_modulus;
         neo_hookean_base(g, g, f, &inv_t, p, a);
@@ -201,7 +206,7 @@ impl SolidMaterial for NeoHookeanCompressible {
     fn name(&self) -> &'static str {
         "compressible neo-Hookean (displacement)"
     }
-    fn stress_tangent(&self, f: &Mat3, p: &mut Mat3, a: &mut Tangent) {
+    fn stress_tangent(&self, f: &Mat3, _x0: &[f64; 3], p: &mut Mat3, a: &mut Tangent) {
         let (_, inv_t) = cofactor(f);
         let lnj = det3(f).ln();
         neo_hookean_base(self.mu, self.mu - self.lambda * lnj, f, &inv_t, p, a);
@@ -237,7 +242,7 @@ impl SolidMaterial for SaintVenantKirchhoff {
     fn name(&self) -> &'static str {
         "Saint Venant-Kirchhoff (displacement)"
     }
-    fn stress_tangent(&self, f: &Mat3, p: &mut Mat3, a: &mut Tangent) {
+    fn stress_tangent(&self, f: &Mat3, _x0: &[f64; 3], p: &mut Mat3, a: &mut Tangent) {
         let mut e = [[0.0; 3]; 3];
         for i in 0..3 {
             for j in 0..3 {
@@ -275,6 +280,100 @@ impl SolidMaterial for SaintVenantKirchhoff {
     }
     fn shear_modulus(&self) -> f64 {
         self.mu
+    }
+}
+
+/// A fibre direction field `a_0(X)` in the reference configuration, of the reference position
+/// (zero-padded to three coordinates). It need not be of unit length: the law normalises it; a
+/// zero vector means no fibre at `X`.
+pub type FibreField = Arc<dyn Fn(&[f64; 3]) -> [f64; 3] + Send + Sync>;
+
+/// A fibre-reinforced law: an isotropic matrix law plus one family of fibres along `a_0(X)` in
+/// the Holzapfel-Gasser-Ogden form (Holzapfel, Gasser & Ogden, J. Elasticity 61, 2000; the
+/// exponential fibre response of collagen in valve leaflets):
+///
+/// ```text
+/// Psi   = Psi_matrix(F) + k1 / (2 k2) (exp(k2 E^2) - 1),   E = I4 - 1 > 0,  I4 = a_0 . C a_0
+/// P     = P_matrix + 2 psi' (F a_0) (x) a_0,               psi'  = k1 E exp(k2 E^2)
+/// dP/dF = A_matrix + 2 psi' d_ik a_J a_L + 4 psi'' (F a_0)_i a_J (F a_0)_k a_L,
+///                                                           psi'' = k1 (1 + 2 k2 E^2) exp(k2 E^2)
+/// ```
+///
+/// and nothing where `I4 <= 1`: fibres bear no compression. `k2 -> 0` is the quadratic fibre
+/// `k1 / 2 E^2`. `I4` is that of the full `F`, not of its isochoric part: with the
+/// incompressible matrix (`det F = 1`) they are the same, and for compressible matrices the
+/// isochoric split of the fibre term is known to give unphysical responses (Sansour, Eur. J.
+/// Mech. A 27, 2008; Helfenstein et al., Int. J. Solids Struct. 47, 2010). Small-strain fibre
+/// stiffness: `E_f = 4 k1` along `a_0` on top of the matrix's. The matrix's pressure, if any, is
+/// the law's.
+#[derive(Clone)]
+pub struct FibreReinforced {
+    /// The isotropic matrix.
+    pub matrix: Arc<dyn SolidMaterial>,
+    /// Fibre stiffness `k1` (a stress, >= 0).
+    pub k1: f64,
+    /// Fibre exponent `k2` (dimensionless, >= 0).
+    pub k2: f64,
+    /// Fibre direction field.
+    pub direction: FibreField,
+}
+
+impl std::fmt::Debug for FibreReinforced {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FibreReinforced").field("matrix", &self.matrix).field("k1", &self.k1).field("k2", &self.k2).finish_non_exhaustive()
+    }
+}
+
+impl FibreReinforced {
+    /// `psi'(I4)` and `psi''(I4)` (both 0 where `I4 <= 1`).
+    pub fn fibre_derivatives(&self, i4: f64) -> (f64, f64) {
+        let e = i4 - 1.0;
+        if !(e > 0.0) {
+            return (0.0, 0.0);
+        }
+        let x = (self.k2 * e * e).exp();
+        (self.k1 * e * x, self.k1 * (1.0 + 2.0 * self.k2 * e * e) * x)
+    }
+}
+
+impl SolidMaterial for FibreReinforced {
+    fn name(&self) -> &'static str {
+        "fibre-reinforced (Holzapfel-Gasser-Ogden fibres on an isotropic matrix)"
+    }
+    fn stress_tangent(&self, f: &Mat3, x0: &[f64; 3], p: &mut Mat3, a: &mut Tangent) {
+        self.matrix.stress_tangent(f, x0, p, a);
+        let Some(a0) = self.fibre_direction(x0) else { return };
+        let fa: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| f[i][j] * a0[j]).sum());
+        let i4: f64 = fa.iter().map(|v| v * v).sum();
+        let (d1, d2) = self.fibre_derivatives(i4);
+        if d1 == 0.0 && d2 == 0.0 {
+            return;
+        }
+        for i in 0..3 {
+            for jj in 0..3 {
+                p[i][jj] += 2.0 * d1 * fa[i] * a0[jj];
+                for k in 0..3 {
+                    for l in 0..3 {
+                        let mut v = 4.0 * d2 * fa[i] * a0[jj] * fa[k] * a0[l];
+                        if i == k {
+                            v += 2.0 * d1 * a0[jj] * a0[l];
+                        }
+                        a[i][jj][k][l] += v;
+                    }
+                }
+            }
+        }
+    }
+    fn pressure_compliance(&self) -> Option<f64> {
+        self.matrix.pressure_compliance()
+    }
+    fn shear_modulus(&self) -> f64 {
+        self.matrix.shear_modulus()
+    }
+    fn fibre_direction(&self, x0: &[f64; 3]) -> Option<[f64; 3]> {
+        let a = (self.direction)(x0);
+        let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+        (norm > 0.0 && norm.is_finite()).then(|| a.map(|v| v / norm))
     }
 }
 
@@ -383,7 +482,8 @@ pub fn solid_cell<const D: usize>(
             return Err(InvertedPoint { point: q, det: j });
         }
         let (cof, inv_t) = cofactor(&f);
-        material.stress_tangent(&f, &mut p_dev, &mut a);
+        let x0: [f64; 3] = std::array::from_fn(|d| if d < D { state.x0[q][d] } else { 0.0 });
+        material.stress_tangent(&f, &x0, &mut p_dev, &mut a);
         // Pressure part.
         let mut pres = 0.0;
         if let Some(_c) = compliance {
@@ -637,15 +737,19 @@ mod tests {
     #[test]
     fn material_tangents_match_finite_differences() {
         let mut rnd = rng(3);
-        let mats: Vec<Box<dyn SolidMaterial>> = vec![
-            Box::new(NeoHookeanMixed::incompressible(1.3)),
-            Box::new(NeoHookeanCompressible { mu: 0.8, lambda: 2.1 }),
-            Box::new(SaintVenantKirchhoff { mu: 0.8, lambda: 2.1 }),
-        ];
+        let mats = materials();
         let f0: Mat3 = std::array::from_fn(|i| std::array::from_fn(|j| if i == j { 1.0 } else { 0.0 } + 0.3 * rnd()));
-        for m in &mats {
+        // Two material points: the fibres stretched (I4 > 1) at one, shortened at the other.
+        let i4 = |x0: &[f64; 3]| {
+            let a = fibres().fibre_direction(x0).unwrap();
+            (0..3).map(|i| (0..3).map(|j| f0[i][j] * a[j]).sum::<f64>().powi(2)).sum::<f64>()
+        };
+        let points: Vec<[f64; 3]> = (0..64).map(|_| [rnd(), rnd(), rnd()]).collect();
+        let stretched = *points.iter().find(|x| i4(x) > 1.05).unwrap();
+        let shortened = *points.iter().find(|x| i4(x) < 0.95).unwrap();
+        for (m, x0) in mats.iter().flat_map(|m| [(m, stretched), (m, shortened)]) {
             let (mut p, mut a) = ([[0.0; 3]; 3], [[[[0.0; 3]; 3]; 3]; 3]);
-            m.stress_tangent(&f0, &mut p, &mut a);
+            m.stress_tangent(&f0, &x0, &mut p, &mut a);
             let h = 1e-6;
             for k in 0..3 {
                 for l in 0..3 {
@@ -653,8 +757,8 @@ mod tests {
                     fp[k][l] += h;
                     fm[k][l] -= h;
                     let (mut pp, mut pm, mut aa) = ([[0.0; 3]; 3], [[0.0; 3]; 3], [[[[0.0; 3]; 3]; 3]; 3]);
-                    m.stress_tangent(&fp, &mut pp, &mut aa);
-                    m.stress_tangent(&fm, &mut pm, &mut aa);
+                    m.stress_tangent(&fp, &x0, &mut pp, &mut aa);
+                    m.stress_tangent(&fm, &x0, &mut pm, &mut aa);
                     for i in 0..3 {
                         for jj in 0..3 {
                             let fd = (pp[i][jj] - pm[i][jj]) / (2.0 * h);
@@ -728,12 +832,21 @@ mod tests {
         }
     }
 
+    /// Fibres on the incompressible matrix, their direction turning with the material point.
+    fn fibres() -> FibreReinforced {
+        let direction: FibreField = Arc::new(|x: &[f64; 3]| [1.0 + 2.0 * x[0], 0.5 - x[1] + x[0], 0.4 + x[2]]);
+        FibreReinforced { matrix: Arc::new(NeoHookeanMixed::incompressible(1.3)), k1: 2.0, k2: 1.5, direction }
+    }
+
     fn materials() -> Vec<Box<dyn SolidMaterial>> {
+        let on_compressible = FibreReinforced { matrix: Arc::new(NeoHookeanCompressible { mu: 0.8, lambda: 2.1 }), k2: 0.0, ..fibres() };
         vec![
             Box::new(NeoHookeanMixed::incompressible(1.3)),
             Box::new(NeoHookeanMixed { shear_modulus: 1.3, bulk_modulus: 40.0 }),
             Box::new(NeoHookeanCompressible { mu: 0.8, lambda: 2.1 }),
             Box::new(SaintVenantKirchhoff { mu: 0.8, lambda: 2.1 }),
+            Box::new(fibres()),
+            Box::new(on_compressible),
         ]
     }
 

@@ -3,7 +3,7 @@
 use super::{invalid, SetupError};
 use crate::case::{Case, Expr, ProbeField, SolidBoundaryType, SolidMeshSpec, SolidModel, SolidSpec};
 use crate::discretize::solid::{SolidDiscretization, SolidProblem};
-use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
+use crate::physics::solid::{FibreField, FibreReinforced, NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
 use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::generate;
 use fdfsi_fem::gmsh::{read_msh, AnyMesh};
@@ -83,7 +83,7 @@ pub fn material(spec: &SolidSpec) -> Result<Arc<dyn SolidMaterial>, SetupError> 
     let moduli = spec.moduli().map_err(invalid)?;
     let (g, k) = (moduli.shear, moduli.bulk);
     let need_k = || k.ok_or_else(|| invalid(format!("solid.model = {} needs bulk_modulus", crate::case::name_of(&spec.model))));
-    Ok(match spec.model {
+    let matrix: Arc<dyn SolidMaterial> = match spec.model {
         SolidModel::Fixed => return Err(invalid("solid.model = \"fixed\" has no material law to solve".into())),
         SolidModel::NeoHookean => match k {
             None => Arc::new(NeoHookeanMixed::incompressible(g)),
@@ -94,7 +94,11 @@ pub fn material(spec: &SolidSpec) -> Result<Arc<dyn SolidMaterial>, SetupError> 
             let k = need_k()?;
             Arc::new(SaintVenantKirchhoff { mu: g, lambda: k - 2.0 * g / 3.0 })
         }
-    })
+    };
+    let Some(fibres) = &spec.fibres else { return Ok(matrix) };
+    let exprs = compile(&fibres.direction)?;
+    let direction: FibreField = Arc::new(move |x: &[f64; 3]| std::array::from_fn(|a| exprs.get(a).map_or(0.0, |e| e.eval(x, 0.0))));
+    Ok(Arc::new(FibreReinforced { matrix, k1: fibres.k1, k2: fibres.k2, direction }))
 }
 
 fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, SetupError> {

@@ -18,7 +18,7 @@ use crate::discretize::solid::{
     pressure_at, solid_errors, solve_quasi_static, ExactSolid, Lagrangian, LoadStepping, SolidDiscretization, SolidError, SolidErrors, SolidProblem,
 };
 use crate::physics::fluid::Formulation;
-use crate::physics::solid::{NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
+use crate::physics::solid::{FibreReinforced, NeoHookeanCompressible, NeoHookeanMixed, SolidMaterial};
 use crate::solve::linear::FaerLu;
 use crate::solve::newton::NewtonOptions;
 use fdfsi_fem::generate::rectangle_quads;
@@ -63,6 +63,57 @@ impl Uniaxial3d {
     }
     pub fn pressure(&self) -> f64 {
         self.shear_modulus * (1.0 / self.stretch - 1.0)
+    }
+}
+
+/// Uniaxial stretch `lambda` along fibres that lie along the stretch (`a_0 = e_1`): the paper's
+/// incompressible matrix `G` with Holzapfel-Gasser-Ogden fibres `k1, k2`
+/// ([`FibreReinforced`]), in plane strain (lateral stretch `l = 1/lambda`, `F_33 = 1`) or 3D
+/// (`l = lambda^{-1/2}` in both lateral directions). The fibres add to `sigma_11` alone, so the
+/// lateral stresses vanish with the matrix's pressure, `p = G (l^2 - 1)`, and
+///
+/// ```text
+/// sigma_11 = G (lambda^2 - l^2) + 2 psi'(lambda^2) lambda^2,   psi'(I4) = k1 (I4 - 1) exp(k2 (I4 - 1)^2),
+/// P_11     = sigma_11 / lambda                                 (the nominal traction on X_1 = const).
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct FibreUniaxial {
+    pub shear_modulus: f64,
+    pub k1: f64,
+    pub k2: f64,
+    pub stretch: f64,
+    /// Plane strain (`true`) or 3D.
+    pub plane_strain: bool,
+}
+
+impl FibreUniaxial {
+    /// The lateral stretch `l`.
+    pub fn lateral(&self) -> f64 {
+        if self.plane_strain {
+            1.0 / self.stretch
+        } else {
+            self.stretch.powf(-0.5)
+        }
+    }
+    pub fn displacement<const D: usize>(&self, x: &[f64; D]) -> [f64; D] {
+        let l = self.lateral();
+        std::array::from_fn(|d| if d == 0 { (self.stretch - 1.0) * x[0] } else { (l - 1.0) * x[d] })
+    }
+    /// The paper's pressure `p = G (l^2 - 1)`.
+    pub fn pressure(&self) -> f64 {
+        self.shear_modulus * (self.lateral().powi(2) - 1.0)
+    }
+    /// `P_11`, the nominal traction that holds the stretch.
+    pub fn nominal_traction(&self) -> f64 {
+        let (lam, l) = (self.stretch, self.lateral());
+        let e = lam * lam - 1.0;
+        let psi1 = self.k1 * e * (self.k2 * e * e).exp();
+        (self.shear_modulus * (lam * lam - l * l) + 2.0 * psi1 * lam * lam) / lam
+    }
+    /// The law: fibres along `e_1` on the incompressible matrix.
+    pub fn material(&self) -> Arc<dyn SolidMaterial> {
+        let matrix = Arc::new(NeoHookeanMixed::incompressible(self.shear_modulus));
+        Arc::new(FibreReinforced { matrix, k1: self.k1, k2: self.k2, direction: Arc::new(|_| [1.0, 0.0, 0.0]) })
     }
 }
 
@@ -494,7 +545,9 @@ fn homogeneous_errors<const D: usize>(disc: &SolidDiscretization<D>, x: &[f64], 
 /// The homogeneous exact states of EXACT-SOLUTIONS.md 1.1-1.2 with the paper's incompressible
 /// law: uniaxial stretch 1.5 in plane strain (G = 2, Q1 geometry), axisymmetric and 3D (27-node
 /// hexahedra), and simple shear gamma = 0.5 with the displacement on the whole boundary and the
-/// pressure pinned (it must come out uniform).
+/// pressure pinned (it must come out uniform); then the fibre-reinforced law
+/// ([`FibreUniaxial`]): stretch 1.3 along the fibres under the closed-form traction (plane
+/// strain and 3D), and the plane-strain stretch 1.5 across them (the fibres shortened, idle).
 pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     use fdfsi_fem::generate::box_hexahedra;
     let solve = |disc: &SolidDiscretization<2>, problem: &SolidProblem<2>, steps: usize| {
@@ -549,5 +602,42 @@ pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     problem.pin_pressure = Some(0.3);
     let sol = solve(&disc, &problem, 1)?;
     push("simple-shear", homogeneous_errors(&disc, &sol.x, |x| sh.displacement(x), 0.3));
+    // Fibres along the stretch, loaded by the closed-form nominal traction (the stretch must come
+    // out), plane strain and 3D: the fibres' exponential more than doubles P_11 at stretch 1.3.
+    let fib = FibreUniaxial { shear_modulus: 2.0, k1: 3.0, k2: 2.0, stretch: 1.3, plane_strain: true };
+    let traction = fib.nominal_traction();
+    let disc =
+        SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 2, GeometryOrder::Linear), Formulation::Plane, fib.material().as_ref())?;
+    let problem = SolidProblem::new(Formulation::Plane, fib.material())
+        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+        .with_traction("right", move |_: &[f64; 2], l| [l * traction, 0.0]);
+    let sol = solve(&disc, &problem, 4)?;
+    push("fibre-uniaxial-plane-strain", homogeneous_errors(&disc, &sol.x, |x| fib.displacement(x), fib.pressure()));
+    let fib = FibreUniaxial { plane_strain: false, ..fib };
+    let traction = fib.nominal_traction();
+    let disc = SolidDiscretization::build(
+        box_hexahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 2, 1, 1, GeometryOrder::Quadratic),
+        Formulation::ThreeD,
+        fib.material().as_ref(),
+    )?;
+    let problem = SolidProblem::new(Formulation::ThreeD, fib.material())
+        .with_displacement("xmin", &[0], |_: &[f64; 3], _| [0.0; 3])
+        .with_displacement("ymin", &[1], |_: &[f64; 3], _| [0.0; 3])
+        .with_displacement("zmin", &[2], |_: &[f64; 3], _| [0.0; 3])
+        .with_traction("xmax", move |_: &[f64; 3], l| [l * traction, 0.0, 0.0]);
+    let sol = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Total, 4), &mut FaerLu::default(), &study_newton())?;
+    push("fibre-uniaxial-3d", homogeneous_errors(&disc, &sol.x, |x| fib.displacement(x), fib.pressure()));
+    // Fibres across the stretch are shortened (I4 = lambda^-2 < 1) and bear nothing: the
+    // neo-Hookean state of the first check.
+    let matrix = Arc::new(NeoHookeanMixed::incompressible(ex.shear_modulus));
+    let mat: Arc<dyn SolidMaterial> = Arc::new(FibreReinforced { matrix, k1: fib.k1, k2: fib.k2, direction: Arc::new(|_| [0.0, 1.0, 0.0]) });
+    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 2, GeometryOrder::Linear), Formulation::Plane, mat.as_ref())?;
+    let problem = SolidProblem::new(Formulation::Plane, mat)
+        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+        .with_displacement("right", &[0], |_: &[f64; 2], l| [0.5 * l, 0.0]);
+    let sol = solve(&disc, &problem, 2)?;
+    push("fibre-across-plane-strain", homogeneous_errors(&disc, &sol.x, |x| ex.displacement(x), ex.pressure()));
     Ok(out)
 }
