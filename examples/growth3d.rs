@@ -39,6 +39,7 @@ fn main() {
         dirichlet: ["xmin", "xmax", "ymin", "ymax", "zmin"].iter().map(|b| wall(b, 0.0)).chain([wall("zmax", 1.0)]).collect(),
         traction: vec![],
         pin_pressure: true,
+        windkessel: Vec::new(),
     };
     let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions { refactor_iterations, boundary, ..Default::default() }), FaerLu::default());
     let solver: &mut dyn LinearSolver = if method == "direct" { &mut lu } else { &mut al };

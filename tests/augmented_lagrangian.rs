@@ -45,6 +45,7 @@ fn cavity(viscosity: f64, inv_dt: f64) -> (FlowDiscretization<2>, FlowProblem<2>
         dirichlet: vec![wall("left", 0.0), wall("right", 0.0), wall("bottom", 0.0), wall("top", 1.0)],
         traction: vec![],
         pin_pressure: true,
+        windkessel: Vec::new(),
     };
     (disc, problem)
 }

@@ -198,6 +198,23 @@ fn flow_run_stopped_and_resumed_repeats_the_history() {
     assert_eq!(read_pvd(&dir.join("solution.pvd")).unwrap().len(), 5);
 }
 
+/// A Windkessel outlet's state (its capacitor pressure, an unknown of the system) is in the
+/// checkpoint: the resumed run repeats the uninterrupted one's outlet pressures exactly.
+#[test]
+fn a_windkessel_outlet_resumes_from_its_checkpointed_state() {
+    let text = channel_case(8).replace(
+        "name = \"right\"\ntype = \"free\"",
+        "name = \"right\"\ntype = \"windkessel\"\nwindkessel = { proximal_resistance = 0.2, compliance = 0.5, distal_resistance = 3.0, initial_pressure = 0.7 }",
+    );
+    assert!(text.contains("windkessel"));
+    let (full, parts, dir) = interrupted_and_resumed(&text, Path::new("."), 3);
+    assert_same_history(&full, &parts, 0.0);
+    let pc = history_column(&dir, "right_capacitor_pressure");
+    // The capacitor charges from 0.7 and keeps its history across the resume.
+    assert_eq!(full[0][pc], 0.7);
+    assert!(full.iter().skip(1).all(|r| r[pc] != 0.7));
+}
+
 /// With the augmented-Lagrangian solver a resumed run repeats the history to the solver's
 /// tolerances, not exactly: its held factors are not part of the checkpoint, so the steps after
 /// the resume start from fresh ones, and take other Newton and Krylov iterations (README). The

@@ -28,7 +28,15 @@ fn tiny_model() -> FsiModel<2> {
     let fluid = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Alternating);
     let solid = rotated(rectangle_quads(0.3, 0.7, 0.47, 0.53, 2, 1, GeometryOrder::Quadratic), 20.0, [0.5, 0.5]);
     let params = FluidParams { viscosity: 0.1, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
-    let flow = FlowProblem { formulation: Formulation::Plane, params, body_force: None, dirichlet: vec![], traction: vec![], pin_pressure: false };
+    let flow = FlowProblem {
+        formulation: Formulation::Plane,
+        params,
+        body_force: None,
+        dirichlet: vec![],
+        traction: vec![],
+        windkessel: vec![],
+        pin_pressure: false,
+    };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));
     let solid_problem = SolidProblem::new(Formulation::Plane, mat).with_displacement("bottom", &[0, 1], |_: &[f64; 2], _| [0.0; 2]);
     let problem = FsiProblem { fluid: flow, solid: solid_problem, surface: "top".into(), adapt: AdaptOptions::new(0.2) };

@@ -92,6 +92,7 @@ fn channel(t_ramp: f64) -> FlowProblem<2> {
         dirichlet: vec![inflow, wall("bottom"), wall("top")],
         traction: vec![],
         pin_pressure: false,
+        windkessel: Vec::new(),
     }
 }
 
@@ -350,7 +351,15 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
     let fluid_mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Alternating);
     let plate = rotated(rectangle_quads(0.3, 0.7, 0.47, 0.53, 2, 1, GeometryOrder::Quadratic), 20.0, [0.5, 0.5]);
     let params = FluidParams { viscosity: 0.1, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
-    let flow = FlowProblem { formulation: Formulation::Plane, params, body_force: None, dirichlet: vec![], traction: vec![], pin_pressure: false };
+    let flow = FlowProblem {
+        formulation: Formulation::Plane,
+        params,
+        body_force: None,
+        dirichlet: vec![],
+        traction: vec![],
+        windkessel: vec![],
+        pin_pressure: false,
+    };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));
     let solid = SolidProblem::new(Formulation::Plane, mat).with_displacement("bottom", &[0, 1], |_: &[f64; 2], _| [0.0; 2]);
     let problem = FsiProblem { fluid: flow, solid, surface: "top".into(), adapt: AdaptOptions::new(0.2) };

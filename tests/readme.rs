@@ -123,6 +123,7 @@ fn every_field_the_parser_accepts_is_documented() {
     for kind in ["rectangle", "quadrilateral", "box", "gmsh"] {
         tables.push(format!("title = \"t\"\n[solid]\nmesh = {{ kind = \"{kind}\", {UNKNOWN} }}\n"));
     }
+    tables.push(format!("title = \"t\"\n[[boundary]]\nname = \"a\"\ntype = \"windkessel\"\nwindkessel = {{ {UNKNOWN} }}\n"));
     for kind in ["ramp", "sine", "quarter-sine-hold", "table"] {
         tables.push(format!("title = \"t\"\n[[boundary]]\nname = \"a\"\ntype = \"free\"\ntime_function = {{ kind = \"{kind}\", {UNKNOWN} }}\n"));
     }

@@ -58,6 +58,7 @@ fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
         dirichlet: vec![wall("top", 1.0), wall("bottom", 0.0), wall("left", 0.0), wall("right", 0.0)],
         traction: vec![],
         pin_pressure: true,
+        windkessel: Vec::new(),
     };
     let newton = NewtonOptions { max_iterations: 3, ..Default::default() };
     let mut cuts = Vec::new();

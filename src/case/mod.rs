@@ -542,6 +542,30 @@ pub enum BoundaryType {
     Symmetry,
     /// Traction-free ("do nothing").
     Free,
+    /// A three-element Windkessel (RCR) outlet: the outlet pressure `R_p Q + P_c` as a normal
+    /// stress, coupled implicitly to the flux `Q` and the capacitor pressure `P_c` (the
+    /// boundary's `windkessel` table; see [`crate::discretize::flow::WindkesselBc`]).
+    Windkessel,
+}
+
+/// `windkessel = { ... }` of a `type = "windkessel"` boundary: `C dP_c/dt = Q - (P_c - P_d)/R_d`,
+/// outlet pressure `P = R_p Q + P_c`, in the case's units (SI: Pa s/m^3 and m^3/Pa in 3D and
+/// axisymmetric; per unit depth in plane runs).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WindkesselSpec {
+    /// Proximal (characteristic) resistance R_p (>= 0).
+    pub proximal_resistance: f64,
+    /// Compliance C (>= 0; 0: two resistances in series).
+    pub compliance: f64,
+    /// Distal (peripheral) resistance R_d (> 0).
+    pub distal_resistance: f64,
+    /// Distal (venous) pressure P_d (default 0).
+    #[serde(default)]
+    pub distal_pressure: f64,
+    /// The capacitor pressure P_c at the start of a run (default: `distal_pressure`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_pressure: Option<f64>,
 }
 
 /// One boundary condition.
@@ -561,6 +585,9 @@ pub struct BoundarySpec {
     /// Multiplies `value` (unsteady runs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_function: Option<TimeFunction>,
+    /// For `windkessel`: its constants.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub windkessel: Option<WindkesselSpec>,
 }
 
 /// Solver options.

@@ -2,8 +2,8 @@
 //! of the case file. The problems are collected in the order the tables are checked.
 
 use super::{
-    spelled, BoundaryIntegralKind, BoundaryType, Case, CaseError, Expr, FibreSpec, MeshSpec, ProbeField, RunKind, Scalar, SolidBoundaryType,
-    SolidMeshSpec, SolidModel, SolidSpec, TimeFunction, MAX_CUTS, MAX_GENERATED_CELLS, MAX_STEPS,
+    spelled, BoundaryIntegralKind, BoundarySpec, BoundaryType, Case, CaseError, Expr, FibreSpec, MeshSpec, ProbeField, RunKind, Scalar,
+    SolidBoundaryType, SolidMeshSpec, SolidModel, SolidSpec, TimeFunction, MAX_CUTS, MAX_GENERATED_CELLS, MAX_STEPS,
 };
 use crate::discretize::fsi::MultiplierSpace;
 use crate::physics::fluid::Formulation;
@@ -147,6 +147,7 @@ fn boundaries(c: &Case, p: &mut Problems) {
         if b.kind == BoundaryType::Symmetry && !matches!(b.normal_axis, Some(a) if a < d) {
             p.push(format!("boundary '{}': type = \"symmetry\" needs normal_axis in 0..{d}", b.name));
         }
+        windkessel(c, b, p);
         for v in &b.value {
             if let Err(e) = Expr::compile(v) {
                 p.push(format!("boundary '{}': {e}", b.name));
@@ -161,6 +162,39 @@ fn boundaries(c: &Case, p: &mut Problems) {
         if !names.insert(&b.name) {
             p.push(format!("boundary '{}' is given twice", b.name));
         }
+    }
+}
+
+/// A `windkessel` boundary: its table, `R_p >= 0`, `C >= 0`, `R_d > 0`, finite pressures; flows
+/// only (not FSI yet), and no time function.
+fn windkessel(c: &Case, b: &BoundarySpec, p: &mut Problems) {
+    let name = &b.name;
+    let Some(w) = &b.windkessel else {
+        if b.kind == BoundaryType::Windkessel {
+            p.push(format!("boundary '{name}': type = \"windkessel\" needs windkessel = {{ proximal_resistance, compliance, distal_resistance }}"));
+        }
+        return;
+    };
+    if b.kind != BoundaryType::Windkessel {
+        p.push(format!("boundary '{name}': a windkessel table goes with type = \"windkessel\", not {}", spelled(&b.kind)));
+        return;
+    }
+    for (key, v) in [("proximal_resistance", w.proximal_resistance), ("compliance", w.compliance)] {
+        if !(v >= 0.0 && v.is_finite()) {
+            p.push(format!("boundary '{name}': windkessel.{key} must be a finite number >= 0, got {v}"));
+        }
+    }
+    p.positive(w.distal_resistance, &format!("boundary '{name}': windkessel.distal_resistance"));
+    for (key, v) in [("distal_pressure", Some(w.distal_pressure)), ("initial_pressure", w.initial_pressure)] {
+        if let Some(v) = v.filter(|v| !v.is_finite()) {
+            p.push(format!("boundary '{name}': windkessel.{key} must be a finite number, got {v}"));
+        }
+    }
+    if b.time_function.is_some() {
+        p.push(format!("boundary '{name}': a windkessel outlet takes no time_function"));
+    }
+    if c.kind() == RunKind::Fsi {
+        p.push(format!("boundary '{name}': Windkessel outlets are for flow runs; FSI runs do not take them yet"));
     }
 }
 

@@ -41,6 +41,45 @@ pub struct TractionBc<const D: usize> {
     pub traction: TractionFn<D>,
 }
 
+/// A three-element Windkessel (RCR) outlet on a named boundary: a 0D model of the circulation
+/// downstream, coupled implicitly. Its flux `Q` and capacitor pressure `P_c` are unknowns of the
+/// system ([`FlowDiscretization::windkessel_dofs`]), with the equations
+///
+/// ```text
+/// Q - s int_outlet u . n w ds = 0                         (s = 2 pi axisymmetric, else 1)
+/// C dP_c/dt - Q + (P_c - P_d) / R_d = 0                   (the fluid's time scheme; steady: dP_c/dt = 0)
+/// sigma n = -P n on the outlet,  P = R_p Q + P_c          (the outlet pressure)
+/// ```
+///
+/// (`w` the formulation's weight). `R_p` is the proximal (characteristic) resistance, `C` the
+/// compliance, `R_d` the distal (peripheral) resistance, `P_d` the distal (venous) pressure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WindkesselBc {
+    pub boundary: String,
+    pub proximal_resistance: f64,
+    pub compliance: f64,
+    pub distal_resistance: f64,
+    pub distal_pressure: f64,
+    /// `P_c` at the start of a run.
+    pub initial_pressure: f64,
+}
+
+impl WindkesselBc {
+    /// The outlet pressure `P = R_p Q + P_c`.
+    pub fn outlet_pressure(&self, flux: f64, capacitor_pressure: f64) -> f64 {
+        self.proximal_resistance * flux + capacitor_pressure
+    }
+}
+
+/// `s` of a flux `s int u . n w ds`: `2 pi` axisymmetric (the whole circumference), else 1.
+pub fn flux_scale(formulation: Formulation) -> f64 {
+    if formulation == Formulation::Axisymmetric {
+        2.0 * std::f64::consts::PI
+    } else {
+        1.0
+    }
+}
+
 /// A flow problem: formulation, fluid parameters, body force, boundary conditions.
 #[derive(Clone)]
 pub struct FlowProblem<const D: usize> {
@@ -49,6 +88,9 @@ pub struct FlowProblem<const D: usize> {
     pub body_force: Option<VectorFn<D>>,
     pub dirichlet: Vec<DirichletBc<D>>,
     pub traction: Vec<TractionBc<D>>,
+    /// Windkessel outlets, in the order of the discretisation's
+    /// ([`FlowDiscretization::build_with_outlets`]).
+    pub windkessel: Vec<WindkesselBc>,
     /// Fix the pressure constant (needed when the velocity is prescribed on the whole boundary):
     /// the mean-value dof of cell 0 is set to zero and the pressure shifted to zero mean after the
     /// solve.
@@ -77,6 +119,8 @@ pub enum FlowError {
     CellType(ReferenceCell),
     #[error("{0} unknowns exceed the 2^32 column indices of a partitioned assembly")]
     TooManyUnknowns(usize),
+    #[error("Windkessel outlets are not assembled by rows yet (a PETSc solver of rows: MUMPS or a field split); use [solver.linear] method = \"direct\" or \"augmented-lagrangian\"")]
+    OutletsByRows,
     #[error(transparent)]
     Newton(#[from] NewtonError<AssemblyError>),
     /// `reached` is the smallest viscosity solved (infinite when none converged from rest).
@@ -111,6 +155,8 @@ pub struct FlowDiscretization<const D: usize> {
     pub cell_rule: QuadratureRule<D>,
     facet_points: Vec<[f64; 2]>,
     facet_weights: Vec<f64>,
+    /// The boundaries of the Windkessel outlets, whose unknowns follow the layout's.
+    outlets: Vec<String>,
 }
 
 /// Which matrix entries a discretisation prepares ([`FlowDiscretization::build_with`],
@@ -179,6 +225,14 @@ impl<const D: usize> FlowDiscretization<D> {
     /// this rank's rows only for a partitioned assembly ([`FlowRows`]; the velocity's nodes kept
     /// whole in the partition), or their number only.
     pub fn build_with(mesh: Mesh<D>, formulation: Formulation, entries: Entries) -> Result<Self, FlowError> {
+        Self::build_with_outlets(mesh, formulation, &[], entries)
+    }
+
+    /// [`FlowDiscretization::build_with`] with Windkessel outlets on the boundaries `outlets`
+    /// (those of the problem's [`WindkesselBc`]s, in order): two unknowns each after the
+    /// layout's, `Q` and `P_c` ([`FlowDiscretization::windkessel_dofs`]), coupled to the velocity
+    /// on the outlet's facets. Not with [`Entries::Rows`] yet.
+    pub fn build_with_outlets(mesh: Mesh<D>, formulation: Formulation, outlets: &[String], entries: Entries) -> Result<Self, FlowError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(FlowError::Formulation { formulation, dim: D });
         }
@@ -192,11 +246,34 @@ impl<const D: usize> FlowDiscretization<D> {
         layout.push("velocity", D, vmap);
         layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
-        let (n, cell_dofs) = (layout.num_dofs(), |c, buf: &mut Vec<usize>| layout.cell_dofs_into(c, buf));
+        // The outlets' couplings, as cells after the mesh's: each outlet facet's velocity dofs
+        // with the outlet's two unknowns.
+        let mut outlet_cells: Vec<Vec<usize>> = Vec::new();
+        let vel = &layout.fields[0];
+        for (k, name) in outlets.iter().enumerate() {
+            let (q, pc) = (layout.num_dofs() + 2 * k, layout.num_dofs() + 2 * k + 1);
+            for bf in mesh.boundary_facets(name)? {
+                let nodes = vel.nodes.cell(bf.cell);
+                let mut dofs: Vec<usize> =
+                    velocity_element.facet_nodes(bf.facet).iter().flat_map(|&i| (0..D).map(move |a| vel.dof(nodes[i], a))).collect();
+                dofs.extend([q, pc]);
+                outlet_cells.push(dofs);
+            }
+        }
+        let (nc, n) = (mesh.num_cells(), layout.num_dofs() + 2 * outlets.len());
+        let cell_dofs = |c: usize, buf: &mut Vec<usize>| match outlet_cells.get(c.wrapping_sub(nc)) {
+            Some(dofs) if c >= nc => {
+                buf.clear();
+                buf.extend_from_slice(dofs);
+            }
+            _ => layout.cell_dofs_into(c, buf),
+        };
+        let all_cells = nc + outlet_cells.len();
         let sparsity = match entries {
-            Entries::Whole => Sparsity::Whole(Pattern::from_cells(n, mesh.num_cells(), cell_dofs)),
-            Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, mesh.num_cells(), cell_dofs)),
+            Entries::Whole => Sparsity::Whole(Pattern::from_cells(n, all_cells, cell_dofs)),
+            Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, all_cells, cell_dofs)),
             Entries::Unassembled => Sparsity::Unassembled,
+            Entries::Rows(_) if !outlets.is_empty() => return Err(FlowError::OutletsByRows),
             Entries::Rows(_) if u32::try_from(n).is_err() => return Err(FlowError::TooManyUnknowns(n)),
             Entries::Rows(world) => {
                 let nodes = Nodes { size: D, end: layout.fields[0].num_dofs() };
@@ -221,12 +298,34 @@ impl<const D: usize> FlowDiscretization<D> {
             cell_rule,
             facet_points,
             facet_weights,
+            outlets: outlets.to_vec(),
         })
     }
 
-    /// Number of unknowns.
+    /// Number of unknowns: the layout's, then two per Windkessel outlet.
     pub fn num_dofs(&self) -> usize {
-        self.layout.num_dofs()
+        self.layout.num_dofs() + 2 * self.outlets.len()
+    }
+
+    /// The unknowns `(Q, P_c)` of Windkessel outlet `k`: its flux and capacitor pressure.
+    pub fn windkessel_dofs(&self, k: usize) -> (usize, usize) {
+        let base = self.layout.num_dofs() + 2 * k;
+        (base, base + 1)
+    }
+
+    /// The boundaries of the Windkessel outlets, in the order of their unknowns.
+    pub fn outlets(&self) -> &[String] {
+        &self.outlets
+    }
+
+    /// The state a run starts from: zero velocity and pressure, and each Windkessel's
+    /// capacitor pressure at its `initial_pressure`.
+    pub fn initial_state(&self, problem: &FlowProblem<D>) -> Vec<f64> {
+        let mut x = vec![0.0; self.num_dofs()];
+        for (k, wk) in problem.windkessel.iter().enumerate() {
+            x[self.windkessel_dofs(k).1] = wk.initial_pressure;
+        }
+        x
     }
 
     /// The whole system's pattern; `None` for a partitioned assembly
@@ -301,7 +400,10 @@ impl<const D: usize> FlowDiscretization<D> {
             let dofs: Vec<usize> = (0..=D).map(|k| pf.dof(c * (D + 1) + k, 0)).collect();
             block.push_group(&dofs, &mass);
         }
-        Ok(SaddlePointSplit { multipliers: vec![block], primal_components: D })
+        // The Windkessel unknowns after the pressure are primal too: then the primal unknowns
+        // are not one vector field.
+        let primal_components = if self.outlets.is_empty() { D } else { 1 };
+        Ok(SaddlePointSplit { multipliers: vec![block], primal_components })
     }
 
     /// Sets the Dirichlet values at time `t` in `x` and returns which dofs they constrain (the
@@ -417,6 +519,7 @@ impl<const D: usize> FlowDiscretization<D> {
                 target.add_rhs(dof, -v);
             }
         })?;
+        self.add_windkessels(problem, x, x_old, constrained, target)?;
         for (dof, _) in constrained.iter().enumerate().filter(|(_, &c)| c) {
             target.identity_row(dof);
         }
@@ -480,6 +583,72 @@ impl<const D: usize> FlowDiscretization<D> {
                     }
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// `b_i = int_outlet phi_i n_a w ds` of the velocity dofs on boundary `name`, in dof order:
+    /// the outlet flux is `s sum_i b_i u_i` ([`WindkesselBc`]).
+    pub fn flux_weights(&self, formulation: Formulation, name: &str) -> Result<Vec<(usize, f64)>, AssemblyError> {
+        let mut fv = self.facet_values();
+        let mut coords = Vec::new();
+        let vel = &self.velocity_field();
+        let mut weights = std::collections::BTreeMap::new();
+        for bf in self.mesh.boundary_facets(name).unwrap_or_default() {
+            self.mesh.cell_coords_into(bf.cell, &mut coords);
+            fv.reinit(&coords, bf.facet).map_err(|source| AssemblyError { cell: bf.cell, source })?;
+            let nodes = vel.nodes.cell(bf.cell);
+            for q in 0..fv.num_points() {
+                let w = fv.jxw[q] * formulation.weight(&fv.x[q]);
+                let phi = fv.phi(q);
+                for i in self.velocity_element.facet_nodes(bf.facet) {
+                    for a in 0..D {
+                        *weights.entry(vel.dof(nodes[i], a)).or_insert(0.0) += w * phi[i] * fv.normal[q][a];
+                    }
+                }
+            }
+        }
+        Ok(weights.into_iter().collect())
+    }
+
+    /// The Windkessel outlets' terms at `x` (history `x_old`, `a0/dt` in the problem's
+    /// parameters): the outlet pressure's traction in the velocity rows, and the rows of `Q` and
+    /// `P_c` ([`WindkesselBc`]).
+    fn add_windkessels(
+        &self,
+        problem: &FlowProblem<D>,
+        x: &[f64],
+        x_old: &[f64],
+        constrained: &[bool],
+        target: &mut impl SystemTarget,
+    ) -> Result<(), AssemblyError> {
+        assert_eq!(
+            problem.windkessel.iter().map(|w| &w.boundary).collect::<Vec<_>>(),
+            self.outlets.iter().collect::<Vec<_>>(),
+            "the problem's Windkessel outlets are the discretisation's"
+        );
+        let s = flux_scale(problem.formulation);
+        let inv_dt = problem.params.inv_dt;
+        for (k, wk) in problem.windkessel.iter().enumerate() {
+            let (iq, ic) = self.windkessel_dofs(k);
+            let b = self.flux_weights(problem.formulation, &wk.boundary)?;
+            let (q, pc) = (x[iq], x[ic]);
+            let pressure = wk.outlet_pressure(q, pc);
+            for &(dof, bi) in b.iter().filter(|(dof, _)| !constrained[*dof]) {
+                target.add_rhs(dof, -pressure * bi);
+                target.add_matrix(dof, iq, wk.proximal_resistance * bi);
+                target.add_matrix(dof, ic, bi);
+            }
+            let flux: f64 = s * b.iter().map(|&(dof, bi)| bi * x[dof]).sum::<f64>();
+            target.add_rhs(iq, -(q - flux));
+            target.add_matrix(iq, iq, 1.0);
+            for &(dof, bi) in &b {
+                target.add_matrix(iq, dof, -s * bi);
+            }
+            let storage = wk.compliance * inv_dt;
+            target.add_rhs(ic, -(storage * (pc - x_old[ic]) - q + (pc - wk.distal_pressure) / wk.distal_resistance));
+            target.add_matrix(ic, ic, storage + 1.0 / wk.distal_resistance);
+            target.add_matrix(ic, iq, -1.0);
         }
         Ok(())
     }

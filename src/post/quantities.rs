@@ -215,9 +215,9 @@ pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64
 }
 
 /// Every flow quantity a case requests, in the order probes, boundary integrals, domain
-/// quantities, combinations. Combinations may also use the quantities in `known` (evaluated
-/// elsewhere: the solid's probes, the built-in quantities of FSI runs). Displacement probes are
-/// left to the caller.
+/// quantities, combinations, after the state of each Windkessel outlet ([`windkessel_states`]).
+/// Combinations may also use the quantities in `known` (evaluated elsewhere: the solid's probes,
+/// the built-in quantities of FSI runs). Displacement probes are left to the caller.
 pub fn evaluate_all<const D: usize>(
     output: &crate::case::OutputSpec,
     disc: &FlowDiscretization<D>,
@@ -226,7 +226,7 @@ pub fn evaluate_all<const D: usize>(
     state: &StepState<'_>,
     known: &[(String, f64)],
 ) -> Result<Vec<(String, f64)>, QuantityError> {
-    let mut out: Vec<(String, f64)> = Vec::new();
+    let mut out = windkessel_states(disc, problem, x);
     for p in output.probe.iter().filter(|p| p.field != crate::case::ProbeField::Displacement) {
         let v = probe(disc, x, p).ok_or_else(|| QuantityError::ProbeOutside { name: p.name.clone(), point: p.point.clone() })?;
         out.push((p.name.clone(), v));
@@ -243,6 +243,20 @@ pub fn evaluate_all<const D: usize>(
         out.push((c.name.clone(), v));
     }
     Ok(out)
+}
+
+/// The state of each Windkessel outlet `NAME` (its boundary): `NAME_flux` (`Q`),
+/// `NAME_pressure` (the outlet pressure `R_p Q + P_c`) and `NAME_capacitor_pressure` (`P_c`).
+pub fn windkessel_states<const D: usize>(disc: &FlowDiscretization<D>, problem: &FlowProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
+    let mut out = Vec::new();
+    for (k, wk) in problem.windkessel.iter().enumerate() {
+        let (iq, ic) = disc.windkessel_dofs(k);
+        let name = &wk.boundary;
+        out.push((format!("{name}_flux"), x[iq]));
+        out.push((format!("{name}_pressure"), wk.outlet_pressure(x[iq], x[ic])));
+        out.push((format!("{name}_capacitor_pressure"), x[ic]));
+    }
+    out
 }
 
 /// A quantity that cannot be evaluated.

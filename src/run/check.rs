@@ -285,10 +285,11 @@ impl Ctx<'_> {
             None => mesh,
         };
         self.probes_inside(&adapted)?;
-        flow_problem(case, &adapted, self.dir)?;
+        let problem = flow_problem(case, &adapted, self.dir)?;
+        let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
         let adapted_cells = adapted.num_cells();
         // The entries counted, not stored: a run may hold only its rows of them.
-        let disc = FlowDiscretization::build_with(adapted, case.physics.formulation, Entries::Counted)?;
+        let disc = FlowDiscretization::build_with_outlets(adapted, case.physics.formulation, &outlets, Entries::Counted)?;
         let dofs = with_total(super::flow::flow_dofs(&disc));
         let solid_text = match &case.solid {
             Some(s) => format!(

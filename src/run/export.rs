@@ -10,7 +10,7 @@
 
 use super::{RunError, RunObserver};
 use crate::case::{Case, LinearMethod, RunKind};
-use crate::discretize::flow::FlowDiscretization;
+use crate::discretize::flow::{Entries, FlowDiscretization};
 use crate::discretize::fsi::{FsiError, FsiState, StepStart};
 use crate::io::matrix_market::{write_matrix, write_vector};
 use crate::io::{write_atomic, OutputError};
@@ -41,18 +41,23 @@ pub fn export_system(case: &Case, case_dir: &Path, dir: &Path, obs: &mut dyn Run
 
 fn export_flow<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
     let mut problem = flow_problem(case, &mesh, case_dir)?;
-    let disc = FlowDiscretization::build(mesh, case.physics.formulation)?;
+    let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
+    let disc = FlowDiscretization::build_with_outlets(mesh, case.physics.formulation, &outlets, Entries::Whole)?;
     // The first step's system: at t = dt from rest with 1/dt, or the steady one at t = 0.
     let t = case.time.as_ref().map_or(0.0, |ts| ts.dt);
     problem.params.inv_dt = if t > 0.0 { 1.0 / t } else { 0.0 };
     let n = disc.num_dofs();
-    let mut x = vec![0.0; n];
+    let mut x = disc.initial_state(&problem);
+    let x_old = x.clone();
     let constrained = disc.impose_dirichlet(&problem, t, &mut x)?;
     let mut k = CscMatrix::zeros(disc.whole_pattern());
     let mut rhs = vec![0.0; n];
-    disc.assemble_system(&problem, &x, &vec![0.0; n], t, &constrained, &mut k, &mut rhs)
+    disc.assemble_system(&problem, &x, &x_old, t, &constrained, &mut k, &mut rhs)
         .map_err(|e| crate::discretize::flow::FlowError::Map { cell: e.cell, source: e.source })?;
-    let blocks = disc.layout.fields.iter().map(|f| (f.name.to_string(), f.range())).collect();
+    let mut blocks: Vec<(String, Range<usize>)> = disc.layout.fields.iter().map(|f| (f.name.to_string(), f.range())).collect();
+    if !outlets.is_empty() {
+        blocks.push(("windkessel".into(), disc.windkessel_dofs(0).0..n));
+    }
     write_system(dir, &k, &rhs, blocks, obs)?;
     write_augmented(case, dir, &k, || Ok(disc.saddle_point_split(problem.formulation)?), obs)
 }

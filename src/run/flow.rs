@@ -55,7 +55,8 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let world = lu.as_row_solver().map(|rows| rows.world());
     let entries = world.map_or(Entries::Whole, Entries::Rows);
-    let disc = FlowDiscretization::build_with(mesh, case.physics.formulation, entries)?;
+    let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
+    let disc = FlowDiscretization::build_with_outlets(mesh, case.physics.formulation, &outlets, entries)?;
     let discretize = t.elapsed().as_secs_f64();
     let dofs = flow_dofs(&disc);
     let held = disc.nnz().unwrap_or_default(); // built whole or by rows: counted
@@ -81,7 +82,7 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
             start.timings.discretize = discretize;
             let (x, level) = match &options.resume {
                 Some(c) => c.flow_state(&options.out_dir, disc.num_dofs())?,
-                None => (vec![0.0; disc.num_dofs()], TimeLevel::default()),
+                None => (disc.initial_state(&problem), TimeLevel::default()),
             };
             let mut stepper = FlowStepper::new(&disc, &problem, lu.as_mut(), case.solver.newton.clone(), ts.scheme, x, level);
             let schedule = Schedule { dt: ts.dt, end: ts.end, max_cuts: ts.max_cuts };
@@ -96,7 +97,11 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
 /// The unknowns of a flow discretisation per field, as `summary.json` and `fdfsi check` list
 /// them.
 pub(crate) fn flow_dofs<const D: usize>(disc: &FlowDiscretization<D>) -> Vec<(String, usize)> {
-    disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect()
+    let mut dofs: Vec<(String, usize)> = disc.layout.fields.iter().map(|f| (f.name.clone(), f.num_dofs())).collect();
+    if !disc.outlets().is_empty() {
+        dofs.push(("windkessel".into(), 2 * disc.outlets().len()));
+    }
+    dofs
 }
 
 /// A steady solution `state` (Newton's `report`), recorded as step 0 of a run of one step.

@@ -3,7 +3,7 @@
 
 use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, TimeFn};
-use crate::discretize::flow::{DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn};
+use crate::discretize::flow::{DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn, WindkesselBc};
 use crate::discretize::fsi::FsiError;
 use crate::discretize::solid::SolidError;
 use crate::physics::fluid::FluidParams;
@@ -110,6 +110,7 @@ fn compile_all(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, CaseError> {
 pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path) -> Result<FlowProblem<D>, SetupError> {
     let mut dirichlet = Vec::new();
     let mut traction = Vec::new();
+    let mut windkessel = Vec::new();
     let all: Vec<usize> = (0..D).collect();
     let zero: VectorFn<D> = Arc::new(|_: &[f64; D], _| [0.0; D]);
     // Exterior facets whose normal velocity is not prescribed fix the pressure level.
@@ -157,6 +158,21 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
                 pressure_fixed = true;
             }
             BoundaryType::Free => pressure_fixed = true,
+            BoundaryType::Windkessel => {
+                let w = b.windkessel.as_ref().ok_or_else(|| CaseError::Invalid {
+                    file: "case".into(),
+                    message: format!("boundary '{}': type = \"windkessel\" needs its windkessel table", b.name),
+                })?;
+                windkessel.push(WindkesselBc {
+                    boundary: b.name.clone(),
+                    proximal_resistance: w.proximal_resistance,
+                    compliance: w.compliance,
+                    distal_resistance: w.distal_resistance,
+                    distal_pressure: w.distal_pressure,
+                    initial_pressure: w.initial_pressure.unwrap_or(w.distal_pressure),
+                });
+                pressure_fixed = true;
+            }
         }
     }
     let exterior = Topology::build(mesh).exterior_facets().len();
@@ -180,6 +196,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
         body_force,
         dirichlet,
         traction,
+        windkessel,
         pin_pressure: !pressure_fixed,
     })
 }

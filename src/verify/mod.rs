@@ -115,6 +115,7 @@ pub fn manufactured_problem<const D: usize>(
             })
             .collect(),
         pin_pressure: false,
+        windkessel: Vec::new(),
     }
 }
 
@@ -297,6 +298,7 @@ pub fn kovasznay(effort: Effort) -> Result<Vec<Study>, FlowError> {
             dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
             traction: vec![],
             pin_pressure: true,
+            windkessel: Vec::new(),
         };
         let sol = solve_steady(&disc, &problem, &mut FaerLu::default(), &NewtonOptions::default())?;
         // The discrete pressure has zero mean; compare with the exact pressure shifted likewise.
@@ -346,6 +348,7 @@ pub fn time_error(scheme: crate::time::TimeScheme, dt: f64, t_end: f64) -> Resul
         dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
         traction: vec![],
         pin_pressure: true,
+        windkessel: Vec::new(),
     };
     let mut x = vec![0.0; disc.num_dofs()];
     let options = TimeOptions { dt, t_end, scheme, max_cuts: 0 };
