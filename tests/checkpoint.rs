@@ -268,6 +268,20 @@ fn fsi_run_stopped_and_resumed_repeats_the_history() {
     assert_eq!(read_pvd(&dir.join("solution.pvd")).unwrap().len(), 12);
 }
 
+/// An FSI run's Windkessel outlet (its `Q` and `P_c` carried from mesh to mesh, not on them) is
+/// in the checkpoint: the resumed run repeats the uninterrupted one exactly.
+#[test]
+fn fsi_run_with_a_windkessel_outlet_resumes_its_state() {
+    let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "model-problem-2").unwrap().1;
+    let outlet = "name = \"right\"\ntype = \"windkessel\"\nwindkessel = { proximal_resistance = 0.5, compliance = 0.2, distal_resistance = 2.0, initial_pressure = 0.4 }";
+    let text = text.replace("end = 12.0", "end = 4.0").replace("n = [64, 16]", "n = [32, 8]").replace("name = \"right\"\ntype = \"free\"", outlet);
+    assert!(text.contains("windkessel"));
+    let (full, parts, dir) = interrupted_and_resumed(&direct(&text), &Path::new(env!("CARGO_MANIFEST_DIR")).join("cases"), 1);
+    assert_same_history(&full, &parts, 0.0);
+    let pc = history_column(&dir, "right_capacitor_pressure");
+    assert!(full.iter().all(|r| r[pc] > 0.4), "the capacitor charges from 0.4");
+}
+
 /// The compressible block of `tests/fsi_thick_solid.rs` with inertia settling in fluid, coupled on
 /// three sides with its covered fluid removed: BDF2, dt = 0.1 to t = 0.5, the direct solver.
 fn bdf2_block() -> String {

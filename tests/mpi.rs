@@ -8,7 +8,7 @@
 //! `mpirun`).
 #![cfg(feature = "petsc")]
 
-use fdfsi::case::{Case, LinearMethod, MeshSpec, PetscMethod, SolidMeshSpec};
+use fdfsi::case::{BoundaryType, Case, LinearMethod, MeshSpec, PetscMethod, SolidMeshSpec, WindkesselSpec};
 use fdfsi::run::{run_case, RunOptions};
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -141,6 +141,28 @@ fn model_problem_3_on_two_ranks_gives_the_serial_quantities() {
         let log = compare("model-problem-3", solver, 1e-8, 1e-11, |_| {});
         assert_by_rows(&log, solver);
     }
+}
+
+/// Model problem 2 (2D FSI, 4 steps on a 32 x 8 mesh) with its outlet a Windkessel (issue 17):
+/// the outlet's flux and capacitor pressure are unknowns of the system, in the rows of one rank,
+/// coupled to velocity rows of both; by rows with MUMPS, the quantities (the outlet's pressure
+/// among them) agree with the serial run's.
+#[test]
+fn a_windkessel_outlet_on_two_ranks_gives_the_serial_quantities() {
+    let log = compare("model-problem-2", PetscMethod::Mumps, 1e-9, 1e-12, |c| {
+        c.mesh = Some(MeshSpec::Rectangle { x: [0.0, 4.0], y: [0.0, 1.0], n: [32, 8] });
+        c.time.as_mut().unwrap().end = 4.0;
+        let outlet = c.boundary.iter_mut().find(|b| b.name == "right").unwrap();
+        outlet.kind = BoundaryType::Windkessel;
+        outlet.windkessel = Some(WindkesselSpec {
+            proximal_resistance: 0.5,
+            compliance: 0.2,
+            distal_resistance: 2.0,
+            distal_pressure: 0.0,
+            initial_pressure: Some(0.4),
+        });
+    });
+    assert_by_rows(&log, PetscMethod::Mumps);
 }
 
 /// Model problem 4 (3D FSI) on the coarser mesh of tests/cases.rs, 3 steps, with MUMPS and with

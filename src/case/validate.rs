@@ -147,7 +147,7 @@ fn boundaries(c: &Case, p: &mut Problems) {
         if b.kind == BoundaryType::Symmetry && !matches!(b.normal_axis, Some(a) if a < d) {
             p.push(format!("boundary '{}': type = \"symmetry\" needs normal_axis in 0..{d}", b.name));
         }
-        windkessel(c, b, p);
+        windkessel(b, p);
         for v in &b.value {
             if let Err(e) = Expr::compile(v) {
                 p.push(format!("boundary '{}': {e}", b.name));
@@ -165,9 +165,9 @@ fn boundaries(c: &Case, p: &mut Problems) {
     }
 }
 
-/// A `windkessel` boundary: its table, `R_p >= 0`, `C >= 0`, `R_d > 0`, finite pressures; flows
-/// only (not FSI yet), and no time function.
-fn windkessel(c: &Case, b: &BoundarySpec, p: &mut Problems) {
+/// A `windkessel` boundary: its table, `R_p >= 0`, `C >= 0`, `R_d > 0`, finite pressures, and no
+/// time function.
+fn windkessel(b: &BoundarySpec, p: &mut Problems) {
     let name = &b.name;
     let Some(w) = &b.windkessel else {
         if b.kind == BoundaryType::Windkessel {
@@ -192,9 +192,6 @@ fn windkessel(c: &Case, b: &BoundarySpec, p: &mut Problems) {
     }
     if b.time_function.is_some() {
         p.push(format!("boundary '{name}': a windkessel outlet takes no time_function"));
-    }
-    if c.kind() == RunKind::Fsi {
-        p.push(format!("boundary '{name}': Windkessel outlets are for flow runs; FSI runs do not take them yet"));
     }
 }
 

@@ -119,8 +119,6 @@ pub enum FlowError {
     CellType(ReferenceCell),
     #[error("{0} unknowns exceed the 2^32 column indices of a partitioned assembly")]
     TooManyUnknowns(usize),
-    #[error("Windkessel outlets are not assembled by rows yet (a PETSc solver of rows: MUMPS or a field split); use [solver.linear] method = \"direct\" or \"augmented-lagrangian\"")]
-    OutletsByRows,
     #[error(transparent)]
     Newton(#[from] NewtonError<AssemblyError>),
     /// `reached` is the smallest viscosity solved (infinite when none converged from rest).
@@ -157,6 +155,8 @@ pub struct FlowDiscretization<const D: usize> {
     facet_weights: Vec<f64>,
     /// The boundaries of the Windkessel outlets, whose unknowns follow the layout's.
     outlets: Vec<String>,
+    /// The outlets' couplings as cells after the mesh's ([`FlowDiscretization::system_cell_dofs`]).
+    outlet_cells: Vec<Vec<usize>>,
 }
 
 /// Which matrix entries a discretisation prepares ([`FlowDiscretization::build_with`],
@@ -197,6 +197,16 @@ pub struct FlowRows {
     pub colouring: Colouring,
 }
 
+/// The unknowns of system cell `c`: mesh cell `c` of `layout`, or outlet cell `c - num_cells`.
+fn system_cell_dofs(layout: &BlockLayout, num_cells: usize, outlet_cells: &[Vec<usize>], c: usize, buf: &mut Vec<usize>) {
+    if c < num_cells {
+        layout.cell_dofs_into(c, buf)
+    } else {
+        buf.clear();
+        buf.extend_from_slice(&outlet_cells[c - num_cells]);
+    }
+}
+
 /// A cell kernel's scratch: cell values, coordinates, the old velocity and the cell's unknowns.
 type CellScratch<const D: usize> = (CellValues<D>, Vec<[f64; D]>, Vec<f64>, Vec<f64>);
 
@@ -231,7 +241,7 @@ impl<const D: usize> FlowDiscretization<D> {
     /// [`FlowDiscretization::build_with`] with Windkessel outlets on the boundaries `outlets`
     /// (those of the problem's [`WindkesselBc`]s, in order): two unknowns each after the
     /// layout's, `Q` and `P_c` ([`FlowDiscretization::windkessel_dofs`]), coupled to the velocity
-    /// on the outlet's facets. Not with [`Entries::Rows`] yet.
+    /// on the outlet's facets.
     pub fn build_with_outlets(mesh: Mesh<D>, formulation: Formulation, outlets: &[String], entries: Entries) -> Result<Self, FlowError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(FlowError::Formulation { formulation, dim: D });
@@ -261,24 +271,17 @@ impl<const D: usize> FlowDiscretization<D> {
             }
         }
         let (nc, n) = (mesh.num_cells(), layout.num_dofs() + 2 * outlets.len());
-        let cell_dofs = |c: usize, buf: &mut Vec<usize>| match outlet_cells.get(c.wrapping_sub(nc)) {
-            Some(dofs) if c >= nc => {
-                buf.clear();
-                buf.extend_from_slice(dofs);
-            }
-            _ => layout.cell_dofs_into(c, buf),
-        };
+        let cell_dofs = |c: usize, buf: &mut Vec<usize>| system_cell_dofs(&layout, nc, &outlet_cells, c, buf);
         let all_cells = nc + outlet_cells.len();
         let sparsity = match entries {
             Entries::Whole => Sparsity::Whole(Pattern::from_cells(n, all_cells, cell_dofs)),
             Entries::Counted => Sparsity::Counted(Pattern::count_from_cells(n, all_cells, cell_dofs)),
             Entries::Unassembled => Sparsity::Unassembled,
-            Entries::Rows(_) if !outlets.is_empty() => return Err(FlowError::OutletsByRows),
             Entries::Rows(_) if u32::try_from(n).is_err() => return Err(FlowError::TooManyUnknowns(n)),
             Entries::Rows(world) => {
                 let nodes = Nodes { size: D, end: layout.fields[0].num_dofs() };
-                let partition = Partition::from_cells(n, mesh.num_cells(), cell_dofs, world, nodes);
-                let cells = partition.cells_of_rows(mesh.num_cells(), cell_dofs);
+                let partition = Partition::from_cells(n, all_cells, cell_dofs, world, nodes);
+                let cells = partition.cells_of_rows(all_cells, cell_dofs);
                 let pattern = partition.row_pattern(&cells, cell_dofs);
                 let colouring = colouring.restricted(|c| cells.binary_search(&c).is_ok());
                 Sparsity::Rows(FlowRows { partition, pattern, colouring })
@@ -299,7 +302,19 @@ impl<const D: usize> FlowDiscretization<D> {
             facet_points,
             facet_weights,
             outlets: outlets.to_vec(),
+            outlet_cells,
         })
+    }
+
+    /// The system's "cells", whose unknowns are coupled: the mesh's cells, then one per facet of
+    /// each Windkessel outlet (its velocity dofs with the outlet's `Q` and `P_c`).
+    pub fn num_system_cells(&self) -> usize {
+        self.mesh.num_cells() + self.outlet_cells.len()
+    }
+
+    /// The unknowns of system cell `c` ([`FlowDiscretization::num_system_cells`]) into `buf`.
+    pub fn system_cell_dofs(&self, c: usize, buf: &mut Vec<usize>) {
+        system_cell_dofs(&self.layout, self.mesh.num_cells(), &self.outlet_cells, c, buf)
     }
 
     /// Number of unknowns: the layout's, then two per Windkessel outlet.

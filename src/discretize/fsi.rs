@@ -245,6 +245,8 @@ pub struct FluidSnapshot<const D: usize> {
     pub nodes: NodeMap,
     /// `velocity[node * D + a]`.
     pub velocity: Vec<f64>,
+    /// The Windkessel outlets' `Q` and `P_c` (two per outlet; not on the mesh).
+    pub lumped: Vec<f64>,
 }
 
 /// The state of an FSI run after a step (see [`crate::discretize::fsi::FsiState`]).
@@ -281,6 +283,9 @@ pub struct PreviousRestart {
 pub struct FluidRestart {
     pub solid_base: Vec<f64>,
     pub velocity: Vec<f64>,
+    /// The Windkessel outlets' `Q` and `P_c` (absent from checkpoints of runs without them).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lumped: Vec<f64>,
 }
 
 /// The solid cells in the pattern of each coupling element, carried from step to step while
@@ -397,7 +402,7 @@ impl<const D: usize> FsiState<D> {
 
 impl<const D: usize> FluidSnapshot<D> {
     fn to_restart(&self) -> FluidRestart {
-        FluidRestart { solid_base: self.solid_base.clone(), velocity: self.velocity.clone() }
+        FluidRestart { solid_base: self.solid_base.clone(), velocity: self.velocity.clone(), lumped: self.lumped.clone() }
     }
 
     /// The snapshot of a checkpoint: its adapted mesh rebuilt from the solid position it was
@@ -412,7 +417,17 @@ impl<const D: usize> FluidSnapshot<D> {
                 vel.num_dofs()
             )));
         }
-        Ok(FluidSnapshot { solid_base: f.solid_base.clone(), mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: f.velocity.clone() })
+        let lumped = disc.layout.len(Block::Windkessel);
+        if f.lumped.len() != lumped {
+            return Err(FsiError::Restart(format!("the checkpoint has {} Windkessel values but the case has {lumped}", f.lumped.len())));
+        }
+        Ok(FluidSnapshot {
+            solid_base: f.solid_base.clone(),
+            mesh: disc.flow.mesh.clone(),
+            nodes: vel.nodes.clone(),
+            velocity: f.velocity.clone(),
+            lumped: f.lumped.clone(),
+        })
     }
 
     /// The velocity transferred to the velocity nodes of `disc` (fluid numbering, zero pressure).
@@ -456,6 +471,8 @@ impl<const D: usize> FluidSnapshot<D> {
         let mut u = vec![0.0; disc.fluid_dofs()];
         let v = transfer_p2plus_or(&self.mesh, &self.nodes, &self.velocity, &disc.flow.velocity_nodes, extend, solid_velocity)?;
         u[disc.flow.velocity_field().range()].copy_from_slice(&v);
+        // The Windkessel state is not on the mesh: carried as it is.
+        u[disc.layout.range(Block::Windkessel)].copy_from_slice(&self.lumped);
         Ok(u)
     }
 }
@@ -677,7 +694,9 @@ impl<const D: usize> FsiDiscretization<D> {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
         }
         let flow_entries = if entries == Entries::Whole { Entries::Whole } else { Entries::Unassembled };
-        let flow = FlowDiscretization::build_with(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation, flow_entries)?;
+        let outlets: Vec<String> = model.problem.fluid.windkessel.iter().map(|w| w.boundary.clone()).collect();
+        let flow =
+            FlowDiscretization::build_with_outlets(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation, &outlets, flow_entries)?;
         let mut coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
         let fluid_dofs = flow.num_dofs();
         let solid_dofs = model.solid.num_dofs();
@@ -713,6 +732,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let layout = SystemLayout::new(&[
             (Block::FluidVelocity, vel.num_dofs()),
             (Block::FluidPressure, flow.pressure_field().num_dofs()),
+            (Block::Windkessel, 2 * outlets.len()),
             (Block::SolidDisplacement, model.solid.displacement_field().num_dofs()),
             (Block::SolidPressure, solid_dofs - model.solid.displacement_field().num_dofs()),
             (Block::Multiplier, ne * D * D),
@@ -746,9 +766,10 @@ impl<const D: usize> FsiDiscretization<D> {
                 d
             })
             .collect();
-        // The system's "cells", whose unknowns are coupled: the fluid cells, the solid cells, the
-        // coupling elements and the kernel's columns (each kernel unknown with its multipliers).
-        let (nfc, nsc) = (flow.mesh.num_cells(), model.solid.mesh.num_cells());
+        // The system's "cells", whose unknowns are coupled: the fluid's (its cells and Windkessel
+        // outlets), the solid cells, the coupling elements and the kernel's columns (each kernel
+        // unknown with its multipliers).
+        let (nfc, nsc) = (flow.num_system_cells(), model.solid.mesh.num_cells());
         let num_cells = nfc + nsc + ne + kernel.len();
         let cell_dofs = |c: usize, buf: &mut Vec<usize>| {
             if c >= nfc + nsc + ne {
@@ -757,7 +778,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 buf.extend(kernel[j].iter().map(|&(i, _)| ol + i));
                 buf.push(ol + kernel_first + j);
             } else if c < nfc {
-                flow.layout.cell_dofs_into(c, buf);
+                flow.system_cell_dofs(c, buf);
             } else if c < nfc + nsc {
                 model.solid.layout.cell_dofs_into(c - nfc, buf);
                 buf.iter_mut().for_each(|d| *d += os);
@@ -875,7 +896,7 @@ impl<const D: usize> FsiDiscretization<D> {
     }
     /// Number of fluid unknowns (velocity and pressure): the fluid is the first part.
     pub fn fluid_dofs(&self) -> usize {
-        self.layout.span(Block::FluidVelocity, Block::FluidPressure).len()
+        self.layout.span(Block::FluidVelocity, Block::Windkessel).len()
     }
     /// Number of solid unknowns (displacement and pressure).
     pub fn solid_dofs(&self) -> usize {
@@ -1217,8 +1238,8 @@ impl<const D: usize> FsiDiscretization<D> {
     /// What the global unknown `i` is, in words with a position (for error messages): a fluid
     /// velocity component at a node, a fluid pressure dof of a cell, a solid displacement component
     /// at a node (reference position) or a solid pressure dof of a cell, a multiplier component at
-    /// a vertex of a gamma_f facet, a trace-mode multiplier, or the unknown that removes a
-    /// multiplier mode. Components are named `x, y, z`, or `z, r` when axisymmetric.
+    /// a vertex of a gamma_f facet, a trace-mode multiplier, the unknown that removes a
+    /// multiplier mode, or a Windkessel outlet's flux or capacitor pressure. Components are named `x, y, z`, or `z, r` when axisymmetric.
     pub fn describe_unknown(&self, model: &FsiModel<D>, i: usize) -> String {
         let axes: [&str; 3] = match model.problem.fluid.formulation {
             crate::physics::fluid::Formulation::Axisymmetric => ["z", "r", "?"],
@@ -1241,6 +1262,10 @@ impl<const D: usize> FsiDiscretization<D> {
                 format!("the fluid velocity {} at {}", axes[a], at(&self.flow.velocity_nodes[node]))
             }
             Block::FluidPressure => cell_dof(self.flow.pressure_field(), i, "fluid"),
+            Block::Windkessel => {
+                let what = if k % 2 == 0 { "flux" } else { "capacitor pressure" };
+                format!("the {what} of the Windkessel outlet '{}'", self.flow.outlets()[k / 2])
+            }
             Block::SolidDisplacement => {
                 let (node, a) = node_and_component(model.solid.displacement_field(), solid_i());
                 format!("the solid displacement {} at reference position {}", axes[a], at(&model.solid.nodes_x0[node]))
@@ -1569,7 +1594,7 @@ impl<const D: usize> StepStart<D> {
         let clock = Instant::now();
         let (os, ol, n) = (disc.solid_offset(), disc.multiplier_offset(), disc.num_dofs());
         let transferred = |f: Option<&FluidSnapshot<D>>, solid_v: &[f64]| {
-            f.map_or_else(|| Ok(vec![0.0; disc.fluid_dofs()]), |f| f.transferred_to(model, &disc, solid_v))
+            f.map_or_else(|| Ok(disc.flow.initial_state(&model.problem.fluid)), |f| f.transferred_to(model, &disc, solid_v))
         };
         let u_n = transferred(state.fluid.as_ref(), &state.solid_v)?;
         let u_prev = previous.map(|p| transferred(p.fluid.as_ref(), &p.solid_v)).transpose()?;
@@ -1686,7 +1711,9 @@ pub fn step_with<const D: usize>(
     let solid_v: Vec<f64> = (0..inc.len()).map(|i| if i < nus { a * (inc[i] - shift(i)) } else { 0.0 }).collect();
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.velocity_field();
-    let snapshot = FluidSnapshot { solid_base: geometry, mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec() };
+    let lumped = x[disc.layout.range(Block::Windkessel)].to_vec();
+    let snapshot =
+        FluidSnapshot { solid_base: geometry, mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec(), lumped };
     seconds.update = clock.elapsed().as_secs_f64();
     let report = FsiStepReport {
         time: t_new,

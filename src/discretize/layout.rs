@@ -1,7 +1,7 @@
 //! The unknowns of the monolithic FSI system in named blocks.
 //!
-//! One step's system is `[fluid velocity | fluid pressure | solid displacement | solid pressure |
-//! multiplier | trace modes | kernel unknowns]` (see [`crate::discretize::fsi`]). Every place
+//! One step's system is `[fluid velocity | fluid pressure | windkessel | solid displacement |
+//! solid pressure | multiplier | trace modes | kernel unknowns]` (see [`crate::discretize::fsi`]). Every place
 //! that needs a position in it (the pattern, the assembly scatter, the constraints,
 //! `describe_unknown`, the restart state, the output slices and, later, the field splits of a
 //! block preconditioner) asks the [`SystemLayout`] by [`Block`] instead of adding offsets.
@@ -15,6 +15,9 @@ pub enum Block {
     FluidVelocity,
     /// The P1-discontinuous fluid pressure, `D + 1` per cell.
     FluidPressure,
+    /// The Windkessel outlets' flux and capacitor pressure, two per outlet
+    /// ([`crate::discretize::flow::WindkesselBc`]).
+    Windkessel,
     /// The Q2 solid displacement increment, `D` per node.
     SolidDisplacement,
     /// The P1-discontinuous solid pressure (mixed laws).
@@ -33,6 +36,7 @@ impl Block {
         match self {
             Block::FluidVelocity => "fluid velocity",
             Block::FluidPressure => "fluid pressure",
+            Block::Windkessel => "windkessel",
             Block::SolidDisplacement => "solid displacement",
             Block::SolidPressure => "solid pressure",
             Block::Multiplier => "multiplier",
@@ -45,7 +49,7 @@ impl Block {
     /// unknowns per part are `summary.json`'s `dofs`).
     pub fn part(self) -> &'static str {
         match self {
-            Block::FluidVelocity | Block::FluidPressure => "fluid",
+            Block::FluidVelocity | Block::FluidPressure | Block::Windkessel => "fluid",
             Block::SolidDisplacement | Block::SolidPressure => "solid",
             Block::Multiplier | Block::TraceModes | Block::KernelUnknowns => "multiplier",
         }
