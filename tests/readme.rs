@@ -113,6 +113,7 @@ fn every_field_the_parser_accepts_is_documented() {
         "[[solid.boundary]]",
         "[solid.loading]",
         "[solid.fibres]",
+        "[[solid.contact]]",
     ]
     .iter()
     .map(|t| format!("title = \"t\"\n{t}\n{UNKNOWN}\n"))

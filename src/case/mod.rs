@@ -174,6 +174,10 @@ pub struct SolidSpec {
     /// Boundary conditions of the solid.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary: Vec<SolidBoundarySpec>,
+    /// `[[solid.contact]]`: frictionless contact of solid boundaries with rigid planes (solid-only
+    /// runs).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub contact: Vec<ContactSpec>,
     /// Quasi-static load stepping: boundary values are multiplied by a load factor ramped from 0
     /// to 1.
     #[serde(default)]
@@ -202,6 +206,19 @@ pub struct SolidSpec {
     pub pivot: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translate: Option<Vec<f64>>,
+}
+
+/// `[[solid.contact]]`: the solid boundary `boundary` may touch the rigid plane through `point`
+/// with normal `normal` (pointing to the side the solid stays on), without friction
+/// ([`crate::physics::contact`]).
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    pub boundary: String,
+    /// A point of the plane (one coordinate per dimension).
+    pub point: Vec<f64>,
+    /// The plane's normal (one entry per dimension; normalised).
+    pub normal: Vec<f64>,
 }
 
 /// `[solid.fibres]`: `Psi_f = k1 / (2 k2) (exp(k2 (I4 - 1)^2) - 1)` added to the law where the

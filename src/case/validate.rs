@@ -338,6 +338,8 @@ fn solid(c: &Case, p: &mut Problems) {
         solid_material(c, solid, p);
     } else if solid.fibres.is_some() {
         p.push("solid.fibres reinforce a material law: give solid.model (e.g. \"neo-hookean\")");
+    } else if !solid.contact.is_empty() {
+        p.push("solid.contact needs a deforming solid: give solid.model (e.g. \"neo-hookean\")");
     }
     if solid.multiplier == MultiplierSpace::P1DiscontinuousTraceMode && c.dim() == 3 {
         p.push("solid.multiplier = \"p1-discontinuous-trace-mode\" is 2D only (plane or axisymmetric)");
@@ -349,6 +351,35 @@ fn solid(c: &Case, p: &mut Problems) {
     solid_placement(c, solid, p);
     if solid.loading.steps > MAX_STEPS {
         p.push(format!("solid.loading.steps = {} is more than {MAX_STEPS}", solid.loading.steps));
+    }
+}
+
+/// `[[solid.contact]]`: solid-only runs, a boundary name, a point and a non-zero normal of the
+/// dimension, each boundary once.
+fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
+    let d = c.dim();
+    for (i, k) in solid.contact.iter().enumerate() {
+        let what = format!("solid.contact '{}'", k.boundary);
+        if c.mesh.is_some() {
+            p.push(format!("{what}: contact is for solid-only runs (no fluid [mesh]) yet"));
+        }
+        if k.boundary.is_empty() {
+            p.push("solid.contact: give the boundary that may touch the plane");
+        }
+        if solid.contact[..i].iter().any(|o| o.boundary == k.boundary) {
+            p.push(format!("{what} is given twice"));
+        }
+        for (key, v) in [("point", &k.point), ("normal", &k.normal)] {
+            if v.len() != d {
+                p.push(format!("{what}: {key} needs {d} entries, got {}", v.len()));
+            }
+            if v.iter().any(|x| !x.is_finite()) {
+                p.push(format!("{what}: {key} must be finite numbers"));
+            }
+        }
+        if k.normal.iter().all(|&x| x == 0.0) {
+            p.push(format!("{what}: the normal is the zero vector"));
+        }
     }
 }
 
@@ -399,6 +430,7 @@ fn solid_material(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     if let Some(f) = &solid.fibres {
         fibres(c, f, p);
     }
+    contact(c, solid, p);
     if !(solid.density >= 0.0 && solid.density.is_finite()) {
         p.push(format!("solid.density must be a finite number >= 0, got {}", solid.density));
     }

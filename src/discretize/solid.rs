@@ -31,6 +31,7 @@
 //! point, reported with the element, point and step) is retried with half the increment, down to
 //! `min_increment`.
 
+use crate::physics::contact::{complementarity, complementarity_scale, RigidPlane};
 use crate::physics::solid::{
     area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState, Mat3, SolidCellState,
     SolidMaterial, IDENTITY,
@@ -74,6 +75,14 @@ pub struct FollowerPressureBc {
     pub pressure: ScalarLoadFn,
 }
 
+/// Frictionless contact of the named boundary with a rigid plane
+/// ([`crate::physics::contact`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigidContactBc<const D: usize> {
+    pub boundary: String,
+    pub plane: RigidPlane<D>,
+}
+
 /// A solid problem.
 #[derive(Clone)]
 pub struct SolidProblem<const D: usize> {
@@ -91,6 +100,9 @@ pub struct SolidProblem<const D: usize> {
     /// Body force `b(X, load)` per unit reference volume (e.g. `rho_0 g`): the external work
     /// `int b . w dV_0`.
     pub body_force: Option<LoadFn<D>>,
+    /// Contact with rigid planes, in the order of the discretisation's contact surfaces
+    /// ([`SolidDiscretization::build_with_contact`]).
+    pub contact: Vec<RigidContactBc<D>>,
 }
 
 impl<const D: usize> SolidProblem<D> {
@@ -105,6 +117,7 @@ impl<const D: usize> SolidProblem<D> {
             pin_pressure: None,
             density: 0.0,
             body_force: None,
+            contact: Vec::new(),
         }
     }
     /// Adds a prescribed displacement.
@@ -120,6 +133,12 @@ impl<const D: usize> SolidProblem<D> {
     /// Adds a dead-load traction.
     pub fn with_traction(mut self, boundary: &str, t: impl Fn(&[f64; D], f64) -> [f64; D] + Send + Sync + 'static) -> Self {
         self.traction.push(DeadTractionBc { boundary: boundary.into(), traction: Arc::new(t) });
+        self
+    }
+    /// Adds contact of `boundary` with a rigid plane (the discretisation needs the boundary as a
+    /// contact surface: [`SolidDiscretization::build_with_contact`]).
+    pub fn with_contact(mut self, boundary: &str, plane: RigidPlane<D>) -> Self {
+        self.contact.push(RigidContactBc { boundary: boundary.into(), plane });
         self
     }
     /// Adds a follower pressure.
@@ -147,6 +166,8 @@ pub enum SolidError {
     Formulation { formulation: Formulation, dim: usize },
     #[error("solid meshes must be quadrilaterals (2D) or hexahedra (3D) for Q2 elements, got {0:?}")]
     CellType(ReferenceCell),
+    #[error("solid.contact '{boundary}': {source}")]
+    ContactBoundary { boundary: String, source: MeshError },
     #[error(transparent)]
     Assembly(#[from] SolidAssemblyError),
     #[error(transparent)]
@@ -184,6 +205,26 @@ pub struct SolidDiscretization<const D: usize> {
     pub centroid_x0: Vec<[f64; D]>,
     facet_tabs: Vec<FacetTab>,
     facet_weights: Vec<f64>,
+    /// The contact surfaces, whose multipliers follow the layout's unknowns.
+    contact: Vec<ContactSurface>,
+}
+
+/// A boundary of the solid that may touch a rigid plane: its nodes, each with a contact
+/// multiplier ([`crate::physics::contact`]).
+#[derive(Clone, Debug)]
+pub struct ContactSurface {
+    pub boundary: String,
+    /// The displacement nodes on the boundary, sorted; node `nodes[j]` has the multiplier
+    /// `first + j`.
+    pub nodes: Vec<usize>,
+    pub first: usize,
+}
+
+impl ContactSurface {
+    /// The multiplier of displacement node `node`, if it is on this surface.
+    pub fn multiplier(&self, node: usize) -> Option<usize> {
+        self.nodes.binary_search(&node).ok().map(|j| self.first + j)
+    }
 }
 
 /// Quadrature degree of the cell integrals (3 Gauss points per direction).
@@ -196,6 +237,20 @@ fn q2_element<const D: usize>(cell: ReferenceCell) -> Result<ReferenceElement<D>
 impl<const D: usize> SolidDiscretization<D> {
     /// Builds the discretisation of `mesh` for a material (mixed laws get a pressure field).
     pub fn build(mesh: Mesh<D>, formulation: Formulation, material: &dyn SolidMaterial) -> Result<Self, SolidError> {
+        Self::build_with_contact(mesh, formulation, material, &[])
+    }
+
+    /// The discretisation of `mesh` for `problem`: its material, and its contact boundaries as
+    /// contact surfaces.
+    pub fn build_for(mesh: Mesh<D>, problem: &SolidProblem<D>) -> Result<Self, SolidError> {
+        let contact: Vec<String> = problem.contact.iter().map(|c| c.boundary.clone()).collect();
+        Self::build_with_contact(mesh, problem.formulation, problem.material.as_ref(), &contact)
+    }
+
+    /// [`SolidDiscretization::build`] with the boundaries `contact` (those of the problem's
+    /// [`RigidContactBc`]s, in order) as contact surfaces: a contact multiplier per node of each,
+    /// after the layout's unknowns, coupled to the displacement on the boundary's facets.
+    pub fn build_with_contact(mesh: Mesh<D>, formulation: Formulation, material: &dyn SolidMaterial, contact: &[String]) -> Result<Self, SolidError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(SolidError::Formulation { formulation, dim: D });
         }
@@ -210,7 +265,41 @@ impl<const D: usize> SolidDiscretization<D> {
         if mixed {
             layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
         }
-        let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
+        // Contact surfaces: their nodes' multipliers, and a "cell" per boundary facet (its
+        // nodes' displacements and multipliers) after the mesh's cells.
+        let mut surfaces = Vec::new();
+        let mut contact_cells: Vec<Vec<usize>> = Vec::new();
+        let mut first = layout.num_dofs();
+        let vf = &layout.fields[0];
+        for name in contact {
+            let facets = mesh.boundary_facets(name).map_err(|source| SolidError::ContactBoundary { boundary: name.clone(), source })?;
+            let mut nodes: Vec<usize> =
+                facets.iter().flat_map(|bf| element.facet_nodes(bf.facet).into_iter().map(|k| vf.nodes.cell(bf.cell)[k])).collect();
+            nodes.sort_unstable();
+            nodes.dedup();
+            let surface = ContactSurface { boundary: name.clone(), nodes, first };
+            for bf in &facets {
+                let cell_nodes = vf.nodes.cell(bf.cell);
+                let mut dofs: Vec<usize> = Vec::new();
+                for k in element.facet_nodes(bf.facet) {
+                    let node = cell_nodes[k];
+                    dofs.extend((0..D).map(|a| vf.dof(node, a)));
+                    dofs.extend(surface.multiplier(node));
+                }
+                contact_cells.push(dofs);
+            }
+            first += surface.nodes.len();
+            surfaces.push(surface);
+        }
+        let nc = mesh.num_cells();
+        let pattern = Pattern::from_cells(first, nc + contact_cells.len(), |c, buf| {
+            if c < nc {
+                layout.cell_dofs_into(c, buf)
+            } else {
+                buf.clear();
+                buf.extend_from_slice(&contact_cells[c - nc]);
+            }
+        });
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
         let cell_rule = fdfsi_fem::quadrature::for_cell::<D>(mesh.cell_type, CELL_DEGREE);
         // Facet rule and tabulations.
@@ -246,6 +335,7 @@ impl<const D: usize> SolidDiscretization<D> {
             centroid_x0: Vec::new(),
             facet_tabs,
             facet_weights,
+            contact: surfaces,
         };
         let mut cv = disc.cell_values();
         let mut coords = Vec::new();
@@ -258,9 +348,14 @@ impl<const D: usize> SolidDiscretization<D> {
         Ok(disc)
     }
 
-    /// Number of unknowns.
+    /// Number of unknowns: the layout's, then the contact multipliers.
     pub fn num_dofs(&self) -> usize {
-        self.layout.num_dofs()
+        self.layout.num_dofs() + self.contact.iter().map(|s| s.nodes.len()).sum::<usize>()
+    }
+
+    /// The contact surfaces ([`SolidDiscretization::build_with_contact`]).
+    pub fn contact_surfaces(&self) -> &[ContactSurface] {
+        &self.contact
     }
     /// Number of quadrature points per cell.
     pub fn points_per_cell(&self) -> usize {
@@ -333,6 +428,12 @@ impl<const D: usize> SolidDiscretization<D> {
         std::array::from_fn(|a| (0..n).map(|i| phi[i] * x[vf.dof(nodes[i], a)]).sum())
     }
 
+    /// The position `X + u` of node `node` for the total displacement in `x`.
+    pub fn current_position(&self, x: &[f64], node: usize) -> [f64; D] {
+        let u = self.displacement(x, node);
+        std::array::from_fn(|d| self.nodes_x0[node][d] + u[d])
+    }
+
     /// Displacement of node `node` in the global vector `x`.
     pub fn displacement(&self, x: &[f64], node: usize) -> [f64; D] {
         let vf = &self.displacement_field();
@@ -346,7 +447,8 @@ impl<const D: usize> SolidDiscretization<D> {
             .iter()
             .map(|b| &b.boundary)
             .chain(problem.traction.iter().map(|b| &b.boundary))
-            .chain(problem.pressure.iter().map(|b| &b.boundary));
+            .chain(problem.pressure.iter().map(|b| &b.boundary))
+            .chain(problem.contact.iter().map(|b| &b.boundary));
         for name in names {
             self.mesh.boundary_tag(name)?;
         }
@@ -560,10 +662,98 @@ impl<const D: usize> SolidDiscretization<D> {
                 }
             }
         }
+        self.add_contact(problem, base, x, constrained, target);
         for (dof, _) in constrained.iter().enumerate().filter(|(_, &c)| c) {
             target.identity_row(dof);
         }
         Ok(())
+    }
+
+    /// The contact terms at `x` (positions `X + base + x`; [`crate::physics::contact`]): the
+    /// planes' push in the displacement rows, and each contact node's complementarity row.
+    fn add_contact(&self, problem: &SolidProblem<D>, base: Option<&[f64]>, x: &[f64], constrained: &[bool], target: &mut impl SystemTarget) {
+        assert_eq!(
+            problem.contact.iter().map(|c| &c.boundary).collect::<Vec<_>>(),
+            self.contact.iter().map(|s| &s.boundary).collect::<Vec<_>>(),
+            "the problem's contact boundaries are the discretisation's contact surfaces"
+        );
+        let vf = self.displacement_field();
+        let position = |node: usize| -> [f64; D] {
+            std::array::from_fn(|d| {
+                let dof = vf.dof(node, d);
+                self.nodes_x0[node][d] + base.map_or(0.0, |b| b[dof]) + x[dof]
+            })
+        };
+        for (surface, bc) in self.contact.iter().zip(&problem.contact) {
+            let (mass, weight) = self.contact_mass(surface);
+            let n = bc.plane.normal;
+            let mut weighted_gap = vec![0.0; surface.nodes.len()];
+            for &(j, k, m) in &mass {
+                weighted_gap[j] += m * bc.plane.gap(&position(k));
+            }
+            let mut active = vec![false; surface.nodes.len()];
+            for (j, (&g, &w)) in weighted_gap.iter().zip(&weight).enumerate() {
+                let l = surface.first + j;
+                let c = complementarity_scale(problem.material.shear_modulus(), w, D);
+                let cond = complementarity(x[l], g, c);
+                active[j] = cond.active;
+                target.add_rhs(l, -cond.residual);
+                if !cond.active {
+                    target.add_matrix(l, l, -1.0 / c);
+                }
+            }
+            for &(j, k, m) in &mass {
+                let l = surface.first + j;
+                for a in 0..D {
+                    let dof = vf.dof(k, a);
+                    if active[j] {
+                        target.add_matrix(l, dof, -m * n[a]);
+                    }
+                    if !constrained[dof] {
+                        target.add_rhs(dof, m * x[l] * n[a]);
+                        target.add_matrix(dof, l, -m * n[a]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The surface mass matrix of a contact surface on the reference configuration, as
+    /// `(multiplier index j, displacement node k, M_jk)` per facet, and the weights
+    /// `w_j = int psi_j dA_0` (times `R` axisymmetric).
+    pub fn contact_mass(&self, surface: &ContactSurface) -> (Vec<(usize, usize, f64)>, Vec<f64>) {
+        let vf = self.displacement_field();
+        let (nv, nf) = (self.element.num_dofs(), self.facet_weights.len());
+        let mut mass = Vec::new();
+        let mut weight = vec![0.0; surface.nodes.len()];
+        let mut x_int = Vec::new();
+        for bf in self.mesh.boundary_facets(&surface.boundary).unwrap_or_default() {
+            self.cell_positions(bf.cell, None, &mut x_int);
+            let tab = &self.facet_tabs[bf.facet];
+            let local = self.element.facet_nodes(bf.facet);
+            let nodes = vf.nodes.cell(bf.cell);
+            let mut m = vec![0.0; local.len() * local.len()];
+            for q in 0..nf {
+                let pt =
+                    FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] };
+                let da = area_vector(&x_int, &pt, 1.0).iter().map(|v| v * v).sum::<f64>().sqrt();
+                let xq: [f64; D] = std::array::from_fn(|d| (0..nv).map(|i| pt.phi[i] * x_int[i][d]).sum());
+                let w = pt.weight * da * self.formulation.weight(&xq);
+                for (a, &i) in local.iter().enumerate() {
+                    for (b, &k) in local.iter().enumerate() {
+                        m[a * local.len() + b] += w * pt.phi[i] * pt.phi[k];
+                    }
+                }
+            }
+            for (a, &i) in local.iter().enumerate() {
+                let j = surface.nodes.binary_search(&nodes[i]).expect("a facet node of the surface");
+                for (b, &k) in local.iter().enumerate() {
+                    mass.push((j, nodes[k], m[a * local.len() + b]));
+                    weight[j] += m[a * local.len() + b];
+                }
+            }
+        }
+        (mass, weight)
     }
 
     /// Updates the stored deformation gradients after a converged updated-Lagrangian increment:

@@ -3,8 +3,8 @@
 
 use super::OutputError;
 use crate::discretize::flow::FlowDiscretization;
-use crate::discretize::solid::{pressure_at, SolidDiscretization};
-use crate::physics::solid::{det3, matmul, transpose, SolidMaterial};
+use crate::discretize::solid::{pressure_at, SolidDiscretization, SolidProblem};
+use crate::physics::solid::{det3, matmul, transpose};
 use fdfsi_fem::vtk::{UnstructuredGrid, VtkCellType, VtkError};
 
 /// The fluid solution as a VTK grid of quadratic cells.
@@ -83,9 +83,11 @@ pub fn gamma_f_grid<const D: usize>(disc: &crate::discretize::fsi::FsiDiscretiza
 /// The deformed solid as a VTK grid: 9-node quadrilaterals / 27-node hexahedra with point data
 /// `displacement` and cell data `pressure` (the mixed laws' pressure at the cell centre) and
 /// `cauchy_stress` (the cell mean of `sigma = P F^T / J - p I` over its quadrature points, 9
-/// components), and for a fibre-reinforced law `fibre_stretch` (the cell mean of
+/// components); with contact surfaces, point data `contact_pressure` and `contact_gap` (their
+/// nodes' multiplier and gap to the plane; 0 elsewhere); for a fibre-reinforced law `fibre_stretch` (the cell mean of
 /// `|F a_0| = sqrt(I4)`; 0 where the cell has no fibre).
-pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn SolidMaterial, x: &[f64]) -> Result<UnstructuredGrid, OutputError> {
+pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Result<UnstructuredGrid, OutputError> {
+    let material = problem.material.as_ref();
     let field = disc.displacement_field();
     let n = field.nodes.num_nodes;
     let points: Vec<[f64; 3]> = (0..n)
@@ -107,6 +109,17 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, material: &dyn 
         })
         .collect();
     grid.add_point_data("displacement", 3, disp)?;
+    if !disc.contact_surfaces().is_empty() {
+        let (mut pressure, mut gap) = (vec![0.0; n], vec![0.0; n]);
+        for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
+            for (j, &node) in surface.nodes.iter().enumerate() {
+                pressure[node] = x[surface.first + j];
+                gap[node] = bc.plane.gap(&disc.current_position(x, node));
+            }
+        }
+        grid.add_point_data("contact_pressure", 1, pressure)?;
+        grid.add_point_data("contact_gap", 1, gap)?;
+    }
     let f = disc.deformation_gradients(x)?;
     let nq = disc.points_per_cell();
     let (mut pressure, mut stress) = (Vec::with_capacity(nc), Vec::with_capacity(nc * 9));

@@ -190,7 +190,7 @@ impl Ctx<'_> {
         let cells = mesh.num_cells();
         // As `fdfsi run` builds it: loads ramped without [time], evaluated in time with it.
         let problem = solid_problem::<D>(case, spec, case.time.is_none())?;
-        let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
+        let disc = SolidDiscretization::build_for(mesh, &problem)?;
         disc.check_problem(&problem)?;
         let lagrangian = if case.time.is_some() { crate::discretize::solid::Lagrangian::Total } else { spec.loading.mode };
         let description = format!(

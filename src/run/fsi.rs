@@ -163,7 +163,7 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
             self.pictures_not_drawn.push(e.to_string());
         }
         series.add(time, "fluid", &fluid_grid(&st.disc.flow, &st.x[..st.disc.fluid_dofs()])?)?;
-        series.add(time, "solid", &solid_grid(&self.model.solid, self.model.problem.solid.material.as_ref(), &s.state.solid_x)?)?;
+        series.add(time, "solid", &solid_grid(&self.model.solid, &self.model.problem.solid, &s.state.solid_x)?)?;
         series.add(time, "gamma_f", &gamma_f_grid(&st.disc, &st.x)?)?;
         Ok(())
     }

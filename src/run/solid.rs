@@ -50,7 +50,7 @@ fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunO
     let cells = mesh.num_cells();
     let time = case.time.as_ref();
     let problem = solid_problem::<D>(case, spec, time.is_none())?;
-    let disc = SolidDiscretization::build(mesh, case.physics.formulation, problem.material.as_ref())?;
+    let disc = SolidDiscretization::build_for(mesh, &problem)?;
     disc.check_problem(&problem)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
     let steps = match time {
@@ -135,11 +135,13 @@ struct SolidOutputs<const D: usize> {
 
 impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
     fn quantities(&mut self, s: &S, _done: &StepDone) -> Result<Vec<(String, f64)>, RunError> {
-        Ok(self.probes.iter().map(|(name, node, a)| (name.clone(), s.disc().displacement(s.x(), *node)[*a])).collect())
+        let mut out: Vec<(String, f64)> = self.probes.iter().map(|(name, node, a)| (name.clone(), s.disc().displacement(s.x(), *node)[*a])).collect();
+        out.extend(contact_quantities(s.disc(), s.problem(), s.x()));
+        Ok(out)
     }
 
     fn write_fields(&mut self, s: &S, done: &StepDone, series: &mut PvdSeries) -> Result<(), RunError> {
-        series.add(done.time, "solid", &solid_grid(s.disc(), s.problem().material.as_ref(), s.x())?)?;
+        series.add(done.time, "solid", &solid_grid(s.disc(), s.problem(), s.x())?)?;
         Ok(())
     }
 
@@ -150,6 +152,27 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
     fn dofs(&self, s: &S) -> Vec<(String, usize)> {
         solid_dofs(s.disc())
     }
+}
+
+/// Each contact boundary `NAME`'s `NAME_contact_force` (`int lambda dA` over the reference
+/// surface: per unit depth in plane runs, over the whole circumference when axisymmetric),
+/// `NAME_contact_pressure_max` and `NAME_gap_min` (the smallest gap of its nodes; negative:
+/// penetrated).
+fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
+    let mut out = Vec::new();
+    let around = if disc.formulation == crate::physics::fluid::Formulation::Axisymmetric { 2.0 * std::f64::consts::PI } else { 1.0 };
+    for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
+        let (_, weight) = disc.contact_mass(surface);
+        let lambda = |j: usize| x[surface.first + j];
+        let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
+        let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);
+        let gap = surface.nodes.iter().map(|&k| bc.plane.gap(&disc.current_position(x, k))).fold(f64::INFINITY, f64::min);
+        let name = &surface.boundary;
+        out.push((format!("{name}_contact_force"), around * force));
+        out.push((format!("{name}_contact_pressure_max"), peak));
+        out.push((format!("{name}_gap_min"), gap));
+    }
+    out
 }
 
 /// The unknowns of a solid run, as `summary.json` and `fdfsi check` list them.

@@ -3,6 +3,7 @@
 use super::{invalid, SetupError};
 use crate::case::{Case, Expr, ProbeField, SolidBoundaryType, SolidMeshSpec, SolidModel, SolidSpec};
 use crate::discretize::solid::{SolidDiscretization, SolidProblem};
+use crate::physics::contact::RigidPlane;
 use crate::physics::solid::{FibreField, FibreReinforced, NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
 use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::generate;
@@ -114,6 +115,13 @@ pub fn solid_problem<const D: usize>(case: &Case, spec: &SolidSpec, ramp: bool) 
     let at = move |load: f64| if ramp { (load, 0.0) } else { (1.0, load) };
     let mut p = SolidProblem::new(case.physics.formulation, material(spec)?);
     p.density = spec.density;
+    for c in &spec.contact {
+        let (point, normal) =
+            (std::array::from_fn(|d| c.point.get(d).copied().unwrap_or(0.0)), std::array::from_fn(|d| c.normal.get(d).copied().unwrap_or(0.0)));
+        let plane = RigidPlane::new(point, normal)
+            .ok_or_else(|| invalid(format!("solid.contact '{}': the normal {:?} is not a direction", c.boundary, c.normal)))?;
+        p = p.with_contact(&c.boundary, plane);
+    }
     for b in &spec.boundary {
         let exprs = compile(&b.value)?;
         match b.kind {

@@ -1,0 +1,184 @@
+//! Frictionless contact with rigid planes (issue 17; [`fdfsi::physics::contact`]).
+//!
+//! The patch test: a block pressed on a rigid plane by a uniform load carries it as a uniform
+//! contact pressure equal to the load, to 1e-10 relative, in 2D and 3D, through the semi-smooth
+//! Newton iteration's active set.
+
+use fdfsi::discretize::solid::{solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidProblem, SolidSolution};
+use fdfsi::fem::generate::{box_hexahedra, rectangle_quads};
+use fdfsi::fem::mesh::{GeometryOrder, Mesh};
+use fdfsi::physics::contact::RigidPlane;
+use fdfsi::physics::fluid::Formulation;
+use fdfsi::physics::solid::{NeoHookeanMixed, SolidMaterial};
+use fdfsi::solve::linear::FaerLu;
+use fdfsi::verify::solid_exact::study_newton;
+use std::sync::Arc;
+
+/// The contact pressure of every node of the first contact surface.
+fn contact_pressures<const D: usize>(disc: &SolidDiscretization<D>, sol: &SolidSolution) -> Vec<f64> {
+    let s = &disc.contact_surfaces()[0];
+    (0..s.nodes.len()).map(|j| sol.x[s.first + j]).collect()
+}
+
+fn solve<const D: usize>(
+    mesh: Mesh<D>,
+    formulation: Formulation,
+    problem: SolidProblem<D>,
+    mode: Lagrangian,
+) -> (SolidDiscretization<D>, SolidSolution) {
+    assert_eq!(problem.formulation, formulation);
+    let disc = SolidDiscretization::build_for(mesh, &problem).unwrap();
+    let sol = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(mode, 2), &mut FaerLu::default(), &study_newton()).unwrap();
+    (disc, sol)
+}
+
+#[test]
+fn a_block_pressed_on_a_plane_carries_the_load_as_a_uniform_contact_pressure() {
+    let g = 1.0;
+    let p = 0.2;
+    let material: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(g));
+    // 2D, plane strain: the block [0, 1] x [0, 0.5] on the line y = 0, pressed by a dead load
+    // on its top; the left side on rollers.
+    let plane = RigidPlane::new([0.0, 0.0], [0.0, 1.0]).unwrap();
+    let problem = SolidProblem::new(Formulation::Plane, material.clone())
+        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
+        .with_traction("top", move |_: &[f64; 2], l| [0.0, -p * l])
+        .with_contact("bottom", plane);
+    let mesh = rectangle_quads(0.0, 1.0, 0.0, 0.5, 4, 2, GeometryOrder::Quadratic);
+    let (disc, sol) = solve(mesh, Formulation::Plane, problem, Lagrangian::Total);
+    let lambda = contact_pressures(&disc, &sol);
+    let worst = lambda.iter().fold(0.0f64, |m, l| m.max((l - p).abs())) / p;
+    println!("2D: contact pressures {lambda:?}: worst relative error {worst:.2e}");
+    assert_eq!(lambda.len(), 9);
+    assert!(worst < 1e-10, "{lambda:?}");
+    // No penetration: the bottom nodes stay on the plane.
+    for &node in &disc.contact_surfaces()[0].nodes {
+        assert!(disc.displacement(&sol.x, node)[1].abs() < 1e-12);
+    }
+    // 3D: the box [0, 1] x [0, 1] x [0, 0.5] on the plane z = 0, rollers on x = 0 and y = 0.
+    let plane = RigidPlane::new([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]).unwrap();
+    let problem = SolidProblem::new(Formulation::ThreeD, material)
+        .with_displacement("xmin", &[0], |_: &[f64; 3], _| [0.0; 3])
+        .with_displacement("ymin", &[1], |_: &[f64; 3], _| [0.0; 3])
+        .with_traction("zmax", move |_: &[f64; 3], l| [0.0, 0.0, -p * l])
+        .with_contact("zmin", plane);
+    let mesh = box_hexahedra(0.0, 1.0, 0.0, 1.0, 0.0, 0.5, 2, 2, 1, GeometryOrder::Quadratic);
+    let (disc, sol) = solve(mesh, Formulation::ThreeD, problem, Lagrangian::Total);
+    let lambda = contact_pressures(&disc, &sol);
+    let worst = lambda.iter().fold(0.0f64, |m, l| m.max((l - p).abs())) / p;
+    println!("3D: {} contact nodes, worst relative error {worst:.2e}", lambda.len());
+    assert_eq!(lambda.len(), 25);
+    assert!(worst < 1e-10, "{lambda:?}");
+}
+
+/// The quarter disc `x, y >= 0`, `x^2 + y^2 <= 1` in `n x n` 9-node cells, refined toward
+/// `(1, 0)`: the unit square graded (`u = 1 - (1 - s)^1.5`, `v = t^1.5`) and mapped by the
+/// elliptical square-to-disc map `(u sqrt(1 - v^2/2), v sqrt(1 - u^2/2))`, which takes the side
+/// `u = 1` ("right") onto the arc. The other sides: "left" (`x = 0`), "bottom" (`y = 0`), "top"
+/// (the arc's other half, `v = 1`).
+fn quarter_disc(n: usize) -> Mesh<2> {
+    let mut mesh = rectangle_quads(0.0, 1.0, 0.0, 1.0, n, n, GeometryOrder::Quadratic);
+    for p in mesh.points.iter_mut() {
+        let (u, v) = (1.0 - (1.0 - p[0]).powf(1.5), p[1].powf(1.5));
+        *p = [u * (1.0 - v * v / 2.0).sqrt(), v * (1.0 - u * u / 2.0).sqrt()];
+    }
+    mesh
+}
+
+/// Hertz: a cylinder (radius R = 1, incompressible neo-Hookean G = 1, plane strain: E* = 4 G)
+/// pressed on a rigid plane by P = 0.01 per unit length. The quarter model: the quarter disc
+/// touching the line x = 1 at (1, 0), symmetric about y = 0, loaded by the dead traction P/2 on
+/// its side x = 0. Hertz's half-width a = sqrt(P R / (pi G)) = 0.05642 and peak pressure
+/// 2P / (pi a) = 0.11284, both within 3 %, with at least 10 facets across the contact (2a).
+/// The half-width is measured from the pressure's moments, `a^2 = 4 int p y^2 / int p` for the
+/// elliptical distribution `p0 sqrt(1 - y^2/a^2)`.
+#[test]
+fn a_cylinder_on_a_plane_has_hertz_contact_width_and_peak_pressure() {
+    let (g, p_load, r) = (1.0, 0.01, 1.0);
+    let a_hertz = (p_load * r / (std::f64::consts::PI * g)).sqrt();
+    let p0_hertz = 2.0 * p_load / (std::f64::consts::PI * a_hertz);
+    let material: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(g));
+    let plane = RigidPlane::new([1.0, 0.0], [-1.0, 0.0]).unwrap();
+    let problem = SolidProblem::new(Formulation::Plane, material)
+        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+        .with_traction("left", move |_: &[f64; 2], l| [0.5 * p_load * l, 0.0])
+        .with_contact("right", plane);
+    let (disc, sol) = solve(quarter_disc(32), Formulation::Plane, problem, Lagrangian::Total);
+    let surface = &disc.contact_surfaces()[0];
+    let (_, weight) = disc.contact_mass(surface);
+    let (mut force, mut moment, mut peak, mut nodes_inside) = (0.0, 0.0, 0.0f64, 0);
+    for (j, &node) in surface.nodes.iter().enumerate() {
+        let (lambda, y) = (sol.x[surface.first + j], disc.nodes_x0[node][1]);
+        force += lambda * weight[j];
+        moment += lambda * weight[j] * y * y;
+        peak = peak.max(lambda);
+        // Two nodes per facet (a vertex and a mid-side node) in [0, a).
+        if y < a_hertz {
+            nodes_inside += 1;
+        }
+    }
+    let facets = nodes_inside / 2;
+    let a = (4.0 * moment / force).sqrt();
+    println!(
+        "contact force {force:.6e} (P/2 = {:.6e}); half-width {a:.5} (Hertz {a_hertz:.5}); peak {peak:.5} (Hertz {p0_hertz:.5}); {facets} facets in [0, a)",
+        p_load / 2.0
+    );
+    assert!((force - p_load / 2.0).abs() < 1e-9 * p_load, "equilibrium: {force}");
+    assert!(2 * facets >= 10, "{facets} facets in the half-width");
+    assert!((a / a_hertz - 1.0).abs() < 0.03, "half-width {a} vs {a_hertz}");
+    assert!((peak / p0_hertz - 1.0).abs() < 0.03, "peak {peak} vs {p0_hertz}");
+}
+
+/// `[[solid.contact]]` through the case file, with the direct and the augmented-Lagrangian
+/// solvers and in total and updated Lagrangian load steps: the patch test's quantities
+/// (`bottom_contact_force` = the load, `bottom_contact_pressure_max` = its pressure, no gap) and
+/// the solid output's `contact_pressure`.
+#[test]
+fn a_contact_case_file_reports_force_pressure_and_gap() {
+    use fdfsi::case::Case;
+    use fdfsi::fem::vtk::read_vtu;
+    use fdfsi::run::{run_case, RunOptions};
+    for method in ["direct", "augmented-lagrangian"] {
+        for mode in ["total", "updated"] {
+            let text = format!(
+                r#"title = "contact patch test"
+[physics]
+formulation = "plane"
+[solid]
+mesh = {{ kind = "rectangle", x = [0.0, 1.0], y = [0.0, 0.5], n = [4, 2] }}
+model = "neo-hookean"
+shear_modulus = 1.0
+loading = {{ steps = 2, mode = "{mode}" }}
+[[solid.boundary]]
+name = "left"
+type = "displacement"
+components = [0]
+value = [0.0, 0.0]
+[[solid.boundary]]
+name = "top"
+type = "traction"
+value = [0.0, -0.2]
+[[solid.contact]]
+boundary = "bottom"
+point = [0.0, 0.0]
+normal = [0.0, 2.0]
+[solver.linear]
+method = "{method}"
+"#
+            );
+            let case = Case::from_toml_str(&text, "contact.toml").unwrap();
+            let dir = tempfile::tempdir().unwrap();
+            let out = dir.path().join("out");
+            let s = run_case(&case, &RunOptions::new(&out, dir.path()), &mut |_: &str| {}).unwrap();
+            let q = |name: &str| s.quantities[name];
+            println!("{method} {mode}: {:?}", s.quantities);
+            assert!((q("bottom_contact_force") - 0.2).abs() < 1e-12, "{method} {mode}");
+            assert!((q("bottom_contact_pressure_max") - 0.2).abs() < 1e-12, "{method} {mode}");
+            assert!(q("bottom_gap_min").abs() < 1e-12, "{method} {mode}");
+            let grid = read_vtu(&out.join("solution_solid_000000.vtu")).unwrap();
+            let pressure = &grid.point_array("contact_pressure").unwrap().values;
+            assert_eq!(pressure.iter().filter(|&&p| (p - 0.2).abs() < 1e-12).count(), 9, "{pressure:?}");
+            assert!(grid.point_array("contact_gap").is_some());
+        }
+    }
+}
