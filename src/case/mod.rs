@@ -174,8 +174,7 @@ pub struct SolidSpec {
     /// Boundary conditions of the solid.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub boundary: Vec<SolidBoundarySpec>,
-    /// `[[solid.contact]]`: frictionless contact of solid boundaries with rigid planes (solid-only
-    /// runs).
+    /// `[[solid.contact]]`: frictionless contact of solid boundaries with rigid planes.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub contact: Vec<ContactSpec>,
     /// Quasi-static load stepping: boundary values are multiplied by a load factor ramped from 0

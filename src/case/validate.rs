@@ -354,15 +354,12 @@ fn solid(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `[[solid.contact]]`: solid-only runs, a boundary name, a point and a non-zero normal of the
-/// dimension, each boundary once.
+/// `[[solid.contact]]`: a boundary name, a point and a non-zero normal of the dimension, each
+/// boundary once.
 fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     let d = c.dim();
     for (i, k) in solid.contact.iter().enumerate() {
         let what = format!("solid.contact '{}'", k.boundary);
-        if c.mesh.is_some() {
-            p.push(format!("{what}: contact is for solid-only runs (no fluid [mesh]) yet"));
-        }
         if k.boundary.is_empty() {
             p.push("solid.contact: give the boundary that may touch the plane");
         }

@@ -188,7 +188,7 @@ impl<const D: usize> FsiModel<D> {
     /// Prepares the original fluid mesh and discretises the solid mesh (reference configuration).
     pub fn new(problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
         let background = Background::new(fluid_mesh)?;
-        let solid = SolidDiscretization::build(solid_mesh, problem.solid.formulation, problem.solid.material.as_ref())?;
+        let solid = SolidDiscretization::build_for(solid_mesh, &problem.solid)?;
         solid.check_problem(&problem.solid)?;
         solid.mesh.boundary_tag(&problem.surface)?;
         Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default(), covered_fluid: CoveredFluid::default() })
@@ -734,7 +734,8 @@ impl<const D: usize> FsiDiscretization<D> {
             (Block::FluidPressure, flow.pressure_field().num_dofs()),
             (Block::Windkessel, 2 * outlets.len()),
             (Block::SolidDisplacement, model.solid.displacement_field().num_dofs()),
-            (Block::SolidPressure, solid_dofs - model.solid.displacement_field().num_dofs()),
+            (Block::SolidPressure, model.solid.layout.num_dofs() - model.solid.displacement_field().num_dofs()),
+            (Block::Contact, model.solid.num_contact_dofs()),
             (Block::Multiplier, ne * D * D),
             (Block::TraceModes, coupling.num_chains * D),
             (Block::KernelUnknowns, kernel.len()),
@@ -769,7 +770,7 @@ impl<const D: usize> FsiDiscretization<D> {
         // The system's "cells", whose unknowns are coupled: the fluid's (its cells and Windkessel
         // outlets), the solid cells, the coupling elements and the kernel's columns (each kernel
         // unknown with its multipliers).
-        let (nfc, nsc) = (flow.num_system_cells(), model.solid.mesh.num_cells());
+        let (nfc, nsc) = (flow.num_system_cells(), model.solid.num_system_cells());
         let num_cells = nfc + nsc + ne + kernel.len();
         let cell_dofs = |c: usize, buf: &mut Vec<usize>| {
             if c >= nfc + nsc + ne {
@@ -780,7 +781,7 @@ impl<const D: usize> FsiDiscretization<D> {
             } else if c < nfc {
                 flow.system_cell_dofs(c, buf);
             } else if c < nfc + nsc {
-                model.solid.layout.cell_dofs_into(c - nfc, buf);
+                model.solid.system_cell_dofs(c - nfc, buf);
                 buf.iter_mut().for_each(|d| *d += os);
             } else {
                 buf.clear();
@@ -900,7 +901,7 @@ impl<const D: usize> FsiDiscretization<D> {
     }
     /// Number of solid unknowns (displacement and pressure).
     pub fn solid_dofs(&self) -> usize {
-        self.layout.span(Block::SolidDisplacement, Block::SolidPressure).len()
+        self.layout.span(Block::SolidDisplacement, Block::Contact).len()
     }
     /// Number of multiplier unknowns (with the trace modes and the kernel unknowns).
     pub fn multiplier_dofs(&self) -> usize {
@@ -1271,6 +1272,16 @@ impl<const D: usize> FsiDiscretization<D> {
                 format!("the solid displacement {} at reference position {}", axes[a], at(&model.solid.nodes_x0[node]))
             }
             Block::SolidPressure => cell_dof(model.solid.pressure_field(), solid_i(), "solid"),
+            Block::Contact => {
+                let surfaces = model.solid.contact_surfaces();
+                match surfaces.iter().find(|s| (s.first..s.first + s.nodes.len()).contains(&solid_i())) {
+                    Some(s) => {
+                        let node = s.nodes[solid_i() - s.first];
+                        format!("the contact pressure of contact boundary '{}' at reference position {}", s.boundary, at(&model.solid.nodes_x0[node]))
+                    }
+                    None => format!("the contact pressure {k}"),
+                }
+            }
             Block::Multiplier => {
                 let (e, v, a) = (k / (D * D), k / D % D, k % D);
                 let vertex = self.adapted.gamma_f[e].vertices[v];

@@ -1,7 +1,7 @@
 //! The unknowns of the monolithic FSI system in named blocks.
 //!
 //! One step's system is `[fluid velocity | fluid pressure | windkessel | solid displacement |
-//! solid pressure | multiplier | trace modes | kernel unknowns]` (see [`crate::discretize::fsi`]). Every place
+//! solid pressure | contact | multiplier | trace modes | kernel unknowns]` (see [`crate::discretize::fsi`]). Every place
 //! that needs a position in it (the pattern, the assembly scatter, the constraints,
 //! `describe_unknown`, the restart state, the output slices and, later, the field splits of a
 //! block preconditioner) asks the [`SystemLayout`] by [`Block`] instead of adding offsets.
@@ -22,6 +22,9 @@ pub enum Block {
     SolidDisplacement,
     /// The P1-discontinuous solid pressure (mixed laws).
     SolidPressure,
+    /// The contact pressures of the solid's contact surfaces, one per node
+    /// ([`crate::physics::contact`]).
+    Contact,
     /// The P1-discontinuous Lagrange multiplier on gamma_f, `D` per facet vertex and component.
     Multiplier,
     /// The trace-mode multipliers, `D` per chain of gamma_f (trace-mode multiplier space only).
@@ -39,6 +42,7 @@ impl Block {
             Block::Windkessel => "windkessel",
             Block::SolidDisplacement => "solid displacement",
             Block::SolidPressure => "solid pressure",
+            Block::Contact => "contact pressure",
             Block::Multiplier => "multiplier",
             Block::TraceModes => "trace modes",
             Block::KernelUnknowns => "kernel unknowns",
@@ -50,7 +54,7 @@ impl Block {
     pub fn part(self) -> &'static str {
         match self {
             Block::FluidVelocity | Block::FluidPressure | Block::Windkessel => "fluid",
-            Block::SolidDisplacement | Block::SolidPressure => "solid",
+            Block::SolidDisplacement | Block::SolidPressure | Block::Contact => "solid",
             Block::Multiplier | Block::TraceModes | Block::KernelUnknowns => "multiplier",
         }
     }

@@ -207,6 +207,8 @@ pub struct SolidDiscretization<const D: usize> {
     facet_weights: Vec<f64>,
     /// The contact surfaces, whose multipliers follow the layout's unknowns.
     contact: Vec<ContactSurface>,
+    /// The contact couplings as cells after the mesh's ([`SolidDiscretization::system_cell_dofs`]).
+    contact_cells: Vec<Vec<usize>>,
 }
 
 /// A boundary of the solid that may touch a rigid plane: its nodes, each with a contact
@@ -224,6 +226,16 @@ impl ContactSurface {
     /// The multiplier of displacement node `node`, if it is on this surface.
     pub fn multiplier(&self, node: usize) -> Option<usize> {
         self.nodes.binary_search(&node).ok().map(|j| self.first + j)
+    }
+}
+
+/// The unknowns of system cell `c`: mesh cell `c` of `layout`, or contact cell `c - num_cells`.
+fn system_cell_dofs(layout: &BlockLayout, num_cells: usize, contact_cells: &[Vec<usize>], c: usize, buf: &mut Vec<usize>) {
+    if c < num_cells {
+        layout.cell_dofs_into(c, buf)
+    } else {
+        buf.clear();
+        buf.extend_from_slice(&contact_cells[c - num_cells]);
     }
 }
 
@@ -265,8 +277,8 @@ impl<const D: usize> SolidDiscretization<D> {
         if mixed {
             layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
         }
-        // Contact surfaces: their nodes' multipliers, and a "cell" per boundary facet (its
-        // nodes' displacements and multipliers) after the mesh's cells.
+        // Contact surfaces: their nodes' multipliers, and a "cell" per node (its displacement and
+        // multiplier) after the mesh's cells.
         let mut surfaces = Vec::new();
         let mut contact_cells: Vec<Vec<usize>> = Vec::new();
         let mut first = layout.num_dofs();
@@ -278,28 +290,16 @@ impl<const D: usize> SolidDiscretization<D> {
             nodes.sort_unstable();
             nodes.dedup();
             let surface = ContactSurface { boundary: name.clone(), nodes, first };
-            for bf in &facets {
-                let cell_nodes = vf.nodes.cell(bf.cell);
-                let mut dofs: Vec<usize> = Vec::new();
-                for k in element.facet_nodes(bf.facet) {
-                    let node = cell_nodes[k];
-                    dofs.extend((0..D).map(|a| vf.dof(node, a)));
-                    dofs.extend(surface.multiplier(node));
-                }
+            for (j, &node) in surface.nodes.iter().enumerate() {
+                let mut dofs: Vec<usize> = (0..D).map(|a| vf.dof(node, a)).collect();
+                dofs.push(first + j);
                 contact_cells.push(dofs);
             }
             first += surface.nodes.len();
             surfaces.push(surface);
         }
         let nc = mesh.num_cells();
-        let pattern = Pattern::from_cells(first, nc + contact_cells.len(), |c, buf| {
-            if c < nc {
-                layout.cell_dofs_into(c, buf)
-            } else {
-                buf.clear();
-                buf.extend_from_slice(&contact_cells[c - nc]);
-            }
-        });
+        let pattern = Pattern::from_cells(first, nc + contact_cells.len(), |c, buf| system_cell_dofs(&layout, nc, &contact_cells, c, buf));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
         let cell_rule = fdfsi_fem::quadrature::for_cell::<D>(mesh.cell_type, CELL_DEGREE);
         // Facet rule and tabulations.
@@ -336,6 +336,7 @@ impl<const D: usize> SolidDiscretization<D> {
             facet_tabs,
             facet_weights,
             contact: surfaces,
+            contact_cells,
         };
         let mut cv = disc.cell_values();
         let mut coords = Vec::new();
@@ -351,6 +352,22 @@ impl<const D: usize> SolidDiscretization<D> {
     /// Number of unknowns: the layout's, then the contact multipliers.
     pub fn num_dofs(&self) -> usize {
         self.layout.num_dofs() + self.contact.iter().map(|s| s.nodes.len()).sum::<usize>()
+    }
+
+    /// The system's "cells", whose unknowns are coupled: the mesh's cells, then one per node of
+    /// each contact surface (its displacement and contact multiplier).
+    pub fn num_system_cells(&self) -> usize {
+        self.mesh.num_cells() + self.contact_cells.len()
+    }
+
+    /// The unknowns of system cell `c` ([`SolidDiscretization::num_system_cells`]) into `buf`.
+    pub fn system_cell_dofs(&self, c: usize, buf: &mut Vec<usize>) {
+        system_cell_dofs(&self.layout, self.mesh.num_cells(), &self.contact_cells, c, buf)
+    }
+
+    /// The number of contact multipliers (the unknowns after the layout's).
+    pub fn num_contact_dofs(&self) -> usize {
+        self.num_dofs() - self.layout.num_dofs()
     }
 
     /// The contact surfaces ([`SolidDiscretization::build_with_contact`]).
@@ -685,75 +702,53 @@ impl<const D: usize> SolidDiscretization<D> {
             })
         };
         for (surface, bc) in self.contact.iter().zip(&problem.contact) {
-            let (mass, weight) = self.contact_mass(surface);
             let n = bc.plane.normal;
-            let mut weighted_gap = vec![0.0; surface.nodes.len()];
-            for &(j, k, m) in &mass {
-                weighted_gap[j] += m * bc.plane.gap(&position(k));
-            }
-            let mut active = vec![false; surface.nodes.len()];
-            for (j, (&g, &w)) in weighted_gap.iter().zip(&weight).enumerate() {
+            for (j, (&node, &w)) in surface.nodes.iter().zip(&self.contact_weights(surface)).enumerate() {
                 let l = surface.first + j;
                 let c = complementarity_scale(problem.material.shear_modulus(), w, D);
-                let cond = complementarity(x[l], g, c);
-                active[j] = cond.active;
+                let cond = complementarity(x[l], w * bc.plane.gap(&position(node)), c);
                 target.add_rhs(l, -cond.residual);
                 if !cond.active {
                     target.add_matrix(l, l, -1.0 / c);
                 }
-            }
-            for &(j, k, m) in &mass {
-                let l = surface.first + j;
                 for a in 0..D {
-                    let dof = vf.dof(k, a);
-                    if active[j] {
-                        target.add_matrix(l, dof, -m * n[a]);
+                    let dof = vf.dof(node, a);
+                    if cond.active {
+                        target.add_matrix(l, dof, -w * n[a]);
                     }
                     if !constrained[dof] {
-                        target.add_rhs(dof, m * x[l] * n[a]);
-                        target.add_matrix(dof, l, -m * n[a]);
+                        target.add_rhs(dof, w * x[l] * n[a]);
+                        target.add_matrix(dof, l, -w * n[a]);
                     }
                 }
             }
         }
     }
 
-    /// The surface mass matrix of a contact surface on the reference configuration, as
-    /// `(multiplier index j, displacement node k, M_jk)` per facet, and the weights
-    /// `w_j = int psi_j dA_0` (times `R` axisymmetric).
-    pub fn contact_mass(&self, surface: &ContactSurface) -> (Vec<(usize, usize, f64)>, Vec<f64>) {
+    /// The weights `w_j = int psi_j dA_0` (times `R` axisymmetric) of the nodes of a contact
+    /// surface on the reference configuration: the row sums of its surface mass matrix.
+    pub fn contact_weights(&self, surface: &ContactSurface) -> Vec<f64> {
         let vf = self.displacement_field();
         let (nv, nf) = (self.element.num_dofs(), self.facet_weights.len());
-        let mut mass = Vec::new();
         let mut weight = vec![0.0; surface.nodes.len()];
-        let mut x_int = Vec::new();
+        let mut x_ref = Vec::new();
         for bf in self.mesh.boundary_facets(&surface.boundary).unwrap_or_default() {
-            self.cell_positions(bf.cell, None, &mut x_int);
+            self.cell_positions(bf.cell, None, &mut x_ref);
             let tab = &self.facet_tabs[bf.facet];
-            let local = self.element.facet_nodes(bf.facet);
             let nodes = vf.nodes.cell(bf.cell);
-            let mut m = vec![0.0; local.len() * local.len()];
             for q in 0..nf {
                 let pt =
                     FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] };
-                let da = area_vector(&x_int, &pt, 1.0).iter().map(|v| v * v).sum::<f64>().sqrt();
-                let xq: [f64; D] = std::array::from_fn(|d| (0..nv).map(|i| pt.phi[i] * x_int[i][d]).sum());
+                let da = area_vector(&x_ref, &pt, 1.0).iter().map(|v| v * v).sum::<f64>().sqrt();
+                let xq: [f64; D] = std::array::from_fn(|d| (0..nv).map(|i| pt.phi[i] * x_ref[i][d]).sum());
                 let w = pt.weight * da * self.formulation.weight(&xq);
-                for (a, &i) in local.iter().enumerate() {
-                    for (b, &k) in local.iter().enumerate() {
-                        m[a * local.len() + b] += w * pt.phi[i] * pt.phi[k];
-                    }
-                }
-            }
-            for (a, &i) in local.iter().enumerate() {
-                let j = surface.nodes.binary_search(&nodes[i]).expect("a facet node of the surface");
-                for (b, &k) in local.iter().enumerate() {
-                    mass.push((j, nodes[k], m[a * local.len() + b]));
-                    weight[j] += m[a * local.len() + b];
+                for i in self.element.facet_nodes(bf.facet) {
+                    let j = surface.nodes.binary_search(&nodes[i]).expect("a facet node of the surface");
+                    weight[j] += w * pt.phi[i];
                 }
             }
         }
-        (mass, weight)
+        weight
     }
 
     /// Updates the stored deformation gradients after a converged updated-Lagrangian increment:

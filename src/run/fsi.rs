@@ -148,6 +148,7 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
             self.solid_probes.iter().map(|(name, node, a)| (name.clone(), self.model.solid.displacement(&s.state.solid_x, *node)[*a])).collect();
         let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]);
         known.extend(self.case.builtin_quantities().into_iter().zip(builtin));
+        known.extend(super::solid::contact_quantities(&self.model.solid, &self.model.problem.solid, &s.state.solid_x));
         let fluid = st.disc.fluid_dofs();
         // The step's inertia as solved: `a (u - u*)` with the scheme's `a` (BDF2: `1.5 / dt` at
         // equal steps) and history `u*`.

@@ -158,11 +158,11 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
 /// surface: per unit depth in plane runs, over the whole circumference when axisymmetric),
 /// `NAME_contact_pressure_max` and `NAME_gap_min` (the smallest gap of its nodes; negative:
 /// penetrated).
-fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
+pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
     let mut out = Vec::new();
     let around = if disc.formulation == crate::physics::fluid::Formulation::Axisymmetric { 2.0 * std::f64::consts::PI } else { 1.0 };
     for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
-        let (_, weight) = disc.contact_mass(surface);
+        let weight = disc.contact_weights(surface);
         let lambda = |j: usize| x[surface.first + j];
         let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
         let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);
