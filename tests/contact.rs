@@ -50,7 +50,8 @@ fn a_block_pressed_on_a_plane_carries_the_load_as_a_uniform_contact_pressure() {
     let worst = lambda.iter().fold(0.0f64, |m, l| m.max((l - p).abs())) / p;
     println!("2D: contact pressures {lambda:?}: worst relative error {worst:.2e}");
     assert_eq!(lambda.len(), 9);
-    assert!(worst < 1e-10, "{lambda:?}");
+    // Measured 1.8e-15.
+    assert!(worst < 1e-13, "{lambda:?}");
     // No penetration: the bottom nodes stay on the plane.
     for &node in &disc.contact_surfaces()[0].nodes {
         assert!(disc.displacement(&sol.x, node)[1].abs() < 1e-12);
@@ -68,7 +69,22 @@ fn a_block_pressed_on_a_plane_carries_the_load_as_a_uniform_contact_pressure() {
     let worst = lambda.iter().fold(0.0f64, |m, l| m.max((l - p).abs())) / p;
     println!("3D: {} contact nodes, worst relative error {worst:.2e}", lambda.len());
     assert_eq!(lambda.len(), 25);
-    assert!(worst < 1e-10, "{lambda:?}");
+    assert!(worst < 1e-13, "{lambda:?}");
+    // Axisymmetric: the cylinder r <= 1, 0 <= z <= 0.5 (x = (z, r)) pressed on the plane z = 0.
+    // The node on the axis has no weight (R = 0) and no multiplier; the others carry the load.
+    let plane = RigidPlane::new([0.0, 0.0], [1.0, 0.0]).unwrap();
+    let material: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(g));
+    let problem = SolidProblem::new(Formulation::Axisymmetric, material)
+        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+        .with_traction("right", move |_: &[f64; 2], l| [-p * l, 0.0])
+        .with_contact("left", plane);
+    let mesh = rectangle_quads(0.0, 0.5, 0.0, 1.0, 2, 4, GeometryOrder::Quadratic);
+    let (disc, sol) = solve(mesh, Formulation::Axisymmetric, problem, Lagrangian::Updated);
+    let lambda = contact_pressures(&disc, &sol);
+    let worst = lambda.iter().fold(0.0f64, |m, l| m.max((l - p).abs())) / p;
+    println!("axisymmetric: {} contact nodes, worst relative error {worst:.2e}", lambda.len());
+    assert_eq!(lambda.len(), 8, "the 9 nodes of the face but the one on the axis");
+    assert!(worst < 1e-13, "{lambda:?}");
 }
 
 /// The quarter disc `x, y >= 0`, `x^2 + y^2 <= 1` in `n x n` 9-node cells, refined toward
@@ -89,7 +105,8 @@ fn quarter_disc(n: usize) -> Mesh<2> {
 /// pressed on a rigid plane by P = 0.01 per unit length. The quarter model: the quarter disc
 /// touching the line x = 1 at (1, 0), symmetric about y = 0, loaded by the dead traction P/2 on
 /// its side x = 0. Hertz's half-width a = sqrt(P R / (pi G)) = 0.05642 and peak pressure
-/// 2P / (pi a) = 0.11284, both within 3 %, with at least 10 facets across the contact (2a).
+/// 2P / (pi a) = 0.11284 (issue 17 asks for 3 %; measured 0.02 % for both, held at 0.1 %), with
+/// at least 10 facets across the contact (2a).
 /// The half-width is measured from the pressure's moments, `a^2 = 4 int p y^2 / int p` for the
 /// elliptical distribution `p0 sqrt(1 - y^2/a^2)`.
 #[test]
@@ -105,7 +122,7 @@ fn a_cylinder_on_a_plane_has_hertz_contact_width_and_peak_pressure() {
         .with_contact("right", plane);
     let (disc, sol) = solve(quarter_disc(32), Formulation::Plane, problem, Lagrangian::Total);
     let surface = &disc.contact_surfaces()[0];
-    let weight = disc.contact_weights(surface);
+    let weight = &surface.weights;
     let (mut force, mut moment, mut peak, mut nodes_inside) = (0.0, 0.0, 0.0f64, 0);
     for (j, &node) in surface.nodes.iter().enumerate() {
         let (lambda, y) = (sol.x[surface.first + j], disc.nodes_x0[node][1]);
@@ -128,8 +145,8 @@ fn a_cylinder_on_a_plane_has_hertz_contact_width_and_peak_pressure() {
     let gap_min = surface.nodes.iter().map(|&k| 1.0 - disc.current_position(&sol.x, k)[0]).fold(f64::INFINITY, f64::min);
     assert!(gap_min > -1e-12, "penetration {gap_min:e}");
     assert!(2 * facets >= 10, "{facets} facets in the half-width");
-    assert!((a / a_hertz - 1.0).abs() < 0.03, "half-width {a} vs {a_hertz}");
-    assert!((peak / p0_hertz - 1.0).abs() < 0.03, "peak {peak} vs {p0_hertz}");
+    assert!((a / a_hertz - 1.0).abs() < 1e-3, "half-width {a} vs {a_hertz}");
+    assert!((peak / p0_hertz - 1.0).abs() < 1e-3, "peak {peak} vs {p0_hertz}");
 }
 
 /// `[[solid.contact]]` through the case file, with the direct and the augmented-Lagrangian
@@ -222,5 +239,7 @@ fn a_slab_in_flow_comes_to_rest_on_a_stop() {
     let gap = header.iter().position(|c| c == "right_gap_min").unwrap();
     assert!(rows.iter().all(|r| r[gap] >= -1e-12), "no penetration in any step");
     assert!(stopped.quantities["right_contact_force"] > 0.0 && stopped.quantities["right_contact_pressure_max"] > 0.0);
-    assert!(stopped.dofs.contains_key("solid"));
+    // A contact pressure per node of the slab's right face (2 x 10 cells: 21 nodes), in the
+    // solid's part of the system.
+    assert_eq!(stopped.dofs["solid"], free.dofs["solid"] + 21);
 }

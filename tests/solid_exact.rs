@@ -54,8 +54,8 @@ fn fibre_reinforced_cook_membrane_newton_is_quadratic() {
     let (tip_fibres, residuals) = tip(fibres);
     let (tip_matrix, _) = tip(paper_solid(g));
     println!("tip uy: {tip_fibres:.6} with fibres, {tip_matrix:.6} without");
-    // The fibres carry load: the membrane is stiffer with them.
-    assert!(tip_fibres < 0.8 * tip_matrix && tip_fibres > 0.0, "{tip_fibres} vs {tip_matrix}");
+    // The fibres carry load: the membrane is stiffer with them (measured: 35 % less deflection).
+    assert!(tip_fibres < 0.7 * tip_matrix && tip_fibres > 0.6 * tip_matrix, "{tip_fibres} vs {tip_matrix}");
     let mut checked = 0;
     for r in &residuals {
         println!("residual norms {r:?}");

@@ -7,6 +7,7 @@
 //! runs Newton on it with the kernel of [`crate::physics::fluid`] and returns a
 //! [`FlowSolution`].
 
+use super::system_cell_dofs;
 use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
 use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
@@ -47,7 +48,7 @@ pub struct TractionBc<const D: usize> {
 ///
 /// ```text
 /// Q - s int_outlet u . n w ds = 0                         (s = 2 pi axisymmetric, else 1)
-/// C dP_c/dt - Q + (P_c - P_d) / R_d = 0                   (the fluid's time scheme; steady: dP_c/dt = 0)
+/// C dP_c/dt - Q + (P_c - P_d) / R_d = 0                   (the fluid's time scheme; steady: no C)
 /// sigma n = -P n on the outlet,  P = R_p Q + P_c          (the outlet pressure)
 /// ```
 ///
@@ -197,16 +198,6 @@ pub struct FlowRows {
     pub colouring: Colouring,
 }
 
-/// The unknowns of system cell `c`: mesh cell `c` of `layout`, or outlet cell `c - num_cells`.
-fn system_cell_dofs(layout: &BlockLayout, num_cells: usize, outlet_cells: &[Vec<usize>], c: usize, buf: &mut Vec<usize>) {
-    if c < num_cells {
-        layout.cell_dofs_into(c, buf)
-    } else {
-        buf.clear();
-        buf.extend_from_slice(&outlet_cells[c - num_cells]);
-    }
-}
-
 /// A cell kernel's scratch: cell values, coordinates, the old velocity and the cell's unknowns.
 type CellScratch<const D: usize> = (CellValues<D>, Vec<[f64; D]>, Vec<f64>, Vec<f64>);
 
@@ -269,6 +260,8 @@ impl<const D: usize> FlowDiscretization<D> {
                 dofs.extend([q, pc]);
                 outlet_cells.push(dofs);
             }
+            // Q and P_c with each other, whatever the outlet's facets.
+            outlet_cells.push(vec![q, pc]);
         }
         let (nc, n) = (mesh.num_cells(), layout.num_dofs() + 2 * outlets.len());
         let cell_dofs = |c: usize, buf: &mut Vec<usize>| system_cell_dofs(&layout, nc, &outlet_cells, c, buf);

@@ -895,11 +895,12 @@ impl<const D: usize> FsiDiscretization<D> {
     pub fn num_dofs(&self) -> usize {
         self.layout.num_dofs()
     }
-    /// Number of fluid unknowns (velocity and pressure): the fluid is the first part.
+    /// Number of fluid unknowns (velocity, pressure and the Windkessel outlets' `Q`, `P_c`): the
+    /// fluid is the first part.
     pub fn fluid_dofs(&self) -> usize {
         self.layout.span(Block::FluidVelocity, Block::Windkessel).len()
     }
-    /// Number of solid unknowns (displacement and pressure).
+    /// Number of solid unknowns (displacement, pressure and contact pressures).
     pub fn solid_dofs(&self) -> usize {
         self.layout.span(Block::SolidDisplacement, Block::Contact).len()
     }
@@ -1240,7 +1241,8 @@ impl<const D: usize> FsiDiscretization<D> {
     /// velocity component at a node, a fluid pressure dof of a cell, a solid displacement component
     /// at a node (reference position) or a solid pressure dof of a cell, a multiplier component at
     /// a vertex of a gamma_f facet, a trace-mode multiplier, the unknown that removes a
-    /// multiplier mode, or a Windkessel outlet's flux or capacitor pressure. Components are named `x, y, z`, or `z, r` when axisymmetric.
+    /// multiplier mode, a Windkessel outlet's flux or capacitor pressure, or a contact pressure.
+    /// Components are named `x, y, z`, or `z, r` when axisymmetric.
     pub fn describe_unknown(&self, model: &FsiModel<D>, i: usize) -> String {
         let axes: [&str; 3] = match model.problem.fluid.formulation {
             crate::physics::fluid::Formulation::Axisymmetric => ["z", "r", "?"],

@@ -1,10 +1,11 @@
 //! The unknowns of the monolithic FSI system in named blocks.
 //!
 //! One step's system is `[fluid velocity | fluid pressure | windkessel | solid displacement |
-//! solid pressure | contact | multiplier | trace modes | kernel unknowns]` (see [`crate::discretize::fsi`]). Every place
-//! that needs a position in it (the pattern, the assembly scatter, the constraints,
-//! `describe_unknown`, the restart state, the output slices and, later, the field splits of a
-//! block preconditioner) asks the [`SystemLayout`] by [`Block`] instead of adding offsets.
+//! solid pressure | contact | multiplier | trace modes | kernel unknowns]` (see
+//! [`crate::discretize::fsi`]). Every place that needs a position in it (the pattern, the
+//! assembly scatter, the constraints, `describe_unknown`, the restart state, the output slices
+//! and, later, the field splits of a block preconditioner) asks the [`SystemLayout`] by
+//! [`Block`] instead of adding offsets.
 
 use std::ops::Range;
 

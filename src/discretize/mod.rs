@@ -10,3 +10,17 @@ pub mod fsi;
 pub mod layout;
 pub mod solid;
 pub mod time_scheme;
+
+use fdfsi_fem::dofs::BlockLayout;
+
+/// The unknowns of "cell" `c` of a system whose couplings are the mesh's cells of `layout`
+/// (`c < num_cells`) and then the `extra` ones (a flow's Windkessel outlets, a solid's contact
+/// nodes), into `buf`.
+pub(crate) fn system_cell_dofs(layout: &BlockLayout, num_cells: usize, extra: &[Vec<usize>], c: usize, buf: &mut Vec<usize>) {
+    if c < num_cells {
+        layout.cell_dofs_into(c, buf)
+    } else {
+        buf.clear();
+        buf.extend_from_slice(&extra[c - num_cells]);
+    }
+}

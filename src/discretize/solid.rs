@@ -31,6 +31,7 @@
 //! point, reported with the element, point and step) is retried with half the increment, down to
 //! `min_increment`.
 
+use super::system_cell_dofs;
 use crate::physics::contact::{complementarity, complementarity_scale, RigidPlane};
 use crate::physics::solid::{
     area_vector, deformation_gradient, follower_pressure_facet, solid_cell, FacetPoint, Formulation, InertiaState, Mat3, SolidCellState,
@@ -168,6 +169,8 @@ pub enum SolidError {
     CellType(ReferenceCell),
     #[error("solid.contact '{boundary}': {source}")]
     ContactBoundary { boundary: String, source: MeshError },
+    #[error("solid.contact '{first}' and '{second}' share nodes against the same plane: give their union as one boundary")]
+    ContactOverlap { first: String, second: String },
     #[error(transparent)]
     Assembly(#[from] SolidAssemblyError),
     #[error(transparent)]
@@ -216,9 +219,12 @@ pub struct SolidDiscretization<const D: usize> {
 #[derive(Clone, Debug)]
 pub struct ContactSurface {
     pub boundary: String,
-    /// The displacement nodes on the boundary, sorted; node `nodes[j]` has the multiplier
-    /// `first + j`.
+    /// The displacement nodes on the boundary that carry load, sorted; node `nodes[j]` has the
+    /// multiplier `first + j`.
     pub nodes: Vec<usize>,
+    /// Their weights `w_j = int psi_j dA_0` on the reference configuration (times `R`
+    /// axisymmetric): the row sums of the surface mass matrix.
+    pub weights: Vec<f64>,
     pub first: usize,
 }
 
@@ -226,16 +232,6 @@ impl ContactSurface {
     /// The multiplier of displacement node `node`, if it is on this surface.
     pub fn multiplier(&self, node: usize) -> Option<usize> {
         self.nodes.binary_search(&node).ok().map(|j| self.first + j)
-    }
-}
-
-/// The unknowns of system cell `c`: mesh cell `c` of `layout`, or contact cell `c - num_cells`.
-fn system_cell_dofs(layout: &BlockLayout, num_cells: usize, contact_cells: &[Vec<usize>], c: usize, buf: &mut Vec<usize>) {
-    if c < num_cells {
-        layout.cell_dofs_into(c, buf)
-    } else {
-        buf.clear();
-        buf.extend_from_slice(&contact_cells[c - num_cells]);
     }
 }
 
@@ -254,9 +250,21 @@ impl<const D: usize> SolidDiscretization<D> {
 
     /// The discretisation of `mesh` for `problem`: its material, and its contact boundaries as
     /// contact surfaces.
+    ///
+    /// Fails when two contact boundaries against the same plane share a node (its two
+    /// conditions would be one: give their union as one boundary).
     pub fn build_for(mesh: Mesh<D>, problem: &SolidProblem<D>) -> Result<Self, SolidError> {
         let contact: Vec<String> = problem.contact.iter().map(|c| c.boundary.clone()).collect();
-        Self::build_with_contact(mesh, problem.formulation, problem.material.as_ref(), &contact)
+        let disc = Self::build_with_contact(mesh, problem.formulation, problem.material.as_ref(), &contact)?;
+        for (i, a) in problem.contact.iter().enumerate() {
+            for (j, b) in problem.contact.iter().enumerate().skip(i + 1) {
+                let shared = disc.contact[i].nodes.iter().any(|n| disc.contact[j].nodes.binary_search(n).is_ok());
+                if a.plane == b.plane && shared {
+                    return Err(SolidError::ContactOverlap { first: a.boundary.clone(), second: b.boundary.clone() });
+                }
+            }
+        }
+        Ok(disc)
     }
 
     /// [`SolidDiscretization::build`] with the boundaries `contact` (those of the problem's
@@ -277,29 +285,7 @@ impl<const D: usize> SolidDiscretization<D> {
         if mixed {
             layout.push("pressure", 1, NodeMap::discontinuous(mesh.num_cells(), D + 1));
         }
-        // Contact surfaces: their nodes' multipliers, and a "cell" per node (its displacement and
-        // multiplier) after the mesh's cells.
-        let mut surfaces = Vec::new();
-        let mut contact_cells: Vec<Vec<usize>> = Vec::new();
-        let mut first = layout.num_dofs();
-        let vf = &layout.fields[0];
-        for name in contact {
-            let facets = mesh.boundary_facets(name).map_err(|source| SolidError::ContactBoundary { boundary: name.clone(), source })?;
-            let mut nodes: Vec<usize> =
-                facets.iter().flat_map(|bf| element.facet_nodes(bf.facet).into_iter().map(|k| vf.nodes.cell(bf.cell)[k])).collect();
-            nodes.sort_unstable();
-            nodes.dedup();
-            let surface = ContactSurface { boundary: name.clone(), nodes, first };
-            for (j, &node) in surface.nodes.iter().enumerate() {
-                let mut dofs: Vec<usize> = (0..D).map(|a| vf.dof(node, a)).collect();
-                dofs.push(first + j);
-                contact_cells.push(dofs);
-            }
-            first += surface.nodes.len();
-            surfaces.push(surface);
-        }
-        let nc = mesh.num_cells();
-        let pattern = Pattern::from_cells(first, nc + contact_cells.len(), |c, buf| system_cell_dofs(&layout, nc, &contact_cells, c, buf));
+        let pattern = Pattern::from_cells(layout.num_dofs(), mesh.num_cells(), |c, buf| layout.cell_dofs_into(c, buf));
         let colouring = Colouring::greedy(mesh.points.len(), mesh.num_cells(), |c| mesh.cell_vertices(c));
         let cell_rule = fdfsi_fem::quadrature::for_cell::<D>(mesh.cell_type, CELL_DEGREE);
         // Facet rule and tabulations.
@@ -335,8 +321,8 @@ impl<const D: usize> SolidDiscretization<D> {
             centroid_x0: Vec::new(),
             facet_tabs,
             facet_weights,
-            contact: surfaces,
-            contact_cells,
+            contact: Vec::new(),
+            contact_cells: Vec::new(),
         };
         let mut cv = disc.cell_values();
         let mut coords = Vec::new();
@@ -346,7 +332,38 @@ impl<const D: usize> SolidDiscretization<D> {
             disc.qp_x0.extend_from_slice(&cv.x);
             disc.centroid_x0.push(cv.centroid);
         }
+        if !contact.is_empty() {
+            disc.add_contact_surfaces(contact)?;
+        }
         Ok(disc)
+    }
+
+    /// Makes the boundaries `contact` contact surfaces: a multiplier per node of each (after the
+    /// layout's unknowns) and a "cell" per node (its displacement and multiplier) after the mesh's
+    /// cells in the pattern. A node of no weight (`w_i = int psi_i dA_0 = 0`: the end of an
+    /// axisymmetric surface on the axis, where `R = 0`) carries no load and gets no multiplier.
+    fn add_contact_surfaces(&mut self, contact: &[String]) -> Result<(), SolidError> {
+        let mut first = self.layout.num_dofs();
+        for name in contact {
+            let facets = self.mesh.boundary_facets(name).map_err(|source| SolidError::ContactBoundary { boundary: name.clone(), source })?;
+            let vf = self.displacement_field();
+            let mut nodes: Vec<usize> =
+                facets.iter().flat_map(|bf| self.element.facet_nodes(bf.facet).into_iter().map(|k| vf.nodes.cell(bf.cell)[k])).collect();
+            nodes.sort_unstable();
+            nodes.dedup();
+            let weights = self.node_weights(name, &nodes);
+            let largest = weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+            let (nodes, weights): (Vec<usize>, Vec<f64>) = nodes.into_iter().zip(weights).filter(|(_, w)| *w > 1e-12 * largest).unzip();
+            let cells: Vec<Vec<usize>> =
+                nodes.iter().enumerate().map(|(j, &node)| (0..D).map(|a| vf.dof(node, a)).chain([first + j]).collect()).collect();
+            self.contact_cells.extend(cells);
+            let n = nodes.len();
+            self.contact.push(ContactSurface { boundary: name.clone(), nodes, weights, first });
+            first += n;
+        }
+        let (layout, nc, cells) = (&self.layout, self.mesh.num_cells(), &self.contact_cells);
+        self.pattern = Pattern::from_cells(first, nc + cells.len(), |c, buf| system_cell_dofs(layout, nc, cells, c, buf));
+        Ok(())
     }
 
     /// Number of unknowns: the layout's, then the contact multipliers.
@@ -703,10 +720,13 @@ impl<const D: usize> SolidDiscretization<D> {
         };
         for (surface, bc) in self.contact.iter().zip(&problem.contact) {
             let n = bc.plane.normal;
-            for (j, (&node, &w)) in surface.nodes.iter().zip(&self.contact_weights(surface)).enumerate() {
+            for (j, (&node, &w)) in surface.nodes.iter().zip(&surface.weights).enumerate() {
                 let l = surface.first + j;
-                let c = complementarity_scale(problem.material.shear_modulus(), w, D);
-                let cond = complementarity(x[l], w * bc.plane.gap(&position(node)), c);
+                let c = complementarity_scale(problem.material.shear_modulus(), w, self.formulation.weight(&self.nodes_x0[node]), D);
+                // A node whose motion along n is held by Dirichlet conditions cannot close a gap:
+                // it stays off contact (its multiplier 0), or its row would be empty.
+                let held = (0..D).all(|a| n[a] == 0.0 || constrained[vf.dof(node, a)]);
+                let cond = if held { complementarity(x[l], f64::INFINITY, c) } else { complementarity(x[l], w * bc.plane.gap(&position(node)), c) };
                 target.add_rhs(l, -cond.residual);
                 if !cond.active {
                     target.add_matrix(l, l, -1.0 / c);
@@ -725,17 +745,17 @@ impl<const D: usize> SolidDiscretization<D> {
         }
     }
 
-    /// The weights `w_j = int psi_j dA_0` (times `R` axisymmetric) of the nodes of a contact
-    /// surface on the reference configuration: the row sums of its surface mass matrix.
-    pub fn contact_weights(&self, surface: &ContactSurface) -> Vec<f64> {
+    /// The weights `w_j = int psi_j dA_0` (times `R` axisymmetric) of the `nodes` (sorted; every
+    /// node of the boundary's facets) of boundary `boundary` on the reference configuration.
+    fn node_weights(&self, boundary: &str, nodes: &[usize]) -> Vec<f64> {
         let vf = self.displacement_field();
         let (nv, nf) = (self.element.num_dofs(), self.facet_weights.len());
-        let mut weight = vec![0.0; surface.nodes.len()];
+        let mut weight = vec![0.0; nodes.len()];
         let mut x_ref = Vec::new();
-        for bf in self.mesh.boundary_facets(&surface.boundary).unwrap_or_default() {
+        for bf in self.mesh.boundary_facets(boundary).unwrap_or_default() {
             self.cell_positions(bf.cell, None, &mut x_ref);
             let tab = &self.facet_tabs[bf.facet];
-            let nodes = vf.nodes.cell(bf.cell);
+            let cell_nodes = vf.nodes.cell(bf.cell);
             for q in 0..nf {
                 let pt =
                     FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: self.facet_weights[q] };
@@ -743,7 +763,7 @@ impl<const D: usize> SolidDiscretization<D> {
                 let xq: [f64; D] = std::array::from_fn(|d| (0..nv).map(|i| pt.phi[i] * x_ref[i][d]).sum());
                 let w = pt.weight * da * self.formulation.weight(&xq);
                 for i in self.element.facet_nodes(bf.facet) {
-                    let j = surface.nodes.binary_search(&nodes[i]).expect("a facet node of the surface");
+                    let j = nodes.binary_search(&cell_nodes[i]).expect("a facet node of the boundary");
                     weight[j] += w * pt.phi[i];
                 }
             }

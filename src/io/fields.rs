@@ -84,8 +84,9 @@ pub fn gamma_f_grid<const D: usize>(disc: &crate::discretize::fsi::FsiDiscretiza
 /// `displacement` and cell data `pressure` (the mixed laws' pressure at the cell centre) and
 /// `cauchy_stress` (the cell mean of `sigma = P F^T / J - p I` over its quadrature points, 9
 /// components); with contact surfaces, point data `contact_pressure` and `contact_gap` (their
-/// nodes' multiplier and gap to the plane; 0 elsewhere); for a fibre-reinforced law `fibre_stretch` (the cell mean of
-/// `|F a_0| = sqrt(I4)`; 0 where the cell has no fibre).
+/// nodes' multiplier and gap to the plane; 0 elsewhere); for a fibre-reinforced law
+/// `fibre_stretch` (the mean of `|F a_0| = sqrt(I4)` over the cell's quadrature points with a
+/// fibre; 0 where it has none).
 pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Result<UnstructuredGrid, OutputError> {
     let material = problem.material.as_ref();
     let field = disc.displacement_field();
@@ -129,14 +130,15 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
         let p_c = if disc.mixed { pressure_at(disc, x, c, &disc.centroid_x0[c]) } else { 0.0 };
         pressure.push(p_c);
         let mut mean = [[0.0; 3]; 3];
-        let mut stretch = 0.0;
+        let (mut stretch, mut fibred) = (0.0, 0);
         for q in 0..nq {
             let fq = &f[c * nq + q];
             let x0: [f64; 3] = std::array::from_fn(|d| if d < D { disc.qp_x0[c * nq + q][d] } else { 0.0 });
             material.stress_tangent(fq, &x0, &mut p_mat, &mut tangent);
             if let Some(a0) = material.fibre_direction(&x0) {
                 let fa: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| fq[i][j] * a0[j]).sum());
-                stretch += fa.iter().map(|v| v * v).sum::<f64>().sqrt() / nq as f64;
+                stretch += fa.iter().map(|v| v * v).sum::<f64>().sqrt();
+                fibred += 1;
             }
             let j = det3(fq);
             let p_q = if disc.mixed { pressure_at(disc, x, c, &disc.qp_x0[c * nq + q]) } else { 0.0 };
@@ -148,7 +150,7 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
             }
         }
         stress.extend(mean.iter().flatten());
-        fibre_stretch.push(stretch);
+        fibre_stretch.push(if fibred > 0 { stretch / fibred as f64 } else { 0.0 });
     }
     grid.add_cell_data("pressure", 1, pressure)?;
     grid.add_cell_data("cauchy_stress", 9, stress)?;

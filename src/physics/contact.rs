@@ -11,7 +11,8 @@
 //! one of them zero. The multiplier is the displacement's trace space: `lambda_h = sum_i lambda_i
 //! psi_i` over the nodes `i` of `Gamma_c`, `psi_i` the Q2 basis, and the surface mass matrix is
 //! lumped to its row sums, the node weights `w_i = int_Gamma_c psi_i dA` on the reference
-//! configuration (weight `R` axisymmetric; positive for Q2 Lagrange facets). With the current
+//! configuration (weight `R` axisymmetric; positive for Q2 Lagrange facets, except at a node on
+//! the axis, `R = 0`, which carries no load and has no multiplier). With the current
 //! positions `x_i` (in a total- or an updated-Lagrangian solve alike)
 //!
 //! ```text
@@ -28,9 +29,9 @@
 //! a flap stopped by a plane), and costs no accuracy where it is checked: the loads `lambda w_i`
 //! of a uniform pressure are the consistent ones, and Hertz's width and peak come out within
 //! 0.03 %. `c_i > 0` weighs pressure against weighted gap; the solution does not depend on it,
-//! only the path of the active set. [`complementarity_scale`] takes `c_i = G / w_i^(D/(D-1))`,
-//! `w_i = int psi_i dA`, so that a strain of order one in an element of the node's size weighs as
-//! a pressure of order `G`.
+//! only the path of the active set. [`complementarity_scale`] takes `c_i = G / (w_i l_i)`,
+//! `l_i` the size of the node's facets, so that a strain of order one in an element of the node's
+//! size weighs as a pressure of order `G`.
 //!
 //! A uniform contact pressure lies in the multiplier space (the `psi_i` sum to one), so a block
 //! pressed on the plane by a uniform load carries it exactly (the patch test,
@@ -82,10 +83,12 @@ pub fn complementarity(lambda: f64, g: f64, c: f64) -> Complementarity {
     }
 }
 
-/// `c_i = G / w_i^(D/(D-1))` for a node of weight `w_i = int psi_i dA` and the shear modulus `G`
-/// (module docs).
-pub fn complementarity_scale(shear_modulus: f64, weight: f64, dim: usize) -> f64 {
-    shear_modulus / weight.abs().max(f64::MIN_POSITIVE).powf(dim as f64 / (dim as f64 - 1.0))
+/// `c_i = G / (w_i l_i)` for a node of weight `w_i = int psi_i dA` (times `R` axisymmetric:
+/// `radius` is the node's `R`, 1 otherwise), `l_i = (w_i / R)^(1/(D-1))` its facets' size, and the
+/// shear modulus `G` (module docs).
+pub fn complementarity_scale(shear_modulus: f64, weight: f64, radius: f64, dim: usize) -> f64 {
+    let size = (weight / radius).abs().powf(1.0 / (dim as f64 - 1.0));
+    shear_modulus / (weight * size).abs().max(f64::MIN_POSITIVE)
 }
 
 #[cfg(test)]

@@ -162,7 +162,7 @@ pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, 
     let mut out = Vec::new();
     let around = if disc.formulation == crate::physics::fluid::Formulation::Axisymmetric { 2.0 * std::f64::consts::PI } else { 1.0 };
     for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
-        let weight = disc.contact_weights(surface);
+        let weight = &surface.weights;
         let lambda = |j: usize| x[surface.first + j];
         let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
         let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);

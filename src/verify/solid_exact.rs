@@ -557,17 +557,19 @@ pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     let mut push = |name: &str, (eu, ep): (f64, f64)| {
         out.push(ExactnessCheck { name: name.into(), displacement_error: eu, pressure_error: ep });
     };
-    // Plane strain uniaxial.
+    // Plane strain uniaxial: the unit square on rollers, its right side moved by 0.5.
     let g = 2.0;
     let ex = UniaxialPlaneStrain { shear_modulus: g, stretch: 1.5 };
-    let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(g));
-    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 2, GeometryOrder::Linear), Formulation::Plane, mat.as_ref())?;
-    let problem = SolidProblem::new(Formulation::Plane, mat)
-        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
-        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
-        .with_displacement("right", &[0], |_: &[f64; 2], l| [0.5 * l, 0.0]);
-    let sol = solve(&disc, &problem, 2)?;
-    push("uniaxial-plane-strain", homogeneous_errors(&disc, &sol.x, |x| ex.displacement(x), ex.pressure()));
+    let uniaxial_plane = |mat: Arc<dyn SolidMaterial>| -> Result<(f64, f64), SolidError> {
+        let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 2, GeometryOrder::Linear), Formulation::Plane, mat.as_ref())?;
+        let problem = SolidProblem::new(Formulation::Plane, mat)
+            .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("right", &[0], |_: &[f64; 2], l| [0.5 * l, 0.0]);
+        let sol = solve(&disc, &problem, 2)?;
+        Ok(homogeneous_errors(&disc, &sol.x, |x| ex.displacement(x), ex.pressure()))
+    };
+    push("uniaxial-plane-strain", uniaxial_plane(Arc::new(NeoHookeanMixed::incompressible(g)))?);
     // Axisymmetric uniaxial: stretch along the axis z = x[0]; the axis r = 0 is "bottom".
     let ex3 = Uniaxial3d { shear_modulus: 1.0, stretch: 1.5 };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(1.0));
@@ -631,13 +633,7 @@ pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     // Fibres across the stretch are shortened (I4 = lambda^-2 < 1) and bear nothing: the
     // neo-Hookean state of the first check.
     let matrix = Arc::new(NeoHookeanMixed::incompressible(ex.shear_modulus));
-    let mat: Arc<dyn SolidMaterial> = Arc::new(FibreReinforced { matrix, k1: fib.k1, k2: fib.k2, direction: Arc::new(|_| [0.0, 1.0, 0.0]) });
-    let disc = SolidDiscretization::build(rectangle_quads(0.0, 1.0, 0.0, 1.0, 3, 2, GeometryOrder::Linear), Formulation::Plane, mat.as_ref())?;
-    let problem = SolidProblem::new(Formulation::Plane, mat)
-        .with_displacement("left", &[0], |_: &[f64; 2], _| [0.0; 2])
-        .with_displacement("bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
-        .with_displacement("right", &[0], |_: &[f64; 2], l| [0.5 * l, 0.0]);
-    let sol = solve(&disc, &problem, 2)?;
-    push("fibre-across-plane-strain", homogeneous_errors(&disc, &sol.x, |x| ex.displacement(x), ex.pressure()));
+    let across = FibreReinforced { matrix, k1: fib.k1, k2: fib.k2, direction: Arc::new(|_| [0.0, 1.0, 0.0]) };
+    push("fibre-across-plane-strain", uniaxial_plane(Arc::new(across))?);
     Ok(out)
 }
