@@ -158,6 +158,8 @@ pub struct FlowDiscretization<const D: usize> {
     outlets: Vec<String>,
     /// The outlets' couplings as cells after the mesh's ([`FlowDiscretization::system_cell_dofs`]).
     outlet_cells: Vec<Vec<usize>>,
+    /// Each outlet's [`FlowDiscretization::flux_weights`].
+    outlet_weights: Vec<Vec<(usize, f64)>>,
 }
 
 /// Which matrix entries a discretisation prepares ([`FlowDiscretization::build_with`],
@@ -282,7 +284,7 @@ impl<const D: usize> FlowDiscretization<D> {
         };
         let cell_rule = quadrature::for_cell::<D>(mesh.cell_type, cell_degree(D));
         let (facet_points, facet_weights) = quadrature::for_facets(mesh.cell_type, 6);
-        Ok(FlowDiscretization {
+        let mut disc = FlowDiscretization {
             mesh,
             topology,
             velocity_element,
@@ -296,7 +298,13 @@ impl<const D: usize> FlowDiscretization<D> {
             facet_weights,
             outlets: outlets.to_vec(),
             outlet_cells,
-        })
+            outlet_weights: Vec::new(),
+        };
+        for name in outlets {
+            let weights = disc.flux_weights(formulation, name).map_err(|e| FlowError::Map { cell: e.cell, source: e.source })?;
+            disc.outlet_weights.push(weights);
+        }
+        Ok(disc)
     }
 
     /// The system's "cells", whose unknowns are coupled: the mesh's cells, then one per facet of
@@ -527,7 +535,7 @@ impl<const D: usize> FlowDiscretization<D> {
                 target.add_rhs(dof, -v);
             }
         })?;
-        self.add_windkessels(problem, x, x_old, constrained, target)?;
+        self.add_windkessels(problem, x, x_old, constrained, target);
         for (dof, _) in constrained.iter().enumerate().filter(|(_, &c)| c) {
             target.identity_row(dof);
         }
@@ -621,15 +629,9 @@ impl<const D: usize> FlowDiscretization<D> {
 
     /// The Windkessel outlets' terms at `x` (history `x_old`, `a0/dt` in the problem's
     /// parameters): the outlet pressure's traction in the velocity rows, and the rows of `Q` and
-    /// `P_c` ([`WindkesselBc`]).
-    fn add_windkessels(
-        &self,
-        problem: &FlowProblem<D>,
-        x: &[f64],
-        x_old: &[f64],
-        constrained: &[bool],
-        target: &mut impl SystemTarget,
-    ) -> Result<(), AssemblyError> {
+    /// `P_c` ([`WindkesselBc`]), with the outlets' flux weights of the formulation the
+    /// discretisation was built for.
+    fn add_windkessels(&self, problem: &FlowProblem<D>, x: &[f64], x_old: &[f64], constrained: &[bool], target: &mut impl SystemTarget) {
         assert_eq!(
             problem.windkessel.iter().map(|w| &w.boundary).collect::<Vec<_>>(),
             self.outlets.iter().collect::<Vec<_>>(),
@@ -639,7 +641,7 @@ impl<const D: usize> FlowDiscretization<D> {
         let inv_dt = problem.params.inv_dt;
         for (k, wk) in problem.windkessel.iter().enumerate() {
             let (iq, ic) = self.windkessel_dofs(k);
-            let b = self.flux_weights(problem.formulation, &wk.boundary)?;
+            let b = &self.outlet_weights[k];
             let (q, pc) = (x[iq], x[ic]);
             let pressure = wk.outlet_pressure(q, pc);
             for &(dof, bi) in b.iter().filter(|(dof, _)| !constrained[*dof]) {
@@ -650,7 +652,7 @@ impl<const D: usize> FlowDiscretization<D> {
             let flux: f64 = s * b.iter().map(|&(dof, bi)| bi * x[dof]).sum::<f64>();
             target.add_rhs(iq, -(q - flux));
             target.add_matrix(iq, iq, 1.0);
-            for &(dof, bi) in &b {
+            for &(dof, bi) in b {
                 target.add_matrix(iq, dof, -s * bi);
             }
             let storage = wk.compliance * inv_dt;
@@ -658,7 +660,6 @@ impl<const D: usize> FlowDiscretization<D> {
             target.add_matrix(ic, ic, storage + 1.0 / wk.distal_resistance);
             target.add_matrix(ic, iq, -1.0);
         }
-        Ok(())
     }
 
     /// Solves `R(x) = 0` by Newton from `x` for the problem at time `t` (history `x_old`,

@@ -197,7 +197,14 @@ impl Ctx<'_> {
             "{}: solid-only ({}), {D}D mesh of {cells} cells; {}; nnz {}; {:?} Lagrangian",
             case.title,
             problem.material.name(),
-            disc.layout.fields.iter().map(|f| format!("{} {}", f.name, f.num_dofs())).collect::<Vec<_>>().join(", "),
+            disc.layout
+                .fields
+                .iter()
+                .map(|f| (f.name.as_str(), f.num_dofs()))
+                .chain((disc.num_contact_dofs() > 0).then(|| ("contact pressure", disc.num_contact_dofs())))
+                .map(|(name, n)| format!("{name} {n}"))
+                .collect::<Vec<_>>()
+                .join(", "),
             disc.pattern.nnz(),
             lagrangian
         );
