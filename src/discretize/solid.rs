@@ -7,8 +7,10 @@
 //! patched); [`solve_quasi_static`] ramps a load factor from 0 to 1 with Newton per increment
 //! (kernel [`crate::physics::solid::solid_cell`]) and returns a [`SolidSolution`].
 //!
-//! Unknowns: the displacement (Q2, `D` components per node, field `"displacement"`) and, for
-//! mixed laws, the P1disc pressure (`D + 1` dofs per cell, field `"pressure"`).
+//! Unknowns: the displacement (Q2, `D` components per node, field `"displacement"`), for mixed
+//! laws the P1disc pressure (`D + 1` dofs per cell, field `"pressure"`), and after the layout's
+//! fields a contact pressure per node of each contact surface ([`ContactSurface`];
+//! [`crate::physics::contact`]).
 //!
 //! * **Total Lagrangian** ([`Lagrangian::Total`]): the unknown is the displacement from the
 //!   reference configuration; `F = I + Grad u`.
@@ -268,8 +270,8 @@ impl<const D: usize> SolidDiscretization<D> {
     }
 
     /// [`SolidDiscretization::build`] with the boundaries `contact` (those of the problem's
-    /// [`RigidContactBc`]s, in order) as contact surfaces: a contact multiplier per node of each,
-    /// after the layout's unknowns, coupled to the displacement on the boundary's facets.
+    /// [`RigidContactBc`]s, in order) as contact surfaces: a contact multiplier per node of each
+    /// (but nodes of no weight), after the layout's unknowns, coupled to its node's displacement.
     pub fn build_with_contact(mesh: Mesh<D>, formulation: Formulation, material: &dyn SolidMaterial, contact: &[String]) -> Result<Self, SolidError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(SolidError::Formulation { formulation, dim: D });
