@@ -47,7 +47,7 @@ pub struct TractionBc<const D: usize> {
 /// system ([`FlowDiscretization::windkessel_dofs`]), with the equations
 ///
 /// ```text
-/// Q - s int_outlet u . n w ds = 0                         (s = 2 pi axisymmetric, else 1)
+/// Q - s int_outlet u . n w ds = 0                         (s: Formulation::around, 2 pi or 1)
 /// C dP_c/dt - Q + (P_c - P_d) / R_d = 0                   (the fluid's time scheme; steady: no C)
 /// sigma n = -P n on the outlet,  P = R_p Q + P_c          (the outlet pressure)
 /// ```
@@ -69,15 +69,6 @@ impl WindkesselBc {
     /// The outlet pressure `P = R_p Q + P_c`.
     pub fn outlet_pressure(&self, flux: f64, capacitor_pressure: f64) -> f64 {
         self.proximal_resistance * flux + capacitor_pressure
-    }
-}
-
-/// `s` of a flux `s int u . n w ds`: `2 pi` axisymmetric (the whole circumference), else 1.
-pub fn flux_scale(formulation: Formulation) -> f64 {
-    if formulation == Formulation::Axisymmetric {
-        2.0 * std::f64::consts::PI
-    } else {
-        1.0
     }
 }
 
@@ -637,7 +628,7 @@ impl<const D: usize> FlowDiscretization<D> {
             self.outlets.iter().collect::<Vec<_>>(),
             "the problem's Windkessel outlets are the discretisation's"
         );
-        let s = flux_scale(problem.formulation);
+        let s = problem.formulation.around();
         let inv_dt = problem.params.inv_dt;
         for (k, wk) in problem.windkessel.iter().enumerate() {
             let (iq, ic) = self.windkessel_dofs(k);

@@ -1309,9 +1309,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
-        if formulation == crate::physics::fluid::Formulation::Axisymmetric {
-            f.iter_mut().for_each(|v| *v *= 2.0 * std::f64::consts::PI);
-        }
+        f.iter_mut().for_each(|v| *v *= formulation.around());
         f
     }
 }

@@ -45,6 +45,16 @@ impl Formulation {
             _ => 1.0,
         }
     }
+
+    /// What an integral with [`Formulation::weight`] is multiplied by to be the whole body's:
+    /// `2 pi` axisymmetric (the integrals are per radian), 1 otherwise (plane: per unit depth).
+    #[inline]
+    pub fn around(self) -> f64 {
+        match self {
+            Formulation::Axisymmetric => 2.0 * std::f64::consts::PI,
+            _ => 1.0,
+        }
+    }
 }
 
 /// Form of the viscous term. Both give the same solution where the velocity is prescribed on the

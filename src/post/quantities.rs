@@ -12,7 +12,6 @@
 
 use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec};
 use crate::discretize::flow::{FlowDiscretization, FlowError, FlowProblem};
-use crate::physics::fluid::Formulation;
 use fdfsi_fem::element::MAX_DOFS;
 use fdfsi_fem::locate::{cells_containing, locate_point};
 use fdfsi_fem::values::p1disc_basis;
@@ -99,9 +98,7 @@ pub fn boundary_force<const D: usize>(
             f[a] -= raw[vf.dof(node, a)];
         }
     }
-    if problem.formulation == Formulation::Axisymmetric {
-        f.iter_mut().for_each(|v| *v *= 2.0 * std::f64::consts::PI);
-    }
+    f.iter_mut().for_each(|v| *v *= problem.formulation.around());
     Ok(f)
 }
 
@@ -173,7 +170,7 @@ pub fn boundary_integral<const D: usize>(
     }
     Ok(spec.scale
         * match spec.kind {
-            BoundaryIntegralKind::Flux if formulation == Formulation::Axisymmetric => 2.0 * std::f64::consts::PI * num,
+            BoundaryIntegralKind::Flux => formulation.around() * num,
             BoundaryIntegralKind::MeanPressure | BoundaryIntegralKind::AppliedTraction => num / den,
             _ => num,
         })

@@ -160,7 +160,7 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
 /// penetrated).
 pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
     let mut out = Vec::new();
-    let around = if disc.formulation == crate::physics::fluid::Formulation::Axisymmetric { 2.0 * std::f64::consts::PI } else { 1.0 };
+    let around = disc.formulation.around();
     for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
         let weight = &surface.weights;
         let lambda = |j: usize| x[surface.first + j];
