@@ -222,6 +222,13 @@ impl<const D: usize> FlowDiscretization<D> {
         Self::build_with_outlets(mesh, formulation, &[], entries)
     }
 
+    /// The discretisation of `mesh` for `problem`: its formulation, and its Windkessel outlets
+    /// ([`FlowDiscretization::build_with_outlets`]), with the matrix `entries` it prepares.
+    pub fn build_for(mesh: Mesh<D>, problem: &FlowProblem<D>, entries: Entries) -> Result<Self, FlowError> {
+        let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
+        Self::build_with_outlets(mesh, problem.formulation, &outlets, entries)
+    }
+
     /// [`FlowDiscretization::build_with`] with Windkessel outlets on the boundaries `outlets`
     /// (those of the problem's [`WindkesselBc`]s, in order): two unknowns each after the
     /// layout's, `Q` and `P_c` ([`FlowDiscretization::windkessel_dofs`]), coupled to the velocity

@@ -694,9 +694,7 @@ impl<const D: usize> FsiDiscretization<D> {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
         }
         let flow_entries = if entries == Entries::Whole { Entries::Whole } else { Entries::Unassembled };
-        let outlets: Vec<String> = model.problem.fluid.windkessel.iter().map(|w| w.boundary.clone()).collect();
-        let flow =
-            FlowDiscretization::build_with_outlets(crate::adapt::tag_gamma_f(&adapted), model.problem.fluid.formulation, &outlets, flow_entries)?;
+        let flow = FlowDiscretization::build_for(crate::adapt::tag_gamma_f(&adapted), &model.problem.fluid, flow_entries)?;
         let mut coupling = Self::coupling_elements(model, &surface, &adapted.gamma_f, &flow)?;
         let fluid_dofs = flow.num_dofs();
         let solid_dofs = model.solid.num_dofs();
@@ -732,7 +730,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let layout = SystemLayout::new(&[
             (Block::FluidVelocity, vel.num_dofs()),
             (Block::FluidPressure, flow.pressure_field().num_dofs()),
-            (Block::Windkessel, 2 * outlets.len()),
+            (Block::Windkessel, 2 * flow.outlets().len()),
             (Block::SolidDisplacement, model.solid.displacement_field().num_dofs()),
             (Block::SolidPressure, model.solid.layout.num_dofs() - model.solid.displacement_field().num_dofs()),
             (Block::Contact, model.solid.num_contact_dofs()),

@@ -230,13 +230,6 @@ pub struct ContactSurface {
     pub first: usize,
 }
 
-impl ContactSurface {
-    /// The multiplier of displacement node `node`, if it is on this surface.
-    pub fn multiplier(&self, node: usize) -> Option<usize> {
-        self.nodes.binary_search(&node).ok().map(|j| self.first + j)
-    }
-}
-
 /// Quadrature degree of the cell integrals (3 Gauss points per direction).
 const CELL_DEGREE: usize = 5;
 

@@ -293,10 +293,9 @@ impl Ctx<'_> {
         };
         self.probes_inside(&adapted)?;
         let problem = flow_problem(case, &adapted, self.dir)?;
-        let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
         let adapted_cells = adapted.num_cells();
         // The entries counted, not stored: a run may hold only its rows of them.
-        let disc = FlowDiscretization::build_with_outlets(adapted, case.physics.formulation, &outlets, Entries::Counted)?;
+        let disc = FlowDiscretization::build_for(adapted, &problem, Entries::Counted)?;
         let dofs = with_total(super::flow::flow_dofs(&disc));
         let solid_text = match &case.solid {
             Some(s) => format!(

@@ -41,8 +41,7 @@ pub fn export_system(case: &Case, case_dir: &Path, dir: &Path, obs: &mut dyn Run
 
 fn export_flow<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir: &Path, obs: &mut dyn RunObserver) -> Result<(), RunError> {
     let mut problem = flow_problem(case, &mesh, case_dir)?;
-    let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
-    let disc = FlowDiscretization::build_with_outlets(mesh, case.physics.formulation, &outlets, Entries::Whole)?;
+    let disc = FlowDiscretization::build_for(mesh, &problem, Entries::Whole)?;
     // The first step's system: at t = dt from rest with 1/dt, or the steady one at t = 0.
     let t = case.time.as_ref().map_or(0.0, |ts| ts.dt);
     problem.params.inv_dt = if t > 0.0 { 1.0 / t } else { 0.0 };
@@ -55,7 +54,7 @@ fn export_flow<const D: usize>(case: &Case, mesh: Mesh<D>, case_dir: &Path, dir:
     disc.assemble_system(&problem, &x, &x_old, t, &constrained, &mut k, &mut rhs)
         .map_err(|e| crate::discretize::flow::FlowError::Map { cell: e.cell, source: e.source })?;
     let mut blocks: Vec<(String, Range<usize>)> = disc.layout.fields.iter().map(|f| (f.name.to_string(), f.range())).collect();
-    if !outlets.is_empty() {
+    if !disc.outlets().is_empty() {
         blocks.push(("windkessel".into(), disc.windkessel_dofs(0).0..n));
     }
     write_system(dir, &k, &rhs, blocks, obs)?;

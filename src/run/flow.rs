@@ -55,8 +55,7 @@ fn run_dim<const D: usize>(case: &Case, mesh: Mesh<D>, options: &RunOptions, obs
     let mut lu = case.solver.linear_solver(case.time.is_some(), case.physics.formulation);
     let world = lu.as_row_solver().map(|rows| rows.world());
     let entries = world.map_or(Entries::Whole, Entries::Rows);
-    let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
-    let disc = FlowDiscretization::build_with_outlets(mesh, case.physics.formulation, &outlets, entries)?;
+    let disc = FlowDiscretization::build_for(mesh, &problem, entries)?;
     let discretize = t.elapsed().as_secs_f64();
     let dofs = flow_dofs(&disc);
     let held = disc.nnz().unwrap_or_default(); // built whole or by rows: counted
