@@ -218,6 +218,13 @@ pub struct ContactSpec {
     pub point: Vec<f64>,
     /// The plane's normal (one entry per dimension; normalised).
     pub normal: Vec<f64>,
+    /// FSI runs: once the solid touches the plane, the fluid between them is cut off where
+    /// their gap is at most this length, so that a closed contact seals (see
+    /// [`fdfsi_fem::adapt::gap`]). A length >= 0; 0 cuts nothing off. Default: the mean height
+    /// of the fluid cells at the plane where it bounds the fluid (a wall, a symmetry line); 0
+    /// where it lies inside the fluid (a stop).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fluid_cut_off: Option<f64>,
 }
 
 /// `[solid.fibres]`: `Psi_f = k1 / (2 k2) (exp(k2 (I4 - 1)^2) - 1)` added to the law where the
@@ -1033,13 +1040,17 @@ impl Case {
 
     /// The quantities every run of this kind writes besides the case's own (they may appear in
     /// `[[output.combination]]`): in FSI runs `coupling_force_x`, `_y` (`_z`), the force of the
-    /// fluid on the solid, and `coupling_facets`.
+    /// fluid on the solid, and `coupling_facets`; with contact planes also `closed_gap_cells`,
+    /// the fluid cells cut off where the solid has closed on them.
     pub fn builtin_quantities(&self) -> Vec<String> {
         if self.kind() != RunKind::Fsi {
             return Vec::new();
         }
         let mut names: Vec<String> = ["x", "y", "z"][..self.dim()].iter().map(|c| format!("coupling_force_{c}")).collect();
         names.push("coupling_facets".into());
+        if self.solid.as_ref().is_some_and(|s| !s.contact.is_empty()) {
+            names.push("closed_gap_cells".into());
+        }
         names
     }
 

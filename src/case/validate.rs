@@ -355,7 +355,7 @@ fn solid(c: &Case, p: &mut Problems) {
 }
 
 /// `[[solid.contact]]`: a boundary name, a point and a non-zero normal of the dimension, each
-/// boundary once.
+/// boundary once; `fluid_cut_off` a length >= 0.
 fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     let d = c.dim();
     for (i, k) in solid.contact.iter().enumerate() {
@@ -376,6 +376,11 @@ fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
         }
         if k.normal.iter().all(|&x| x == 0.0) {
             p.push(format!("{what}: the normal is the zero vector"));
+        }
+        if let Some(cut_off) = k.fluid_cut_off {
+            if !(cut_off.is_finite() && cut_off >= 0.0) {
+                p.push(format!("{what}: fluid_cut_off must be a finite length >= 0, got {cut_off}"));
+            }
         }
     }
 }

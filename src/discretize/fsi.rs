@@ -6,7 +6,9 @@
 //! 1. the solid at `t_n` (positions `X + u_n`) gives gamma_s ([`FsiModel::gamma_s`]);
 //! 2. the ORIGINAL fluid mesh (prepared once as a [`Background`]) is adapted to it
 //!    ([`adapt_with`]; in 2D its corners first made fluid vertices); with
-//!    [`CoveredFluid::Removed`] the fluid cells gamma_f encloses are removed; the facets on
+//!    [`CoveredFluid::Removed`] the fluid cells gamma_f encloses are removed; where the solid
+//!    touches a contact plane that bounds the fluid, the cells in the gap between them are cut
+//!    off ([`remove_closed_gaps`], held at rest on the boundary [`CLOSED_GAP`]); the facets on
 //!    gamma_s (gamma_f) are tagged as the boundary `gamma_f`;
 //! 3. [`FsiDiscretization::build`]: the fluid discretisation of the adapted mesh, the coupling
 //!    elements (one per gamma_f facet, with their quadrature points located in a fluid cell and on
@@ -15,8 +17,8 @@
 //!    ([`FsiDiscretization::build_with`]);
 //! 4. the previous fluid velocity is transferred to the new velocity nodes
 //!    ([`transfer_p2plus_or`]; nodes the solid uncovered since take the old velocity's extension
-//!    up to a cell into the old mesh's hole and the solid's velocity farther in,
-//!    `FluidSnapshot::transferred_to`);
+//!    up to a cell into the old mesh's hole and the solid's velocity farther in, or zero in a
+//!    closed gap, `FluidSnapshot::transferred_to`);
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
 //!    discretisations ([`FlowDiscretization::assemble_into`],
 //!    [`SolidDiscretization::assemble_into`], updated Lagrangian) into block matrices and
@@ -46,7 +48,7 @@
 
 use super::layout::{Block, SystemLayout};
 pub use crate::adapt::CoveredFluid;
-use crate::discretize::flow::{AssemblyError, Entries, FlowDiscretization, FlowError, FlowProblem};
+use crate::discretize::flow::{AssemblyError, DirichletBc, Entries, FlowDiscretization, FlowError, FlowProblem};
 use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::discretize::time_scheme::{step_history, step_ratio, TimeScheme};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
@@ -55,8 +57,10 @@ use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit}
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
+use fdfsi_fem::adapt::gap::cell_height_at;
 use fdfsi_fem::adapt::{
-    adapt_with, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, Surface, GAMMA_F_REL_TOL,
+    adapt_with, remove_closed_gaps, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, GapPlane, Surface,
+    CLOSED_GAP, GAMMA_F_REL_TOL,
 };
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
@@ -66,7 +70,7 @@ use fdfsi_fem::quadrature;
 use fdfsi_fem::sparse::{Colouring, CscMatrix, HeldRows, Pattern, ResidualOnly, RowMatrix, RowPattern, SystemTarget, WholeSystem};
 use fdfsi_fem::values::det_inv;
 use serde::{Deserialize, Serialize};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use thiserror::Error;
 
@@ -170,6 +174,10 @@ pub struct FsiModel<const D: usize> {
     pub multiplier: MultiplierSpace,
     /// The fluid cells under the solid (default: kept, the paper's).
     pub covered_fluid: CoveredFluid,
+    /// The rigid contact planes of the solid, each with the gap below which the fluid between
+    /// it and the solid is cut off ([`remove_closed_gaps`]), in the order of the solid
+    /// problem's contacts.
+    pub closed_gaps: Vec<GapPlane<D>>,
 }
 
 impl<const D: usize> FsiModel<D> {
@@ -185,13 +193,62 @@ impl<const D: usize> FsiModel<D> {
         self
     }
 
+    /// The model with the fluid cut-off gaps of its contact planes set (`None` keeps the
+    /// default, one cell of the fluid mesh at the plane; see [`FsiModel::new`]).
+    pub fn with_cut_offs(mut self, cut_offs: &[Option<f64>]) -> Self {
+        for (gap, cut_off) in self.closed_gaps.iter_mut().zip(cut_offs) {
+            if let Some(c) = cut_off {
+                gap.cut_off = *c;
+            }
+        }
+        self
+    }
+
     /// Prepares the original fluid mesh and discretises the solid mesh (reference configuration).
-    pub fn new(problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
+    /// Where the solid has rigid contact planes that bound the fluid (walls, symmetry lines),
+    /// once it touches one the fluid between them is cut off where their gap is below the mean
+    /// height of the fluid cells at the plane ([`cell_height_at`]; a plane inside the fluid cuts
+    /// nothing off; [`FsiModel::with_cut_offs`] sets other lengths), and the fluid is held at
+    /// rest on the boundary [`CLOSED_GAP`] this leaves.
+    pub fn new(mut problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
         let background = Background::new(fluid_mesh)?;
         let solid = SolidDiscretization::build_for(solid_mesh, &problem.solid)?;
         solid.check_problem(&problem.solid)?;
         solid.mesh.boundary_tag(&problem.surface)?;
-        Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default(), covered_fluid: CoveredFluid::default() })
+        let closed_gaps: Vec<GapPlane<D>> = problem
+            .solid
+            .contact
+            .iter()
+            .map(|c| {
+                let plane = GapPlane { point: c.plane.point, normal: c.plane.normal, cut_off: 0.0 };
+                GapPlane { cut_off: cell_height_at(&background.mesh, &plane), ..plane }
+            })
+            .collect();
+        if !closed_gaps.is_empty() {
+            let at_rest: crate::discretize::flow::VectorFn<D> = Arc::new(|_: &[f64; D], _: f64| [0.0; D]);
+            problem.fluid.dirichlet.push(DirichletBc { boundary: CLOSED_GAP.into(), components: (0..D).collect(), value: at_rest });
+        }
+        Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default(), covered_fluid: CoveredFluid::default(), closed_gaps })
+    }
+
+    /// `adapted` (to gamma_s `surface` at the solid displacement `solid_x`) with the fluid cut
+    /// off where the solid has closed on a contact plane ([`GapPlane::is_closed`]): the gap
+    /// layer below gamma_s and the contact boundary ([`GapPlane::layer`]). Unchanged without
+    /// contact planes or while no contact is closed.
+    fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
+        if self.closed_gaps.is_empty() {
+            return Ok(adapted);
+        }
+        let mesh = self.current_solid_mesh(solid_x);
+        let mut layers = Vec::new();
+        for (gap, contact) in self.closed_gaps.iter().zip(&self.problem.solid.contact) {
+            let boundary = Surface::from_mesh_boundary(&mesh, &contact.boundary)?;
+            if gap.cut_off > 0.0 && gap.is_closed(&boundary) {
+                layers.extend(gap.layer(surface));
+                layers.extend(gap.layer(&boundary));
+            }
+        }
+        Ok(remove_closed_gaps(adapted, &layers))
     }
 
     /// The solid mesh at the total displacement in `solid_x` (solid numbering): every geometry
@@ -445,12 +502,17 @@ impl<const D: usize> FluidSnapshot<D> {
     /// at dt = 0.025 28 % larger than with the extension.) Without a hole every new node must
     /// lie in the old mesh.
     fn transferred_to(&self, model: &FsiModel<D>, disc: &FsiDiscretization<D>, solid_v: &[f64]) -> Result<Vec<f64>, FsiError> {
-        let has_hole = model.covered_fluid == CoveredFluid::Removed;
+        let covered_hole = model.covered_fluid == CoveredFluid::Removed;
+        let has_hole = covered_hole || !model.closed_gaps.is_empty();
         // gamma_s at `solid_base`, built for the first node that needs it (most steps have none).
         let mut hole: Option<Surface<D>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
-            if !has_hole {
+            // In a gap the solid closed on a rigid plane: the fluid was at rest there.
+            if model.closed_gaps.iter().any(|g| g.distance(x) <= g.cut_off) {
+                return Ok([0.0; D]);
+            }
+            if !covered_hole {
                 return Err(outside());
             }
             if hole.is_none() {
@@ -689,6 +751,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
         let adapted = model.covered_fluid.apply(adapt_with(&model.background, &surface, &model.problem.adapt)?, &surface)?;
+        let adapted = model.cut_off_closed_gaps(adapted, &surface, solid_x)?;
         let adapt_seconds = clock.elapsed().as_secs_f64();
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));

@@ -9,7 +9,8 @@
 //!   solid: see [`crate::io::fields::gamma_f_grid`]);
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
-//!   integral of the multiplier over gamma_f, plus `coupling_facets`;
+//!   integral of the multiplier over gamma_f, plus `coupling_facets` (and `closed_gap_cells`
+//!   with contact planes);
 //! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
 //!   gamma_f);
 //! - `summary.json` as for every run.
@@ -146,7 +147,7 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let r = &st.report;
         let mut known: Vec<(String, f64)> =
             self.solid_probes.iter().map(|(name, node, a)| (name.clone(), self.model.solid.displacement(&s.state.solid_x, *node)[*a])).collect();
-        let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]);
+        let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64, r.adapt.closed_gap_cells as f64]);
         known.extend(self.case.builtin_quantities().into_iter().zip(builtin));
         known.extend(super::solid::contact_quantities(&self.model.solid, &self.model.problem.solid, &s.state.solid_x));
         let fluid = st.disc.fluid_dofs();
@@ -181,8 +182,8 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let r = &last_step(s).report;
         let (a, sec) = (&r.adapt, &r.seconds);
         obs.detail(&format!(
-            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} corner nodes, {} covered cells removed; {} coupling points, max distance to gamma_s {:.2e}",
-            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, a.corner_nodes, a.removed_cells, r.coupling_points, r.max_coupling_distance
+            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} corner nodes, {} covered cells removed, {} cut off in closed gaps; {} coupling points, max distance to gamma_s {:.2e}",
+            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, a.corner_nodes, a.removed_cells, a.closed_gap_cells, r.coupling_points, r.max_coupling_distance
         ));
         if a.cells_by_side > 0 {
             obs.detail(&format!(

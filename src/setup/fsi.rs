@@ -17,5 +17,9 @@ pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &s
     let solid_mesh = super::solid_mesh::<D>(spec, case_dir)?;
     let solid = super::solid_problem::<D>(case, spec, false)?;
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
-    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?.with_multiplier(spec.multiplier).with_covered_fluid(spec.covered_fluid))
+    let cut_offs: Vec<Option<f64>> = spec.contact.iter().map(|c| c.fluid_cut_off).collect();
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?
+        .with_multiplier(spec.multiplier)
+        .with_covered_fluid(spec.covered_fluid)
+        .with_cut_offs(&cut_offs))
 }

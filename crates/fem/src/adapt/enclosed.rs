@@ -23,10 +23,11 @@
 //! side of its nearest point flips across a line off it, where cells on the two sides meet at
 //! facets that are not on gamma_s, and the error stands.
 
+use super::gap::without_cells;
 use super::geom::{dot, sub};
 use super::surface::piece_normal;
 use super::{dist2, AdaptError, Adapted, GammaFacet, Surface, GAMMA_F_REL_TOL};
-use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
+use crate::mesh::{Mesh, Topology, NO_CELL};
 use std::collections::{HashMap, HashSet};
 
 /// The adapted mesh without the cells gamma_f encloses (see the module documentation): cells,
@@ -48,55 +49,16 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>
     if enclosed.is_empty() {
         return Ok(adapted);
     }
-    let Adapted { mesh, new_to_old_cell, on_surface, mut gamma_f, mut stats } = adapted;
+    let mut adapted = adapted;
     if let Some((rebuilt, told)) = rebuilt {
-        gamma_f = rebuilt;
-        stats.cells_by_side = told;
-        stats.coupling_facets = gamma_f.len();
+        adapted.stats.cells_by_side = told;
+        adapted.stats.coupling_facets = rebuilt.len();
+        adapted.gamma_f = rebuilt;
     }
-    let nc = mesh.num_cells();
-    let npc = mesh.nodes_per_cell();
-    let mut new_cell = vec![usize::MAX; nc];
-    let mut kept = 0;
-    for (c, slot) in new_cell.iter_mut().enumerate() {
-        if !enclosed.contains(&c) {
-            *slot = kept;
-            kept += 1;
-        }
-    }
-    // Points of kept cells, numbered in their old order.
-    let mut new_point = vec![usize::MAX; mesh.points.len()];
-    for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
-        for &p in mesh.cell(c) {
-            new_point[p] = 0;
-        }
-    }
-    let mut out = mesh.clone();
-    out.points.clear();
-    for (p, slot) in new_point.iter_mut().enumerate().filter(|(_, s)| **s == 0) {
-        *slot = out.points.len();
-        out.points.push(mesh.points[p]);
-    }
-    out.cell_nodes.clear();
-    out.cell_tags.clear();
-    for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
-        out.cell_nodes.extend(mesh.cell(c).iter().map(|&p| new_point[p]));
-        out.cell_tags.push(mesh.cell_tags[c]);
-    }
-    debug_assert_eq!(out.cell_nodes.len(), kept * npc);
-    out.boundary = mesh.boundary.iter().filter(|b| new_cell[b.cell] != usize::MAX).map(|b| BoundaryFacet { cell: new_cell[b.cell], ..*b }).collect();
-    let renumber_side = |(c, f): (usize, usize)| if c == usize::MAX || new_cell[c] == usize::MAX { NO_CELL } else { (new_cell[c], f) };
-    // A gamma_f facet with no fluid left on either side (a side of the solid on the domain
-    // boundary) is not wetted: it is dropped.
-    let gamma_f = gamma_f
-        .into_iter()
-        .map(|g| GammaFacet { vertices: g.vertices.map(|v| new_point[v]), sides: g.sides.map(renumber_side), location: g.location })
-        .filter(|g| g.sides.iter().any(|&s| s != NO_CELL))
-        .collect();
-    let on_surface = (0..mesh.points.len()).filter(|&p| new_point[p] != usize::MAX).map(|p| on_surface[p]).collect();
-    let new_to_old_cell = (0..nc).filter(|&c| new_cell[c] != usize::MAX).map(|c| new_to_old_cell[c]).collect();
-    stats.removed_cells = nc - kept;
-    Ok(Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, stats })
+    let nc = adapted.mesh.num_cells();
+    let mut out = without_cells(adapted, &enclosed, None);
+    out.stats.removed_cells = nc - out.mesh.num_cells();
+    Ok(out)
 }
 
 fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {

@@ -86,6 +86,7 @@ pub mod background;
 pub mod corners;
 pub mod enclosed;
 pub mod features;
+pub mod gap;
 mod geom;
 pub mod intersect;
 pub mod subdivide;
@@ -95,6 +96,7 @@ pub mod verify;
 
 pub use background::Background;
 pub use enclosed::remove_enclosed;
+pub use gap::{remove_closed_gaps, GapPlane, CLOSED_GAP};
 pub use surface::{Surface, SurfacePoint};
 pub use transfer::{transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::verify_adapted;
@@ -246,6 +248,8 @@ pub struct AdaptStats {
     pub unplaced_corners: usize,
     /// Cells enclosed by gamma_f and removed ([`remove_enclosed`]).
     pub removed_cells: usize,
+    /// Cells cut off where the solid closes on a rigid plane ([`remove_closed_gaps`]).
+    pub closed_gap_cells: usize,
     /// Cells told inside or outside the solid by the side of gamma_s they lie on, where the
     /// facet rules left gamma_f open and [`remove_enclosed`] rebuilt it between the two sides
     /// (0 where gamma_f enclosed the solid; `rejected_facets` and `degenerate_cases` still

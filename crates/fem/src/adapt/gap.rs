@@ -1,0 +1,319 @@
+//! The fluid cut off where a solid closes on a rigid plane (valve closure).
+//!
+//! Where a solid presses on a rigid plane (a wall or a symmetry plane) the fluid layer between
+//! them is thinner than any cell: the adapted mesh cannot follow it, and its cells would leave a
+//! leak path across the contact (a cell straddling the solid's face where gamma_f ends above the
+//! plane; `tests/contact.rs` measured a steady leak of 0.6 % of the peak flux before the cut).
+//! Such closed-gap cells leave the fluid system instead, from the step the solid's contact
+//! boundary touches the plane ([`GapPlane::is_closed`]) until it leaves it:
+//!
+//! * the **gap layer** of a plane is the union, over the pieces of the solid's surfaces (gamma_s
+//!   and its contact boundaries) whose corners all lie within `cut_off` of the plane, of the
+//!   convex polytope between the piece and its projection onto the plane (a trapezoid in 2D, a
+//!   prism in 3D; flat where the piece lies on the plane);
+//! * a fluid cell that meets the gap layer (by the separating-axis test, touching counts) is
+//!   removed ([`remove_closed_gaps`]); the facets between kept and removed cells that are not on
+//!   gamma_f become the boundary [`CLOSED_GAP`], where the fluid is held at rest like the plane
+//!   (its Dirichlet condition is the caller's);
+//! * each step adapts the original mesh again, so the cells come back as soon as the gap opens
+//!   beyond `cut_off`.
+//!
+//! The kept cells keep their P1-discontinuous pressure and their zero divergence; with the fluid
+//! at rest on the new walls the global flux balance holds exactly. What is lost is the fluid in
+//! the cut cells, which the closed contact has pinched off.
+
+use super::{Adapted, GammaFacet, Surface};
+use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
+use std::collections::HashSet;
+
+/// Name of the boundary [`remove_closed_gaps`] gives the facets between kept and cut-off cells.
+pub const CLOSED_GAP: &str = "closed_gap";
+
+/// A rigid plane and the gap below which the fluid between it and the solid is cut off.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GapPlane<const D: usize> {
+    pub point: [f64; D],
+    /// Unit normal, pointing to the side the solid stays on.
+    pub normal: [f64; D],
+    /// Pieces whose corners all lie within this distance of the plane make the gap layer; 0
+    /// cuts nothing off.
+    pub cut_off: f64,
+}
+
+impl<const D: usize> GapPlane<D> {
+    /// The signed distance `(x - point) . normal`.
+    pub fn distance(&self, x: &[f64; D]) -> f64 {
+        (0..D).map(|d| (x[d] - self.point[d]) * self.normal[d]).sum()
+    }
+
+    /// Whether `surface` (the solid's contact boundary) touches the plane: a corner within
+    /// `1e-6 cut_off` of it (the contact's Newton solve closes the gap to round-off), or beyond.
+    pub fn is_closed(&self, surface: &Surface<D>) -> bool {
+        surface.points.iter().any(|x| self.distance(x) <= 1e-6 * self.cut_off)
+    }
+
+    /// The gap layer below `surface`: one convex polytope (its corners) per piece whose corners
+    /// all lie within `cut_off` of the plane: the piece's `D` corners and their projections.
+    pub fn layer(&self, surface: &Surface<D>) -> Vec<Vec<[f64; D]>> {
+        surface
+            .pieces
+            .iter()
+            .filter_map(|piece| {
+                let corners = piece.map(|p| surface.points[p]);
+                let close = corners.iter().all(|x| self.distance(x) <= self.cut_off);
+                close.then(|| {
+                    let feet = corners.map(|x| {
+                        let g = self.distance(&x);
+                        std::array::from_fn(|d| x[d] - g * self.normal[d])
+                    });
+                    corners.into_iter().chain(feet).collect()
+                })
+            })
+            .collect()
+    }
+}
+
+/// The natural `cut_off` of a plane that bounds the fluid (a wall, a symmetry line): the mean
+/// extent along its normal of the cells of `mesh` with a vertex on it (within `1e-9` of the
+/// mesh's size), one cell. 0 where no cell touches it or cells lie on both of its sides: a plane
+/// inside the fluid (a stop) has fluid beyond it, and no gap closes there.
+pub fn cell_height_at<const D: usize>(mesh: &Mesh<D>, plane: &GapPlane<D>) -> f64 {
+    let (lo, hi) = crate::mesh::bounding_box(&mesh.points);
+    let tol = 1e-9 * (0..D).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+    let (mut sum, mut count) = (0.0, 0usize);
+    for c in 0..mesh.num_cells() {
+        let g: Vec<f64> = mesh.cell_vertices(c).iter().map(|&v| plane.distance(&mesh.points[v])).collect();
+        let (min, max) = g.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        if min < -tol {
+            if max > -tol {
+                return 0.0;
+            }
+        } else if min <= tol {
+            sum += max - min;
+            count += 1;
+        }
+    }
+    if count == 0 {
+        0.0
+    } else {
+        sum / count as f64
+    }
+}
+
+/// `adapted` without the fluid cells that meet the gap layers `layers` (see the module
+/// documentation): cells renumbered in their old order, gamma_f seen from the kept cells only
+/// (facets with no kept cell on either side dropped), the facets between kept and removed cells
+/// off gamma_f tagged [`CLOSED_GAP`] (the name is added even when there are none, so a condition
+/// on it always finds its boundary), [`super::AdaptStats::closed_gap_cells`] set.
+pub fn remove_closed_gaps<const D: usize>(adapted: Adapted<D>, layers: &[Vec<[f64; D]>]) -> Adapted<D> {
+    let mesh = &adapted.mesh;
+    let (lo, hi) = crate::mesh::bounding_box(&mesh.points);
+    let tol = 1e-9 * (0..D).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
+    let boxes: Vec<_> = layers.iter().map(|l| crate::mesh::bounding_box(l)).collect();
+    let mut cut = HashSet::new();
+    let mut corners = Vec::new();
+    for c in 0..mesh.num_cells() {
+        corners.clear();
+        corners.extend(mesh.cell_vertices(c).iter().map(|&v| mesh.points[v]));
+        let (clo, chi) = crate::mesh::bounding_box(&corners);
+        let meets = layers
+            .iter()
+            .zip(&boxes)
+            .any(|(layer, (llo, lhi))| (0..D).all(|d| clo[d] <= lhi[d] + tol && llo[d] <= chi[d] + tol) && convex_hulls_meet(&corners, layer, tol));
+        if meets {
+            cut.insert(c);
+        }
+    }
+    let count = cut.len();
+    let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
+    out.stats.closed_gap_cells = count;
+    out.stats.coupling_facets = out.gamma_f.len();
+    out
+}
+
+/// Whether the convex hulls of the point sets `a` and `b` (simplices, prisms; possibly flat)
+/// meet, within `tol`: no axis separates them by more than `tol`. The axes tried are those of
+/// the separating-axis theorem for convex polytopes (2D: the normals of all edges; 3D: the cross
+/// products of all pairs of edges, which include the faces' normals), over every pair of points
+/// of each set as its edges, which is a superset and so still exact.
+pub fn convex_hulls_meet<const D: usize>(a: &[[f64; D]], b: &[[f64; D]], tol: f64) -> bool {
+    let mut edges: Vec<[f64; D]> = Vec::new();
+    for set in [a, b] {
+        for i in 0..set.len() {
+            for j in i + 1..set.len() {
+                let e: [f64; D] = std::array::from_fn(|d| set[j][d] - set[i][d]);
+                if e.iter().any(|v| v.abs() > tol) {
+                    edges.push(e);
+                }
+            }
+        }
+    }
+    let separates = |axis: &[f64; D]| {
+        let norm = axis.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if norm <= 0.0 {
+            return false;
+        }
+        let project = |set: &[[f64; D]]| {
+            set.iter()
+                .map(|x| (0..D).map(|d| x[d] * axis[d]).sum::<f64>() / norm)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
+        };
+        let ((alo, ahi), (blo, bhi)) = (project(a), project(b));
+        blo > ahi + tol || alo > bhi + tol
+    };
+    match D {
+        2 => !edges.iter().any(|e| {
+            let mut n = [0.0; D];
+            n[0] = -e[1];
+            n[1] = e[0];
+            separates(&n) || separates(e)
+        }),
+        3 => {
+            let cross = |u: &[f64; D], v: &[f64; D]| -> [f64; D] {
+                std::array::from_fn(|d| u[(d + 1) % 3] * v[(d + 2) % 3] - u[(d + 2) % 3] * v[(d + 1) % 3])
+            };
+            !(edges.iter().any(&separates) || edges.iter().enumerate().any(|(i, u)| edges[i + 1..].iter().any(|v| separates(&cross(u, v)))))
+        }
+        _ => true,
+    }
+}
+
+/// `adapted` without the cells `removed`: cells, vertices and boundary facets renumbered in
+/// their old order, gamma_f seen from the kept cells only (a side whose cell is removed becomes
+/// [`NO_CELL`]; facets with no kept cell left dropped). With `walls`, the facets between a kept
+/// and a removed cell that are not on gamma_f are added to the boundary under that name.
+pub(super) fn without_cells<const D: usize>(adapted: Adapted<D>, removed: &HashSet<usize>, walls: Option<&str>) -> Adapted<D> {
+    let Adapted { mesh, new_to_old_cell, on_surface, gamma_f, stats } = adapted;
+    let nc = mesh.num_cells();
+    let npc = mesh.nodes_per_cell();
+    let mut new_cell = vec![usize::MAX; nc];
+    let mut kept = 0;
+    for (c, slot) in new_cell.iter_mut().enumerate() {
+        if !removed.contains(&c) {
+            *slot = kept;
+            kept += 1;
+        }
+    }
+    // Facets between kept and removed cells, off gamma_f (before renumbering).
+    let mut wall_facets = Vec::new();
+    if walls.is_some() && !removed.is_empty() {
+        let topology = Topology::build(&mesh);
+        let ct = mesh.cell_type;
+        let on_gamma_f: HashSet<usize> =
+            gamma_f.iter().flat_map(|g| g.sides).filter(|&s| s != NO_CELL).map(|(c, f)| topology.facet(ct, c, f)).collect();
+        for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
+            for f in 0..ct.num_facets() {
+                let beside_removed = topology.neighbour(ct, c, f).is_some_and(|n| new_cell[n] == usize::MAX);
+                if beside_removed && !on_gamma_f.contains(&topology.facet(ct, c, f)) {
+                    wall_facets.push((new_cell[c], f));
+                }
+            }
+        }
+    }
+    // Points of kept cells, numbered in their old order.
+    let mut new_point = vec![usize::MAX; mesh.points.len()];
+    for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
+        for &p in mesh.cell(c) {
+            new_point[p] = 0;
+        }
+    }
+    let mut out = mesh.clone();
+    out.points.clear();
+    for (p, slot) in new_point.iter_mut().enumerate().filter(|(_, s)| **s == 0) {
+        *slot = out.points.len();
+        out.points.push(mesh.points[p]);
+    }
+    out.cell_nodes.clear();
+    out.cell_tags.clear();
+    for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
+        out.cell_nodes.extend(mesh.cell(c).iter().map(|&p| new_point[p]));
+        out.cell_tags.push(mesh.cell_tags[c]);
+    }
+    debug_assert_eq!(out.cell_nodes.len(), kept * npc);
+    out.boundary = mesh.boundary.iter().filter(|b| new_cell[b.cell] != usize::MAX).map(|b| BoundaryFacet { cell: new_cell[b.cell], ..*b }).collect();
+    if let Some(name) = walls {
+        let tag = out.boundary_names.iter().map(|(_, t)| *t).chain(out.boundary.iter().map(|b| b.tag)).max().unwrap_or(0) + 1;
+        out.boundary.extend(wall_facets.into_iter().map(|(cell, facet)| BoundaryFacet { cell, facet, tag }));
+        out.add_boundary_name(name, tag);
+    }
+    let renumber_side = |(c, f): (usize, usize)| if c == usize::MAX || new_cell[c] == usize::MAX { NO_CELL } else { (new_cell[c], f) };
+    let gamma_f = gamma_f
+        .into_iter()
+        .map(|g| GammaFacet { vertices: g.vertices.map(|v| new_point[v]), sides: g.sides.map(renumber_side), location: g.location })
+        .filter(|g| g.sides.iter().any(|&s| s != NO_CELL))
+        .collect::<Vec<_>>();
+    let on_surface = (0..mesh.points.len()).filter(|&p| new_point[p] != usize::MAX).map(|p| on_surface[p]).collect();
+    let new_to_old_cell = (0..nc).filter(|&c| new_cell[c] != usize::MAX).map(|c| new_to_old_cell[c]).collect();
+    Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, stats }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn separating_axes_tell_meeting_hulls() {
+        let tri = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        // A flat layer on the triangle's edge y = 0 meets it; one below by 0.1 does not.
+        assert!(convex_hulls_meet(&tri, &[[0.2, 0.0], [0.4, 0.0]], 1e-12));
+        assert!(!convex_hulls_meet(&tri, &[[0.2, -0.1], [0.4, -0.1]], 1e-12));
+        // Beyond the hypotenuse (only its normal separates).
+        assert!(!convex_hulls_meet(&tri, &[[0.6, 0.6], [0.9, 0.6], [0.6, 0.9]], 1e-12));
+        assert!(convex_hulls_meet(&tri, &[[0.5, 0.5], [0.9, 0.6], [0.6, 0.9]], 1e-12));
+        // Collinear segments apart along their line (only the line's direction separates).
+        assert!(!convex_hulls_meet(&[[0.0, 0.0], [1.0, 0.0]], &[[1.5, 0.0], [2.0, 0.0]], 1e-12));
+        let tet = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(convex_hulls_meet(&tet, &[[0.1, 0.1, 0.0], [0.3, 0.1, 0.0], [0.1, 0.3, 0.0]], 1e-12));
+        assert!(!convex_hulls_meet(&tet, &[[0.6, 0.6, 0.6], [0.9, 0.6, 0.6], [0.6, 0.9, 0.6]], 1e-12));
+        // Two skew edges, separated only by the cross product of their directions.
+        let edge = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        assert!(!convex_hulls_meet(&edge, &[[0.5, -1.0, 0.1], [0.5, 1.0, 0.1]], 1e-12));
+        assert!(convex_hulls_meet(&edge, &[[0.5, -1.0, 0.0], [0.5, 1.0, 0.0]], 1e-12));
+    }
+
+    #[test]
+    fn the_natural_cut_off_is_one_cell_at_a_boundary_plane_and_none_inside() {
+        use crate::generate::{rectangle_triangles, DiagonalPattern};
+        let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 8, DiagonalPattern::Right);
+        let wall = GapPlane { point: [0.0, 0.0], normal: [0.0, 1.0], cut_off: 0.0 };
+        assert!((cell_height_at(&mesh, &wall) - 0.125).abs() < 1e-14);
+        let inside = GapPlane { point: [0.0, 0.5], normal: [0.0, 1.0], cut_off: 0.0 };
+        assert_eq!(cell_height_at(&mesh, &inside), 0.0);
+    }
+
+    #[test]
+    fn cells_meeting_the_layer_leave_with_walls_where_they_were() {
+        use crate::generate::{rectangle_triangles, DiagonalPattern};
+        let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 8, 8, DiagonalPattern::Right);
+        // A flat piece at height 0.05 over [0.3, 0.7]: its layer reaches down to y = 0.
+        let surface = Surface::from_pieces(vec![[0.3, 0.05], [0.7, 0.05]], vec![[0, 1]]).unwrap();
+        let adapted = super::super::adapt(&mesh, &surface, 0.2).unwrap();
+        let plane = GapPlane { point: [0.0, 0.0], normal: [0.0, 1.0], cut_off: 0.1 };
+        assert!(plane.is_closed(&Surface::from_pieces(vec![[0.3, 0.0], [0.7, 0.0]], vec![[0, 1]]).unwrap()));
+        assert!(!plane.is_closed(&surface));
+        let layer = plane.layer(&surface);
+        let before = adapted.mesh.num_cells();
+        let cut = remove_closed_gaps(adapted, &layer);
+        let removed = before - cut.mesh.num_cells();
+        assert_eq!(cut.stats.closed_gap_cells, removed);
+        assert!(removed > 0);
+        // No kept cell meets the layer, and walls bound the hole on the fluid side.
+        for c in 0..cut.mesh.num_cells() {
+            let corners: Vec<[f64; 2]> = cut.mesh.cell_vertices(c).iter().map(|&v| cut.mesh.points[v]).collect();
+            assert!(!convex_hulls_meet(&corners, &layer[0], 1e-12));
+        }
+        let walls = cut.mesh.boundary_facets(CLOSED_GAP).unwrap();
+        assert!(!walls.is_empty());
+        // The kept mesh and the hole tile the square.
+        let kept: f64 = (0..cut.mesh.num_cells()).map(|c| cut.mesh.signed_vertex_measure(c)).sum();
+        assert!(kept < 1.0 - 0.4 * 0.05 && kept > 0.5);
+    }
+
+    #[test]
+    fn the_layer_takes_the_pieces_within_the_cut_off() {
+        let surface = Surface::from_pieces(vec![[0.0, 0.05], [1.0, 0.0], [2.0, 0.5]], vec![[0, 1], [1, 2]]).unwrap();
+        let plane = GapPlane { point: [0.0, 0.0], normal: [0.0, 1.0], cut_off: 0.1 };
+        let layer = plane.layer(&surface);
+        assert_eq!(layer, vec![vec![[0.0, 0.05], [1.0, 0.0], [0.0, 0.0], [1.0, 0.0]]]);
+    }
+}
