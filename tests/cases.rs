@@ -1057,3 +1057,21 @@ fn cylinder_re100_sheds_at_the_benchmark_strouhal_number() {
     assert!((cd_max - 3.2174).abs() < 2e-4, "max drag {cd_max} (regression 3.2174)");
     assert!((cl_max - 0.954).abs() < 2e-3 && (cl_min + 0.991).abs() < 2e-3, "lift {cl_min} .. {cl_max} (regression -0.991 .. 0.954)");
 }
+
+/// The fluid film (issue 17): the force on a rigid cylinder approaching a wall in Stokes flow,
+/// with the gap spanning 4 fluid cells, against the bipolar-coordinate force and its lubrication
+/// limit (the case's header).
+#[test]
+fn fluid_film_force_matches_the_lubrication_force() {
+    let (s, out) = run("fluid-film");
+    assert_has_provenance(&out);
+    let (r, h) = (1.0_f64, 0.02_f64);
+    let alpha = (1.0 + h / r).acosh();
+    let exact = 4.0 * std::f64::consts::PI / (alpha - alpha.tanh());
+    let lubrication = 3.0 * 2f64.sqrt() * std::f64::consts::PI * (r / h).powf(1.5);
+    let force = q(&s, "coupling_force_y");
+    let (e_exact, e_lub) = ((force - exact) / exact, (force - lubrication) / lubrication);
+    println!("fluid film, h = {h}: force {force:.2}, bipolar {exact:.2} ({e_exact:+.2e}), lubrication {lubrication:.2} ({e_lub:+.2e})");
+    assert!(e_lub.abs() < 0.05, "the issue's 5 % of the lubrication force: {e_lub:.2e}");
+    assert!(e_exact.abs() < 2e-3, "the bipolar force: {e_exact:.2e}");
+}
