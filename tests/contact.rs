@@ -203,6 +203,56 @@ method = "{method}"
     }
 }
 
+/// The two-body patch test from a case file: `meshes/two-blocks.msh` (two bodies, 4 x 2 cells
+/// on 3 x 2, non-matching at y = 0.5; `meshes/make_two_blocks.py`), `against` the lower block.
+#[test]
+fn a_two_body_contact_case_file_reports_a_uniform_pressure() {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let text = r#"title = "two blocks"
+[physics]
+formulation = "plane"
+[solid]
+mesh = { kind = "gmsh", file = "two-blocks.msh" }
+model = "neo-hookean"
+shear_modulus = 1.0
+[[solid.boundary]]
+name = "lower_bottom"
+type = "displacement"
+components = [1]
+value = [0.0, 0.0]
+[[solid.boundary]]
+name = "lower_left"
+type = "displacement"
+components = [0]
+value = [0.0, 0.0]
+[[solid.boundary]]
+name = "upper_left"
+type = "displacement"
+components = [0]
+value = [0.0, 0.0]
+[[solid.boundary]]
+name = "upper_top"
+type = "traction"
+value = [0.0, -0.2]
+[[solid.contact]]
+boundary = "upper_bottom"
+against = "lower_top"
+[solver.newton]
+abs_tol = 1e-14
+rel_tol = 1e-14
+"#;
+    let meshes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes");
+    let case = Case::from_toml_str(text, "two-blocks.toml").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let s = run_case(&case, &RunOptions::new(dir.path().join("out"), &meshes), &mut |_: &str| {}).unwrap();
+    let q = |name: &str| s.quantities[name];
+    println!("two blocks: {:?}", s.quantities);
+    assert!((q("upper_bottom_contact_force") - 0.2).abs() < 1e-12);
+    assert!((q("upper_bottom_contact_pressure_max") - 0.2).abs() < 1e-12);
+    assert!(q("upper_bottom_gap_min").abs() < 1e-12);
+}
+
 /// Contact in an FSI run: model problem 1's slab (clamped at the upper wall, pushed downstream
 /// by the pulsatile flow; 40 x 10 cells, dt = 0.1, to the peak inflow at t = 2) with a rigid stop,
 /// the plane x = 10.125, 0.1 downstream of its right face. Free, the slab's tip swings 0.34
@@ -370,4 +420,63 @@ point = [4.5, 0.5]
     assert!(settled_flux < 1e-6, "the flux through the closed valve once settled: {settled_flux}");
     assert!(!closed(15.0) && at(&gap, 15.0) > 0.0 && at(&cut, 15.0) == 0.0, "reopened, the cells back");
     assert!(spike < 0.1, "reopening overshoot {spike}");
+}
+
+/// Two meshes as one solid mesh of two bodies: the boundaries of `a` named `A_NAME`, those of
+/// `b` `B_NAME` (`names` = (`A`, `B`)).
+fn two_bodies(a: Mesh<2>, b: Mesh<2>, names: (&str, &str)) -> Mesh<2> {
+    use fdfsi::fem::mesh::BoundaryFacet;
+    let mut m = a.clone();
+    let (np, nc) = (a.points.len(), a.num_cells());
+    m.points.extend(&b.points);
+    m.cell_nodes.extend(b.cell_nodes.iter().map(|p| p + np));
+    m.cell_tags.extend(&b.cell_tags);
+    let shift = a.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
+    m.boundary.extend(b.boundary.iter().map(|f| BoundaryFacet { cell: f.cell + nc, facet: f.facet, tag: f.tag + shift }));
+    m.boundary_names = a.boundary_names.iter().map(|(n, t)| (format!("{}_{n}", names.0), *t)).collect();
+    m.boundary_names.extend(b.boundary_names.iter().map(|(n, t)| (format!("{}_{n}", names.1), t + shift)));
+    m
+}
+
+/// The issue's patch test with two bodies: an upper block of 4 x 2 cells pressed by a dead load
+/// on a lower block of 3 x 2 cells held on rollers; their meshes do not match along the
+/// interface. The mortar coupling ([`fdfsi::discretize::mortar`]) carries the load as a uniform
+/// contact pressure. Plane strain: the blocks stacked along y (rollers on x = 0 and y = 0).
+/// Axisymmetric (x = (z, r)): two cylinders r <= 1 stacked along the axis, the interface
+/// z = 0.5 through the axis (its node there has no weight and no multiplier).
+#[test]
+fn two_blocks_with_non_matching_meshes_carry_a_uniform_contact_pressure() {
+    let p = 0.2;
+    let material: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(1.0));
+    let plane = || {
+        let lower = rectangle_quads(0.0, 1.0, 0.0, 0.5, 3, 2, GeometryOrder::Quadratic);
+        let upper = rectangle_quads(0.0, 1.0, 0.5, 1.0, 4, 2, GeometryOrder::Quadratic);
+        let problem = SolidProblem::new(Formulation::Plane, material.clone())
+            .with_displacement("lower_bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("lower_left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("upper_left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_traction("upper_top", move |_: &[f64; 2], l| [0.0, -p * l])
+            .with_contact_against("upper_bottom", "lower_top");
+        (two_bodies(lower, upper, ("lower", "upper")), problem, 9)
+    };
+    let axisymmetric = || {
+        let lower = rectangle_quads(0.0, 0.5, 0.0, 1.0, 2, 3, GeometryOrder::Quadratic);
+        let upper = rectangle_quads(0.5, 1.0, 0.0, 1.0, 2, 4, GeometryOrder::Quadratic);
+        let problem = SolidProblem::new(Formulation::Axisymmetric, material.clone())
+            .with_displacement("lower_bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("upper_bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("lower_left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_traction("upper_right", move |_: &[f64; 2], l| [-p * l, 0.0])
+            .with_contact_against("upper_left", "lower_right");
+        (two_bodies(lower, upper, ("lower", "upper")), problem, 8)
+    };
+    for (mesh, problem, nodes) in [plane(), axisymmetric()] {
+        let formulation = problem.formulation;
+        let (disc, sol) = solve(mesh, formulation, problem, Lagrangian::Updated);
+        let lambda = contact_pressures(&disc, &sol);
+        let worst = lambda.iter().fold(0.0f64, |m, l| m.max((l - p).abs())) / p;
+        println!("{formulation:?}: contact pressures {lambda:?}: worst relative error {worst:.2e}");
+        assert_eq!(lambda.len(), nodes, "the upper block's interface nodes with weight");
+        assert!(worst < 1e-12, "{lambda:?}");
+    }
 }

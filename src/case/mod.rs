@@ -208,16 +208,22 @@ pub struct SolidSpec {
 }
 
 /// `[[solid.contact]]`: the solid boundary `boundary` may touch the rigid plane through `point`
-/// with normal `normal` (pointing to the side the solid stays on), without friction
-/// ([`crate::physics::contact`]).
+/// with normal `normal` (pointing to the side the solid stays on), or (2D) the solid's boundary
+/// `against`, without friction ([`crate::physics::contact`], [`crate::discretize::mortar`]).
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSpec {
     pub boundary: String,
     /// A point of the plane (one coordinate per dimension).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub point: Vec<f64>,
     /// The plane's normal (one entry per dimension; normalised).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub normal: Vec<f64>,
+    /// Instead of a plane: another boundary of the solid (2D), the master of a mortar coupling;
+    /// `boundary` carries the contact pressures. The two may lie on two bodies of one mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub against: Option<String>,
     /// FSI runs: once the solid touches the plane, the fluid between them is cut off where
     /// their gap is at most this length, so that a closed contact seals (see
     /// [`fdfsi_fem::adapt::gap`]). A length >= 0; 0 cuts nothing off. Default: the mean height

@@ -355,7 +355,7 @@ fn solid(c: &Case, p: &mut Problems) {
 }
 
 /// `[[solid.contact]]`: a boundary name, a point and a non-zero normal of the dimension, each
-/// boundary once; `fluid_cut_off` a length >= 0.
+/// boundary once; `fluid_cut_off` a length >= 0; or (2D) another boundary it is `against`.
 fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     let d = c.dim();
     for (i, k) in solid.contact.iter().enumerate() {
@@ -365,6 +365,21 @@ fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
         }
         if solid.contact[..i].iter().any(|o| o.boundary == k.boundary) {
             p.push(format!("{what} is given twice"));
+        }
+        if let Some(against) = &k.against {
+            if !k.point.is_empty() || !k.normal.is_empty() {
+                p.push(format!("{what}: give either a plane (point and normal) or a boundary it is 'against', not both"));
+            }
+            if d != 2 {
+                p.push(format!("{what}: contact against another boundary ('{against}') is implemented in 2D (plane and axisymmetric) only"));
+            }
+            if against == &k.boundary {
+                p.push(format!("{what}: a boundary cannot be 'against' itself"));
+            }
+            if k.fluid_cut_off.is_some() {
+                p.push(format!("{what}: fluid_cut_off applies to a plane, not to contact against '{against}'"));
+            }
+            continue;
         }
         for (key, v) in [("point", &k.point), ("normal", &k.normal)] {
             if v.len() != d {

@@ -175,9 +175,10 @@ pub struct FsiModel<const D: usize> {
     /// The fluid cells under the solid (default: kept, the paper's).
     pub covered_fluid: CoveredFluid,
     /// The rigid contact planes of the solid, each with the gap below which the fluid between
-    /// it and the solid is cut off ([`remove_closed_gaps`]), in the order of the solid
+    /// it and the solid is cut off ([`remove_closed_gaps`]; `None` for contact between two
+    /// boundaries of the solid), in the order of the solid
     /// problem's contacts.
-    pub closed_gaps: Vec<GapPlane<D>>,
+    pub closed_gaps: Vec<Option<GapPlane<D>>>,
 }
 
 impl<const D: usize> FsiModel<D> {
@@ -197,7 +198,7 @@ impl<const D: usize> FsiModel<D> {
     /// default, one cell of the fluid mesh at the plane; see [`FsiModel::new`]).
     pub fn with_cut_offs(mut self, cut_offs: &[Option<f64>]) -> Self {
         for (gap, cut_off) in self.closed_gaps.iter_mut().zip(cut_offs) {
-            if let Some(c) = cut_off {
+            if let (Some(gap), Some(c)) = (gap, cut_off) {
                 gap.cut_off = *c;
             }
         }
@@ -215,16 +216,18 @@ impl<const D: usize> FsiModel<D> {
         let solid = SolidDiscretization::build_for(solid_mesh, &problem.solid)?;
         solid.check_problem(&problem.solid)?;
         solid.mesh.boundary_tag(&problem.surface)?;
-        let closed_gaps: Vec<GapPlane<D>> = problem
+        let closed_gaps: Vec<Option<GapPlane<D>>> = problem
             .solid
             .contact
             .iter()
             .map(|c| {
-                let plane = GapPlane { point: c.plane.point, normal: c.plane.normal, cut_off: 0.0 };
-                GapPlane { cut_off: cell_height_at(&background.mesh, &plane), ..plane }
+                c.plane().map(|p| {
+                    let plane = GapPlane { point: p.point, normal: p.normal, cut_off: 0.0 };
+                    GapPlane { cut_off: cell_height_at(&background.mesh, &plane), ..plane }
+                })
             })
             .collect();
-        if !closed_gaps.is_empty() {
+        if closed_gaps.iter().any(Option::is_some) {
             let at_rest: crate::discretize::flow::VectorFn<D> = Arc::new(|_: &[f64; D], _: f64| [0.0; D]);
             problem.fluid.dirichlet.push(DirichletBc { boundary: CLOSED_GAP.into(), components: (0..D).collect(), value: at_rest });
         }
@@ -236,12 +239,13 @@ impl<const D: usize> FsiModel<D> {
     /// layer below gamma_s and the contact boundary ([`GapPlane::layer`]). Unchanged without
     /// contact planes or while no contact is closed.
     fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
-        if self.closed_gaps.is_empty() {
+        if self.closed_gaps.iter().all(Option::is_none) {
             return Ok(adapted);
         }
         let mesh = self.current_solid_mesh(solid_x);
         let mut layers = Vec::new();
         for (gap, contact) in self.closed_gaps.iter().zip(&self.problem.solid.contact) {
+            let Some(gap) = gap else { continue };
             let boundary = Surface::from_mesh_boundary(&mesh, &contact.boundary)?;
             if gap.cut_off > 0.0 && gap.is_closed(&boundary) {
                 layers.extend(gap.layer(surface));
@@ -503,13 +507,13 @@ impl<const D: usize> FluidSnapshot<D> {
     /// lie in the old mesh.
     fn transferred_to(&self, model: &FsiModel<D>, disc: &FsiDiscretization<D>, solid_v: &[f64]) -> Result<Vec<f64>, FsiError> {
         let covered_hole = model.covered_fluid == CoveredFluid::Removed;
-        let has_hole = covered_hole || !model.closed_gaps.is_empty();
+        let has_hole = covered_hole || model.closed_gaps.iter().any(Option::is_some);
         // gamma_s at `solid_base`, built for the first node that needs it (most steps have none).
         let mut hole: Option<Surface<D>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
             // In a gap the solid closed on a rigid plane: the fluid was at rest there.
-            if model.closed_gaps.iter().any(|g| g.distance(x) <= g.cut_off) {
+            if model.closed_gaps.iter().flatten().any(|g| g.distance(x) <= g.cut_off) {
                 return Ok([0.0; D]);
             }
             if !covered_hole {

@@ -8,6 +8,7 @@
 pub mod flow;
 pub mod fsi;
 pub mod layout;
+pub mod mortar;
 pub mod solid;
 pub mod time_scheme;
 

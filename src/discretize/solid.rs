@@ -33,6 +33,7 @@
 //! point, reported with the element, point and step) is retried with half the increment, down to
 //! `min_increment`.
 
+use super::mortar::{self, Edge, MortarRow};
 use super::system_cell_dofs;
 use crate::physics::contact::{complementarity, complementarity_scale, RigidPlane};
 use crate::physics::solid::{
@@ -78,12 +79,32 @@ pub struct FollowerPressureBc {
     pub pressure: ScalarLoadFn,
 }
 
-/// Frictionless contact of the named boundary with a rigid plane
+/// What a contact boundary may touch.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ContactTarget<const D: usize> {
+    /// A rigid plane.
+    Plane(RigidPlane<D>),
+    /// Another boundary of the solid, the master (2D; [`super::mortar`]): the contact boundary
+    /// is the slave, which carries the contact pressures.
+    Boundary(String),
+}
+
+/// Frictionless contact of the named boundary with a rigid plane or another boundary
 /// ([`crate::physics::contact`]).
 #[derive(Clone, Debug, PartialEq)]
-pub struct RigidContactBc<const D: usize> {
+pub struct ContactBc<const D: usize> {
     pub boundary: String,
-    pub plane: RigidPlane<D>,
+    pub target: ContactTarget<D>,
+}
+
+impl<const D: usize> ContactBc<D> {
+    /// The rigid plane, if the target is one.
+    pub fn plane(&self) -> Option<&RigidPlane<D>> {
+        match &self.target {
+            ContactTarget::Plane(plane) => Some(plane),
+            ContactTarget::Boundary(_) => None,
+        }
+    }
 }
 
 /// A solid problem.
@@ -103,9 +124,9 @@ pub struct SolidProblem<const D: usize> {
     /// Body force `b(X, load)` per unit reference volume (e.g. `rho_0 g`): the external work
     /// `int b . w dV_0`.
     pub body_force: Option<LoadFn<D>>,
-    /// Contact with rigid planes, in the order of the discretisation's contact surfaces
-    /// ([`SolidDiscretization::build_with_contact`]).
-    pub contact: Vec<RigidContactBc<D>>,
+    /// Contact with rigid planes and between boundaries, in the order of the discretisation's
+    /// contact surfaces ([`SolidDiscretization::build_with_contact`]).
+    pub contact: Vec<ContactBc<D>>,
 }
 
 impl<const D: usize> SolidProblem<D> {
@@ -141,7 +162,13 @@ impl<const D: usize> SolidProblem<D> {
     /// Adds contact of `boundary` with a rigid plane (the discretisation needs the boundary as a
     /// contact surface: [`SolidDiscretization::build_with_contact`]).
     pub fn with_contact(mut self, boundary: &str, plane: RigidPlane<D>) -> Self {
-        self.contact.push(RigidContactBc { boundary: boundary.into(), plane });
+        self.contact.push(ContactBc { boundary: boundary.into(), target: ContactTarget::Plane(plane) });
+        self
+    }
+    /// Adds contact of `boundary` (the slave) with the boundary `master` of the same solid
+    /// (2D; [`super::mortar`]).
+    pub fn with_contact_against(mut self, boundary: &str, master: &str) -> Self {
+        self.contact.push(ContactBc { boundary: boundary.into(), target: ContactTarget::Boundary(master.into()) });
         self
     }
     /// Adds a follower pressure.
@@ -173,6 +200,8 @@ pub enum SolidError {
     ContactBoundary { boundary: String, source: MeshError },
     #[error("solid.contact '{first}' and '{second}' share nodes against the same plane: give their union as one boundary")]
     ContactOverlap { first: String, second: String },
+    #[error("solid.contact '{boundary}': {reason}")]
+    ContactPair { boundary: String, reason: String },
     #[error(transparent)]
     Assembly(#[from] SolidAssemblyError),
     #[error(transparent)]
@@ -228,6 +257,26 @@ pub struct ContactSurface {
     /// axisymmetric): the row sums of the surface mass matrix.
     pub weights: Vec<f64>,
     pub first: usize,
+    /// Against another boundary: the slave's and the master's quadratic edges ([`super::mortar`]).
+    pub mortar: Option<MortarEdges>,
+}
+
+/// One contact node's row at the current positions: `n`, the weighted gap, the node's weight
+/// and the master nodes' (see [`super::mortar`]).
+struct ContactRow<const D: usize> {
+    normal: [f64; D],
+    gap: f64,
+    weight: f64,
+    master: Vec<(usize, f64)>,
+}
+
+/// The edges of a slave contact boundary and of its master, and the master's nodes (sorted).
+#[derive(Clone, Debug)]
+pub struct MortarEdges {
+    pub master: String,
+    pub slave_edges: Vec<Edge>,
+    pub master_edges: Vec<Edge>,
+    pub master_nodes: Vec<usize>,
 }
 
 /// Quadrature degree of the cell integrals (3 Gauss points per direction).
@@ -249,12 +298,11 @@ impl<const D: usize> SolidDiscretization<D> {
     /// Fails when two contact boundaries against the same plane share a node (its two
     /// conditions would be one: give their union as one boundary).
     pub fn build_for(mesh: Mesh<D>, problem: &SolidProblem<D>) -> Result<Self, SolidError> {
-        let contact: Vec<String> = problem.contact.iter().map(|c| c.boundary.clone()).collect();
-        let disc = Self::build_with_contact(mesh, problem.formulation, problem.material.as_ref(), &contact)?;
+        let disc = Self::build_with_contact(mesh, problem.formulation, problem.material.as_ref(), &problem.contact)?;
         for (i, a) in problem.contact.iter().enumerate() {
             for (j, b) in problem.contact.iter().enumerate().skip(i + 1) {
                 let shared = disc.contact[i].nodes.iter().any(|n| disc.contact[j].nodes.binary_search(n).is_ok());
-                if a.plane == b.plane && shared {
+                if a.target == b.target && shared {
                     return Err(SolidError::ContactOverlap { first: a.boundary.clone(), second: b.boundary.clone() });
                 }
             }
@@ -262,10 +310,16 @@ impl<const D: usize> SolidDiscretization<D> {
         Ok(disc)
     }
 
-    /// [`SolidDiscretization::build`] with the boundaries `contact` (those of the problem's
-    /// [`RigidContactBc`]s, in order) as contact surfaces: a contact multiplier per node of each
-    /// (but nodes of no weight), after the layout's unknowns, coupled to its node's displacement.
-    pub fn build_with_contact(mesh: Mesh<D>, formulation: Formulation, material: &dyn SolidMaterial, contact: &[String]) -> Result<Self, SolidError> {
+    /// [`SolidDiscretization::build`] with the boundaries of `contact` (the problem's, in order)
+    /// as contact surfaces: a contact multiplier per node of each (but nodes of no weight), after
+    /// the layout's unknowns, coupled to its node's displacement (and, against another boundary,
+    /// to that boundary's displacements).
+    pub fn build_with_contact(
+        mesh: Mesh<D>,
+        formulation: Formulation,
+        material: &dyn SolidMaterial,
+        contact: &[ContactBc<D>],
+    ) -> Result<Self, SolidError> {
         if (formulation == Formulation::ThreeD) != (D == 3) {
             return Err(SolidError::Formulation { formulation, dim: D });
         }
@@ -337,9 +391,10 @@ impl<const D: usize> SolidDiscretization<D> {
     /// layout's unknowns) and a "cell" per node (its displacement and multiplier) after the mesh's
     /// cells in the pattern. A node of no weight (`w_i = int psi_i dA_0 = 0`: the end of an
     /// axisymmetric surface on the axis, where `R = 0`) carries no load and gets no multiplier.
-    fn add_contact_surfaces(&mut self, contact: &[String]) -> Result<(), SolidError> {
+    fn add_contact_surfaces(&mut self, contact: &[ContactBc<D>]) -> Result<(), SolidError> {
         let mut first = self.layout.num_dofs();
-        for name in contact {
+        for bc in contact {
+            let name = &bc.boundary;
             let facets = self.mesh.boundary_facets(name).map_err(|source| SolidError::ContactBoundary { boundary: name.clone(), source })?;
             let vf = self.displacement_field();
             let mut nodes: Vec<usize> =
@@ -349,16 +404,49 @@ impl<const D: usize> SolidDiscretization<D> {
             let weights = self.node_weights(name, &nodes);
             let largest = weights.iter().fold(0.0f64, |m, w| m.max(w.abs()));
             let (nodes, weights): (Vec<usize>, Vec<f64>) = nodes.into_iter().zip(weights).filter(|(_, w)| *w > 1e-12 * largest).unzip();
-            let cells: Vec<Vec<usize>> =
-                nodes.iter().enumerate().map(|(j, &node)| (0..D).map(|a| vf.dof(node, a)).chain([first + j]).collect()).collect();
+            let mortar = match &bc.target {
+                ContactTarget::Plane(_) => None,
+                ContactTarget::Boundary(master) => Some(self.mortar_edges(name, master)?),
+            };
+            // Each node's cell: its displacement and multiplier (against a boundary, with every
+            // master displacement: the node may slide over any part of it).
+            let master_dofs: Vec<usize> =
+                mortar.iter().flat_map(|m| m.master_nodes.iter().flat_map(|&k| (0..D).map(move |a| vf.dof(k, a)))).collect();
+            let cells: Vec<Vec<usize>> = nodes
+                .iter()
+                .enumerate()
+                .map(|(j, &node)| (0..D).map(|a| vf.dof(node, a)).chain([first + j]).chain(master_dofs.iter().copied()).collect())
+                .collect();
             self.contact_cells.extend(cells);
             let n = nodes.len();
-            self.contact.push(ContactSurface { boundary: name.clone(), nodes, weights, first });
+            self.contact.push(ContactSurface { boundary: name.clone(), nodes, weights, first, mortar });
             first += n;
         }
         let (layout, nc, cells) = (&self.layout, self.mesh.num_cells(), &self.contact_cells);
         self.pattern = Pattern::from_cells(first, nc + cells.len(), |c, buf| system_cell_dofs(layout, nc, cells, c, buf));
         Ok(())
+    }
+
+    /// The edges of the slave boundary `slave` and of the master boundary `master` (2D only).
+    fn mortar_edges(&self, slave: &str, master: &str) -> Result<MortarEdges, SolidError> {
+        let pair = |reason: &str| SolidError::ContactPair { boundary: slave.into(), reason: reason.into() };
+        if D != 2 {
+            return Err(pair("contact between two boundaries is implemented in 2D (plane and axisymmetric) only"));
+        }
+        if slave == master {
+            return Err(pair("a boundary cannot touch itself: name another boundary in 'against'"));
+        }
+        let vf = self.displacement_field();
+        let node_of = |cell: usize, local: usize| vf.nodes.cell(cell)[local];
+        let slave_edges = mortar::boundary_edges(&self.mesh, &self.element, slave, node_of)?;
+        let master_edges = mortar::boundary_edges(&self.mesh, &self.element, master, node_of)?;
+        let mut master_nodes: Vec<usize> = master_edges.iter().flat_map(|e| e.nodes).collect();
+        master_nodes.sort_unstable();
+        master_nodes.dedup();
+        if slave_edges.iter().flat_map(|e| e.nodes).any(|n| master_nodes.binary_search(&n).is_ok()) {
+            return Err(pair(&format!("the boundary shares nodes with '{master}', the boundary it may touch")));
+        }
+        Ok(MortarEdges { master: master.into(), slave_edges, master_edges, master_nodes })
     }
 
     /// Number of unknowns: the layout's, then the contact multipliers.
@@ -699,7 +787,8 @@ impl<const D: usize> SolidDiscretization<D> {
     }
 
     /// The contact terms at `x` (positions `X + base + x`; [`crate::physics::contact`]): the
-    /// planes' push in the displacement rows, and each contact node's complementarity row.
+    /// push of the planes and of the master boundaries in the displacement rows, and each contact
+    /// node's complementarity row.
     fn add_contact(&self, problem: &SolidProblem<D>, base: Option<&[f64]>, x: &[f64], constrained: &[bool], target: &mut impl SystemTarget) {
         assert_eq!(
             problem.contact.iter().map(|c| &c.boundary).collect::<Vec<_>>(),
@@ -707,37 +796,135 @@ impl<const D: usize> SolidDiscretization<D> {
             "the problem's contact boundaries are the discretisation's contact surfaces"
         );
         let vf = self.displacement_field();
-        let position = |node: usize| -> [f64; D] {
-            std::array::from_fn(|d| {
-                let dof = vf.dof(node, d);
-                self.nodes_x0[node][d] + base.map_or(0.0, |b| b[dof]) + x[dof]
-            })
-        };
         for (surface, bc) in self.contact.iter().zip(&problem.contact) {
-            let n = bc.plane.normal;
+            let rows = self.contact_rows(surface, bc, base, x);
             for (j, (&node, &w)) in surface.nodes.iter().zip(&surface.weights).enumerate() {
                 let l = surface.first + j;
                 let c = complementarity_scale(problem.material.shear_modulus(), w, self.formulation.weight(&self.nodes_x0[node]), D);
                 // A node whose motion along n is held by Dirichlet conditions cannot close a gap:
-                // it stays off contact (its multiplier 0), or its row would be empty.
-                let held = (0..D).all(|a| n[a] == 0.0 || constrained[vf.dof(node, a)]);
-                let cond = if held { complementarity(x[l], f64::INFINITY, c) } else { complementarity(x[l], w * bc.plane.gap(&position(node)), c) };
+                // it stays off contact (its multiplier 0), or its row would be empty; so does a
+                // node with no master under it.
+                let row = rows[j].as_ref().filter(|r| !(0..D).all(|a| r.normal[a] == 0.0 || constrained[vf.dof(node, a)]));
+                let cond = complementarity(x[l], row.map_or(f64::INFINITY, |r| r.gap), c);
                 target.add_rhs(l, -cond.residual);
                 if !cond.active {
                     target.add_matrix(l, l, -1.0 / c);
                 }
-                for a in 0..D {
-                    let dof = vf.dof(node, a);
-                    if cond.active {
-                        target.add_matrix(l, dof, -w * n[a]);
-                    }
-                    if !constrained[dof] {
-                        target.add_rhs(dof, w * x[l] * n[a]);
-                        target.add_matrix(dof, l, -w * n[a]);
+                let Some(row) = row else { continue };
+                let n = row.normal;
+                // The slave's push `m_j lambda_j n` and the master's `-M_jk lambda_j n`.
+                for (k, m) in std::iter::once((node, row.weight)).chain(row.master.iter().map(|&(k, m)| (k, -m))) {
+                    for a in 0..D {
+                        let dof = vf.dof(k, a);
+                        if cond.active {
+                            target.add_matrix(l, dof, -m * n[a]);
+                        }
+                        if !constrained[dof] {
+                            target.add_rhs(dof, m * x[l] * n[a]);
+                            target.add_matrix(dof, l, -m * n[a]);
+                        }
                     }
                 }
             }
         }
+    }
+
+    /// The position `X + base + x` of displacement node `node`.
+    fn position_of(&self, base: Option<&[f64]>, x: &[f64], node: usize) -> [f64; D] {
+        let vf = self.displacement_field();
+        std::array::from_fn(|d| {
+            let dof = vf.dof(node, d);
+            self.nodes_x0[node][d] + base.map_or(0.0, |b| b[dof]) + x[dof]
+        })
+    }
+
+    /// Each node's contact row of `surface` at the positions `X + base + x`: the normal `n`
+    /// (pointing to where the node stays), the weighted gap and the weights of the node (`m_j`;
+    /// the plane's `w_j`) and of the master's nodes (`M_jk`, none against a plane); `None` where
+    /// no master lies under the node.
+    fn contact_rows(&self, surface: &ContactSurface, bc: &ContactBc<D>, base: Option<&[f64]>, x: &[f64]) -> Vec<Option<ContactRow<D>>> {
+        let position = |node: usize| self.position_of(base, x, node);
+        match (&bc.target, &surface.mortar) {
+            (ContactTarget::Plane(plane), _) => surface
+                .nodes
+                .iter()
+                .zip(&surface.weights)
+                .map(|(&node, &w)| Some(ContactRow { normal: plane.normal, gap: w * plane.gap(&position(node)), weight: w, master: Vec::new() }))
+                .collect(),
+            (ContactTarget::Boundary(_), Some(m)) => {
+                let flat = |p: [f64; D]| [p[0], p[1]];
+                let inside: Vec<[f64; 2]> = m
+                    .master_edges
+                    .iter()
+                    .map(|e| {
+                        let v = self.mesh.cell_vertices(e.cell);
+                        let ps: Vec<[f64; 2]> = v.iter().map(|&p| self.mesh.points[p]).map(|p| [p[0], p[1]]).collect();
+                        // The cell's vertices moved with the displacement of the nodes there.
+                        let moved: Vec<[f64; 2]> = ps
+                            .iter()
+                            .map(|p| {
+                                let node = self.node_at(e.cell, p);
+                                flat(position(node))
+                            })
+                            .collect();
+                        [moved.iter().map(|p| p[0]).sum::<f64>() / moved.len() as f64, moved.iter().map(|p| p[1]).sum::<f64>() / moved.len() as f64]
+                    })
+                    .collect();
+                let rows = mortar::mortar_rows(
+                    &surface.nodes,
+                    &m.slave_edges,
+                    &m.master_edges,
+                    &inside,
+                    |k| flat(self.nodes_x0[k]),
+                    |k| flat(position(k)),
+                    |p| self.formulation.weight(p),
+                );
+                surface
+                    .nodes
+                    .iter()
+                    .zip(rows)
+                    .map(|(&node, row)| {
+                        let MortarRow { normal, master } = row?;
+                        let n: [f64; D] = std::array::from_fn(|d| if d < 2 { normal[d] } else { 0.0 });
+                        let xj = position(node);
+                        let gap = master.iter().map(|&(k, mk)| mk * (0..D).map(|d| (xj[d] - position(k)[d]) * n[d]).sum::<f64>()).sum();
+                        let weight = master.iter().map(|(_, mk)| mk).sum();
+                        Some(ContactRow { normal: n, gap, weight, master })
+                    })
+                    .collect()
+            }
+            (ContactTarget::Boundary(_), None) => unreachable!("a contact surface against a boundary has its mortar edges"),
+        }
+    }
+
+    /// The displacement node of `cell` at the geometry point `p` (a vertex of the cell).
+    fn node_at(&self, cell: usize, p: &[f64; 2]) -> usize {
+        let vf = self.displacement_field();
+        *vf.nodes
+            .cell(cell)
+            .iter()
+            .min_by(|&&a, &&b| {
+                let d = |k: usize| (self.nodes_x0[k][0] - p[0]).powi(2) + (self.nodes_x0[k][1] - p[1]).powi(2);
+                d(a).total_cmp(&d(b))
+            })
+            .expect("a cell has nodes")
+    }
+
+    /// The gap of every node of each contact surface at `x` (the displacement after the
+    /// step's; negative: penetrated): the distance to the plane, or against a boundary the
+    /// weighted gap over the node's weight (`g_j / m_j`); infinite where no master lies under
+    /// the node.
+    pub fn contact_gaps(&self, problem: &SolidProblem<D>, x: &[f64]) -> Vec<Vec<f64>> {
+        self.contact
+            .iter()
+            .zip(&problem.contact)
+            .map(|(surface, bc)| {
+                self.contact_rows(surface, bc, None, x)
+                    .into_iter()
+                    .map(|row| row.filter(|r| r.weight > 0.0).map_or(f64::INFINITY, |r| r.gap / r.weight))
+                    .collect()
+            })
+            .collect()
     }
 
     /// The weights `w_j = int psi_j dA_0` (times `R` axisymmetric) of the `nodes` (sorted; every

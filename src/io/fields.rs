@@ -112,10 +112,11 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
     grid.add_point_data("displacement", 3, disp)?;
     if !disc.contact_surfaces().is_empty() {
         let (mut pressure, mut gap) = (vec![0.0; n], vec![0.0; n]);
-        for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
+        for (surface, gaps) in disc.contact_surfaces().iter().zip(disc.contact_gaps(problem, x)) {
             for (j, &node) in surface.nodes.iter().enumerate() {
                 pressure[node] = x[surface.first + j];
-                gap[node] = bc.plane.gap(&disc.current_position(x, node));
+                // NaN where no master boundary lies under the node.
+                gap[node] = if gaps[j].is_finite() { gaps[j] } else { f64::NAN };
             }
         }
         grid.add_point_data("contact_pressure", 1, pressure)?;

@@ -157,16 +157,16 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
 /// Each contact boundary `NAME`'s `NAME_contact_force` (`int lambda dA` over the reference
 /// surface: per unit depth in plane runs, over the whole circumference when axisymmetric),
 /// `NAME_contact_pressure_max` and `NAME_gap_min` (the smallest gap of its nodes; negative:
-/// penetrated).
+/// penetrated; against another boundary, of the nodes with a master under them).
 pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
     let mut out = Vec::new();
     let around = disc.formulation.around();
-    for (surface, bc) in disc.contact_surfaces().iter().zip(&problem.contact) {
+    for (surface, gaps) in disc.contact_surfaces().iter().zip(disc.contact_gaps(problem, x)) {
         let weight = &surface.weights;
         let lambda = |j: usize| x[surface.first + j];
         let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
         let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);
-        let gap = surface.nodes.iter().map(|&k| bc.plane.gap(&disc.current_position(x, k))).fold(f64::INFINITY, f64::min);
+        let gap = gaps.into_iter().fold(f64::INFINITY, f64::min);
         let name = &surface.boundary;
         out.push((format!("{name}_contact_force"), around * force));
         out.push((format!("{name}_contact_pressure_max"), peak));

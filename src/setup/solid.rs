@@ -116,6 +116,10 @@ pub fn solid_problem<const D: usize>(case: &Case, spec: &SolidSpec, ramp: bool) 
     let mut p = SolidProblem::new(case.physics.formulation, material(spec)?);
     p.density = spec.density;
     for c in &spec.contact {
+        if let Some(master) = &c.against {
+            p = p.with_contact_against(&c.boundary, master);
+            continue;
+        }
         let (point, normal) =
             (std::array::from_fn(|d| c.point.get(d).copied().unwrap_or(0.0)), std::array::from_fn(|d| c.normal.get(d).copied().unwrap_or(0.0)));
         let plane = RigidPlane::new(point, normal)

@@ -135,7 +135,7 @@ pub enum GmshError {
     MissingNode { file: String, element_tag: u64, node_tag: u64 },
     #[error("{file}: element {element_tag} is a {found}, but the first cell is a {first} (one cell type per mesh)")]
     MixedCellTypes { file: String, element_tag: u64, first: String, found: String },
-    #[error("{file}: nodes {node_a} and {node_b} coincide at {coords:?} (duplicate nodes)")]
+    #[error("{file}: nodes {node_a} and {node_b} coincide at {coords:?} (duplicate nodes; only bodies in separate physical groups may touch)")]
     DuplicateNodes { file: String, node_a: u64, node_b: u64, coords: [f64; 3] },
     #[error("{file}: element {element_tag} is inverted (signed measure or det J {measure:.3e})")]
     InvertedCell { file: String, element_tag: u64, measure: f64 },
@@ -643,7 +643,6 @@ pub fn reflection_permutation(cell: ReferenceCell, order: GeometryOrder) -> Opti
 fn build<const D: usize>(input: &Input) -> Result<Mesh<D>, GmshError> {
     let mut cells = collect_cells(input, D)?;
     let points = planar_points::<D>(&cells.points, &cells.point_tags, &input.file)?;
-    check_duplicates(&points, &cells.point_tags, &input.file)?;
     let mut mesh = Mesh {
         points,
         cell_type: cells.cell_type,
@@ -654,9 +653,10 @@ fn build<const D: usize>(input: &Input) -> Result<Mesh<D>, GmshError> {
         boundary: Vec::new(),
         boundary_names: Vec::new(),
     };
+    assign_regions(&mut mesh, input, &cells)?;
+    check_duplicates(&mesh, &cells.point_tags, &input.file)?;
     orient_cells(&mut mesh, &cells.element_tags, &input.file)?;
     check_jacobians(&mesh, &cells.element_tags, &input.file)?;
-    assign_regions(&mut mesh, input, &cells)?;
     assign_boundary(&mut mesh, input, &cells.compact)?;
     mesh.check().map_err(|e| GmshError::Inconsistent { file: input.file.clone(), message: e.to_string() })?;
     Ok(mesh)
@@ -763,8 +763,21 @@ fn bounding_diagonal<const N: usize>(points: &[[f64; N]]) -> f64 {
 
 /// Duplicate-node check: points are binned in a grid of spacing `h = 1e-12 * diagonal`, and each
 /// point is compared with the points in its own and the neighbouring bins, so every pair closer
-/// than `h` in each coordinate is found in expected linear time.
-fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &str) -> Result<(), GmshError> {
+/// than `h` in each coordinate is found in expected linear time. Two nodes may coincide where
+/// they belong to cells of different regions only (two bodies touching, as in a contact
+/// problem: separate physical groups); within one region coincident nodes are a mesh that was
+/// not merged, a crack no one asked for.
+fn check_duplicates<const D: usize>(mesh: &Mesh<D>, tags: &[u64], file: &str) -> Result<(), GmshError> {
+    let points = &mesh.points;
+    let mut regions: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
+    for c in 0..mesh.num_cells() {
+        for &p in mesh.cell(c) {
+            if !regions[p].contains(&mesh.cell_tags[c]) {
+                regions[p].push(mesh.cell_tags[c]);
+            }
+        }
+    }
+    let apart = |i: usize, j: usize| !regions[i].is_empty() && !regions[j].is_empty() && regions[i].iter().all(|r| !regions[j].contains(r));
     if points.len() < 2 {
         return Ok(());
     }
@@ -789,7 +802,7 @@ fn check_duplicates<const D: usize>(points: &[[f64; D]], tags: &[u64], file: &st
                 b[d] + o
             });
             for &j in bins.get(&nb).map(Vec::as_slice).unwrap_or(&[]) {
-                if j > i && (0..D).all(|d| (points[j][d] - p[d]).abs() <= h) {
+                if j > i && (0..D).all(|d| (points[j][d] - p[d]).abs() <= h) && !apart(i, j) {
                     let coords = std::array::from_fn(|d| if d < D { p[d] } else { 0.0 });
                     return Err(GmshError::DuplicateNodes { file: file.to_string(), node_a: tags[i], node_b: tags[j], coords });
                 }
