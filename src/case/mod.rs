@@ -1054,7 +1054,7 @@ impl Case {
         }
         let mut names: Vec<String> = ["x", "y", "z"][..self.dim()].iter().map(|c| format!("coupling_force_{c}")).collect();
         names.push("coupling_facets".into());
-        if self.solid.as_ref().is_some_and(|s| !s.contact.is_empty()) {
+        if self.solid.as_ref().is_some_and(|s| s.contact.iter().any(|c| c.against.is_none())) {
             names.push("closed_gap_cells".into());
         }
         names

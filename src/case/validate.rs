@@ -376,6 +376,9 @@ fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
             if against == &k.boundary {
                 p.push(format!("{what}: a boundary cannot be 'against' itself"));
             }
+            if solid.contact[..i].iter().any(|o| o.against.as_deref() == Some(&k.boundary) && o.boundary == *against) {
+                p.push(format!("{what}: '{against}' is already against '{}': give the pair once", k.boundary));
+            }
             if k.fluid_cut_off.is_some() {
                 p.push(format!("{what}: fluid_cut_off applies to a plane, not to contact against '{against}'"));
             }

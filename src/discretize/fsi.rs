@@ -238,7 +238,7 @@ impl<const D: usize> FsiModel<D> {
     /// off where the solid has closed on a contact plane ([`GapPlane::is_closed`]): the gap
     /// layer below gamma_s and the contact boundary ([`GapPlane::layer`]). Unchanged without
     /// contact planes or while no contact is closed.
-    fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
+    pub(crate) fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
         if self.closed_gaps.iter().all(Option::is_none) {
             return Ok(adapted);
         }
@@ -507,13 +507,15 @@ impl<const D: usize> FluidSnapshot<D> {
     /// lie in the old mesh.
     fn transferred_to(&self, model: &FsiModel<D>, disc: &FsiDiscretization<D>, solid_v: &[f64]) -> Result<Vec<f64>, FsiError> {
         let covered_hole = model.covered_fluid == CoveredFluid::Removed;
-        let has_hole = covered_hole || model.closed_gaps.iter().any(Option::is_some);
+        // Cells cut off in closed gaps leave a hole too (the old mesh's boundary `closed_gap`).
+        let gap_hole = self.mesh.boundary_facets(CLOSED_GAP).is_ok_and(|f| !f.is_empty());
+        let has_hole = covered_hole || gap_hole;
         // gamma_s at `solid_base`, built for the first node that needs it (most steps have none).
         let mut hole: Option<Surface<D>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
             // In a gap the solid closed on a rigid plane: the fluid was at rest there.
-            if model.closed_gaps.iter().flatten().any(|g| g.distance(x) <= g.cut_off) {
+            if gap_hole && model.closed_gaps.iter().flatten().any(|g| (0.0..=g.cut_off).contains(&g.distance(x))) {
                 return Ok([0.0; D]);
             }
             if !covered_hole {

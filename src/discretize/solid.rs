@@ -198,7 +198,7 @@ pub enum SolidError {
     CellType(ReferenceCell),
     #[error("solid.contact '{boundary}': {source}")]
     ContactBoundary { boundary: String, source: MeshError },
-    #[error("solid.contact '{first}' and '{second}' share nodes against the same plane: give their union as one boundary")]
+    #[error("solid.contact '{first}' and '{second}' share nodes against the same plane or boundary: give their union as one boundary")]
     ContactOverlap { first: String, second: String },
     #[error("solid.contact '{boundary}': {reason}")]
     ContactPair { boundary: String, reason: String },
@@ -273,7 +273,6 @@ struct ContactRow<const D: usize> {
 /// The edges of a slave contact boundary and of its master, and the master's nodes (sorted).
 #[derive(Clone, Debug)]
 pub struct MortarEdges {
-    pub master: String,
     pub slave_edges: Vec<Edge>,
     pub master_edges: Vec<Edge>,
     pub master_nodes: Vec<usize>,
@@ -439,14 +438,17 @@ impl<const D: usize> SolidDiscretization<D> {
         let vf = self.displacement_field();
         let node_of = |cell: usize, local: usize| vf.nodes.cell(cell)[local];
         let slave_edges = mortar::boundary_edges(&self.mesh, &self.element, slave, node_of)?;
-        let master_edges = mortar::boundary_edges(&self.mesh, &self.element, master, node_of)?;
+        let master_edges = mortar::boundary_edges(&self.mesh, &self.element, master, node_of).map_err(|e| match e {
+            SolidError::ContactBoundary { source, .. } => pair(&format!("against '{master}': {source}")),
+            e => e,
+        })?;
         let mut master_nodes: Vec<usize> = master_edges.iter().flat_map(|e| e.nodes).collect();
         master_nodes.sort_unstable();
         master_nodes.dedup();
         if slave_edges.iter().flat_map(|e| e.nodes).any(|n| master_nodes.binary_search(&n).is_ok()) {
             return Err(pair(&format!("the boundary shares nodes with '{master}', the boundary it may touch")));
         }
-        Ok(MortarEdges { master: master.into(), slave_edges, master_edges, master_nodes })
+        Ok(MortarEdges { slave_edges, master_edges, master_nodes })
     }
 
     /// Number of unknowns: the layout's, then the contact multipliers.
@@ -801,10 +803,11 @@ impl<const D: usize> SolidDiscretization<D> {
             for (j, (&node, &w)) in surface.nodes.iter().zip(&surface.weights).enumerate() {
                 let l = surface.first + j;
                 let c = complementarity_scale(problem.material.shear_modulus(), w, self.formulation.weight(&self.nodes_x0[node]), D);
-                // A node whose motion along n is held by Dirichlet conditions cannot close a gap:
-                // it stays off contact (its multiplier 0), or its row would be empty; so does a
-                // node with no master under it.
-                let row = rows[j].as_ref().filter(|r| !(0..D).all(|a| r.normal[a] == 0.0 || constrained[vf.dof(node, a)]));
+                // A node whose motion along n is held by Dirichlet conditions, like every master
+                // node of its row, cannot close a gap: it stays off contact (its multiplier 0),
+                // or its row would be empty; so does a node with no master under it.
+                let held = |k: usize, n: &[f64; D]| (0..D).all(|a| n[a] == 0.0 || constrained[vf.dof(k, a)]);
+                let row = rows[j].as_ref().filter(|r| !(held(node, &r.normal) && r.master.iter().all(|&(k, _)| held(k, &r.normal))));
                 let cond = complementarity(x[l], row.map_or(f64::INFINITY, |r| r.gap), c);
                 target.add_rhs(l, -cond.residual);
                 if !cond.active {
@@ -853,21 +856,15 @@ impl<const D: usize> SolidDiscretization<D> {
                 .collect(),
             (ContactTarget::Boundary(_), Some(m)) => {
                 let flat = |p: [f64; D]| [p[0], p[1]];
+                // A point inside each master edge's cell: the mean of its nodes' positions.
+                let vf = self.displacement_field();
                 let inside: Vec<[f64; 2]> = m
                     .master_edges
                     .iter()
                     .map(|e| {
-                        let v = self.mesh.cell_vertices(e.cell);
-                        let ps: Vec<[f64; 2]> = v.iter().map(|&p| self.mesh.points[p]).map(|p| [p[0], p[1]]).collect();
-                        // The cell's vertices moved with the displacement of the nodes there.
-                        let moved: Vec<[f64; 2]> = ps
-                            .iter()
-                            .map(|p| {
-                                let node = self.node_at(e.cell, p);
-                                flat(position(node))
-                            })
-                            .collect();
-                        [moved.iter().map(|p| p[0]).sum::<f64>() / moved.len() as f64, moved.iter().map(|p| p[1]).sum::<f64>() / moved.len() as f64]
+                        let nodes = vf.nodes.cell(e.cell);
+                        let sum = nodes.iter().map(|&k| flat(position(k))).fold([0.0; 2], |a, p| [a[0] + p[0], a[1] + p[1]]);
+                        [sum[0] / nodes.len() as f64, sum[1] / nodes.len() as f64]
                     })
                     .collect();
                 let rows = mortar::mortar_rows(
@@ -882,32 +879,26 @@ impl<const D: usize> SolidDiscretization<D> {
                 surface
                     .nodes
                     .iter()
+                    .zip(&surface.weights)
                     .zip(rows)
-                    .map(|(&node, row)| {
+                    .map(|((&node, &w), row)| {
                         let MortarRow { normal, master } = row?;
+                        // A node the master covers by (next to) nothing has no row: its weight
+                        // would leave the row empty, or of the wrong sign where only the
+                        // negative part of its basis function lies over the master.
+                        let weight: f64 = master.iter().map(|(_, mk)| mk).sum();
+                        if weight <= 1e-9 * w {
+                            return None;
+                        }
                         let n: [f64; D] = std::array::from_fn(|d| if d < 2 { normal[d] } else { 0.0 });
                         let xj = position(node);
                         let gap = master.iter().map(|&(k, mk)| mk * (0..D).map(|d| (xj[d] - position(k)[d]) * n[d]).sum::<f64>()).sum();
-                        let weight = master.iter().map(|(_, mk)| mk).sum();
                         Some(ContactRow { normal: n, gap, weight, master })
                     })
                     .collect()
             }
             (ContactTarget::Boundary(_), None) => unreachable!("a contact surface against a boundary has its mortar edges"),
         }
-    }
-
-    /// The displacement node of `cell` at the geometry point `p` (a vertex of the cell).
-    fn node_at(&self, cell: usize, p: &[f64; 2]) -> usize {
-        let vf = self.displacement_field();
-        *vf.nodes
-            .cell(cell)
-            .iter()
-            .min_by(|&&a, &&b| {
-                let d = |k: usize| (self.nodes_x0[k][0] - p[0]).powi(2) + (self.nodes_x0[k][1] - p[1]).powi(2);
-                d(a).total_cmp(&d(b))
-            })
-            .expect("a cell has nodes")
     }
 
     /// The gap of every node of each contact surface at `x` (the displacement after the

@@ -104,8 +104,10 @@ fn adapted_at<const D: usize>(
     let geometry = restart.next_geometry(dt, time.scheme);
     let solid = model.current_solid_mesh(&geometry);
     let surface = model.gamma_s(&geometry)?;
-    let adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt, covered);
-    Ok(adapted.map_err(FsiError::from)?)
+    let mut adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt, covered).map_err(FsiError::from)?;
+    // Where the solid has closed on a contact plane, the run cuts the gap's cells off too.
+    adapted.adapted = model.cut_off_closed_gaps(adapted.adapted, &adapted.surface, &geometry)?;
+    Ok(adapted)
 }
 
 /// What `fdfsi adapt` writes to `summary.json`.

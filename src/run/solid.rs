@@ -157,7 +157,8 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
 /// Each contact boundary `NAME`'s `NAME_contact_force` (`int lambda dA` over the reference
 /// surface: per unit depth in plane runs, over the whole circumference when axisymmetric),
 /// `NAME_contact_pressure_max` and `NAME_gap_min` (the smallest gap of its nodes; negative:
-/// penetrated; against another boundary, of the nodes with a master under them).
+/// penetrated; against another boundary, of the nodes with a master under them, NaN where none
+/// has).
 pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
     let mut out = Vec::new();
     let around = disc.formulation.around();
@@ -166,7 +167,11 @@ pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, 
         let lambda = |j: usize| x[surface.first + j];
         let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
         let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);
-        let gap = gaps.into_iter().fold(f64::INFINITY, f64::min);
+        // NaN where no node has a master boundary under it (against a boundary).
+        let gap = match gaps.into_iter().fold(f64::INFINITY, f64::min) {
+            g if g.is_finite() => g,
+            _ => f64::NAN,
+        };
         let name = &surface.boundary;
         out.push((format!("{name}_contact_force"), around * force));
         out.push((format!("{name}_contact_pressure_max"), peak));

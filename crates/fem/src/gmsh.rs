@@ -135,7 +135,7 @@ pub enum GmshError {
     MissingNode { file: String, element_tag: u64, node_tag: u64 },
     #[error("{file}: element {element_tag} is a {found}, but the first cell is a {first} (one cell type per mesh)")]
     MixedCellTypes { file: String, element_tag: u64, first: String, found: String },
-    #[error("{file}: nodes {node_a} and {node_b} coincide at {coords:?} (duplicate nodes; only bodies in separate physical groups may touch)")]
+    #[error("{file}: nodes {node_a} and {node_b} coincide at {coords:?} (duplicate nodes; only the bodies of a solid mesh, in separate physical groups, may touch)")]
     DuplicateNodes { file: String, node_a: u64, node_b: u64, coords: [f64; 3] },
     #[error("{file}: element {element_tag} is inverted (signed measure or det J {measure:.3e})")]
     InvertedCell { file: String, element_tag: u64, measure: f64 },
@@ -763,10 +763,11 @@ fn bounding_diagonal<const N: usize>(points: &[[f64; N]]) -> f64 {
 
 /// Duplicate-node check: points are binned in a grid of spacing `h = 1e-12 * diagonal`, and each
 /// point is compared with the points in its own and the neighbouring bins, so every pair closer
-/// than `h` in each coordinate is found in expected linear time. Two nodes may coincide where
-/// they belong to cells of different regions only (two bodies touching, as in a contact
-/// problem: separate physical groups); within one region coincident nodes are a mesh that was
-/// not merged, a crack no one asked for.
+/// than `h` in each coordinate is found in expected linear time. In a mesh of quadrilaterals or
+/// hexahedra (a solid's) two nodes may coincide where they belong to cells of different
+/// regions only (two bodies touching, as in a contact problem: separate physical groups);
+/// within one region, or in a simplex (fluid) mesh, coincident nodes are a mesh that was not
+/// merged, a crack no one asked for.
 fn check_duplicates<const D: usize>(mesh: &Mesh<D>, tags: &[u64], file: &str) -> Result<(), GmshError> {
     let points = &mesh.points;
     let mut regions: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
@@ -777,7 +778,10 @@ fn check_duplicates<const D: usize>(mesh: &Mesh<D>, tags: &[u64], file: &str) ->
             }
         }
     }
-    let apart = |i: usize, j: usize| !regions[i].is_empty() && !regions[j].is_empty() && regions[i].iter().all(|r| !regions[j].contains(r));
+    // Only solid meshes (quadrilaterals, hexahedra) hold bodies that touch; a fluid mesh's
+    // regions must be merged.
+    let solid = matches!(mesh.cell_type, ReferenceCell::Quadrilateral | ReferenceCell::Hexahedron);
+    let apart = |i: usize, j: usize| solid && !regions[i].is_empty() && !regions[j].is_empty() && regions[i].iter().all(|r| !regions[j].contains(r));
     if points.len() < 2 {
         return Ok(());
     }
