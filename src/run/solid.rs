@@ -155,15 +155,16 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
 }
 
 /// Each contact boundary `NAME`'s `NAME_contact_force` (`int lambda dA` over the reference
-/// surface: per unit depth in plane runs, over the whole circumference when axisymmetric),
+/// surface, against another boundary over the part of it that boundary covers: per unit depth
+/// in plane runs, over the whole circumference when axisymmetric),
 /// `NAME_contact_pressure_max` and `NAME_gap_min` (the smallest gap of its nodes; negative:
 /// penetrated; against another boundary, of the nodes with a master under them, NaN where none
 /// has).
 pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
     let mut out = Vec::new();
     let around = disc.formulation.around();
-    for (surface, gaps) in disc.contact_surfaces().iter().zip(disc.contact_gaps(problem, x)) {
-        let weight = &surface.weights;
+    let weights = disc.contact_weights(problem, x);
+    for ((surface, gaps), weight) in disc.contact_surfaces().iter().zip(disc.contact_gaps(problem, x)).zip(weights) {
         let lambda = |j: usize| x[surface.first + j];
         let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
         let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);
