@@ -16,8 +16,8 @@
 //!   removed ([`remove_closed_gaps`]); the facets between kept and removed cells that are not on
 //!   gamma_f become the boundary [`CLOSED_GAP`], where the fluid is held at rest like the plane
 //!   (its Dirichlet condition is the caller's);
-//! * each step adapts the original mesh again, so the cells come back as soon as the gap opens
-//!   beyond `cut_off`.
+//! * each step adapts the original mesh again, so the cells come back in the first step after
+//!   the contact boundary has left the plane.
 //!
 //! The kept cells keep their P1-discontinuous pressure and their zero divergence; with the fluid
 //! at rest on the new walls the global flux balance holds exactly. What is lost is the fluid in
