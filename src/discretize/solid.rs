@@ -901,29 +901,22 @@ impl<const D: usize> SolidDiscretization<D> {
         }
     }
 
-    /// The weight of every node of each contact surface at `x`, what its pressure is multiplied
-    /// by for its force: `w_j` against a plane; against a boundary `m_j = sum_k M_jk`, the part
-    /// of `w_j` the master covers (0 where it covers none).
-    pub fn contact_weights(&self, problem: &SolidProblem<D>, x: &[f64]) -> Vec<Vec<f64>> {
-        self.contact
-            .iter()
-            .zip(&problem.contact)
-            .map(|(surface, bc)| self.contact_rows(surface, bc, None, x).into_iter().map(|row| row.map_or(0.0, |r| r.weight)).collect())
-            .collect()
-    }
-
-    /// The gap of every node of each contact surface at `x` (the displacement after the
-    /// step's; negative: penetrated): the distance to the plane, or against a boundary the
-    /// weighted gap over the node's weight (`g_j / m_j`); infinite where no master lies under
-    /// the node.
-    pub fn contact_gaps(&self, problem: &SolidProblem<D>, x: &[f64]) -> Vec<Vec<f64>> {
+    /// The gap and the weight of every node of each contact surface at `x` (the displacement
+    /// after the step's), from one evaluation of the contact rows:
+    /// - the gap (negative: penetrated): the distance to the plane, or against a boundary the
+    ///   weighted gap over the node's weight (`g_j / m_j`); infinite where no master lies under
+    ///   the node;
+    /// - the weight, what its pressure is multiplied by for its force: `w_j` against a plane;
+    ///   against a boundary `m_j = sum_k M_jk`, the part of `w_j` the master covers (0 where it
+    ///   covers none).
+    pub fn contact_gaps_and_weights(&self, problem: &SolidProblem<D>, x: &[f64]) -> Vec<Vec<(f64, f64)>> {
         self.contact
             .iter()
             .zip(&problem.contact)
             .map(|(surface, bc)| {
                 self.contact_rows(surface, bc, None, x)
                     .into_iter()
-                    .map(|row| row.filter(|r| r.weight > 0.0).map_or(f64::INFINITY, |r| r.gap / r.weight))
+                    .map(|row| row.filter(|r| r.weight > 0.0).map_or((f64::INFINITY, 0.0), |r| (r.gap / r.weight, r.weight)))
                     .collect()
             })
             .collect()

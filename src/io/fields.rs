@@ -112,11 +112,12 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
     grid.add_point_data("displacement", 3, disp)?;
     if !disc.contact_surfaces().is_empty() {
         let (mut pressure, mut gap) = (vec![0.0; n], vec![0.0; n]);
-        for (surface, gaps) in disc.contact_surfaces().iter().zip(disc.contact_gaps(problem, x)) {
+        for (surface, nodes) in disc.contact_surfaces().iter().zip(disc.contact_gaps_and_weights(problem, x)) {
             for (j, &node) in surface.nodes.iter().enumerate() {
                 pressure[node] = x[surface.first + j];
                 // NaN where no master boundary lies under the node.
-                gap[node] = if gaps[j].is_finite() { gaps[j] } else { f64::NAN };
+                let g = nodes[j].0;
+                gap[node] = if g.is_finite() { g } else { f64::NAN };
             }
         }
         grid.add_point_data("contact_pressure", 1, pressure)?;

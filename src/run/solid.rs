@@ -163,13 +163,12 @@ impl<const D: usize, S: SolidStepper<D>> RunOutputs<S> for SolidOutputs<D> {
 pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Vec<(String, f64)> {
     let mut out = Vec::new();
     let around = disc.formulation.around();
-    let weights = disc.contact_weights(problem, x);
-    for ((surface, gaps), weight) in disc.contact_surfaces().iter().zip(disc.contact_gaps(problem, x)).zip(weights) {
+    for (surface, nodes) in disc.contact_surfaces().iter().zip(disc.contact_gaps_and_weights(problem, x)) {
         let lambda = |j: usize| x[surface.first + j];
-        let force: f64 = weight.iter().enumerate().map(|(j, w)| w * lambda(j)).sum();
+        let force: f64 = nodes.iter().enumerate().map(|(j, (_, w))| w * lambda(j)).sum();
         let peak = (0..surface.nodes.len()).map(lambda).fold(f64::NEG_INFINITY, f64::max);
         // NaN where no node has a master boundary under it (against a boundary).
-        let gap = match gaps.into_iter().fold(f64::INFINITY, f64::min) {
+        let gap = match nodes.iter().map(|(g, _)| *g).fold(f64::INFINITY, f64::min) {
             g if g.is_finite() => g,
             _ => f64::NAN,
         };
