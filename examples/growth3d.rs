@@ -34,12 +34,20 @@ fn main() {
     let wall = |name: &str, u: f64| DirichletBc::<3> { boundary: name.into(), components: vec![0, 1, 2], value: Arc::new(move |_, _| [u, 0.0, 0.0]) };
     let problem = FlowProblem {
         formulation: Formulation::ThreeD,
-        params: FluidParams { viscosity: 0.01, density: 1.0, inv_dt: 0.0, convection, viscous_form: Default::default() },
+        params: FluidParams {
+            viscosity: 0.01,
+            density: 1.0,
+            inv_dt: 0.0,
+            convection,
+            convective_form: Default::default(),
+            viscous_form: Default::default(),
+        },
         body_force: None,
         dirichlet: ["xmin", "xmax", "ymin", "ymax", "zmin"].iter().map(|b| wall(b, 0.0)).chain([wall("zmax", 1.0)]).collect(),
         traction: vec![],
         pin_pressure: true,
         windkessel: Vec::new(),
+        backflow: Vec::new(),
     };
     let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions { refactor_iterations, boundary, ..Default::default() }), FaerLu::default());
     let solver: &mut dyn LinearSolver = if method == "direct" { &mut lu } else { &mut al };

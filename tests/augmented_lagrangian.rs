@@ -40,12 +40,20 @@ fn cavity(viscosity: f64, inv_dt: f64) -> (FlowDiscretization<2>, FlowProblem<2>
     let wall = |name: &str, u: f64| DirichletBc::<2> { boundary: name.into(), components: vec![0, 1], value: Arc::new(move |_, _| [u, 0.0]) };
     let problem = FlowProblem {
         formulation: Formulation::Plane,
-        params: FluidParams { viscosity, density: 1.0, inv_dt, convection: true, viscous_form: Default::default() },
+        params: FluidParams {
+            viscosity,
+            density: 1.0,
+            inv_dt,
+            convection: true,
+            convective_form: Default::default(),
+            viscous_form: Default::default(),
+        },
         body_force: None,
         dirichlet: vec![wall("left", 0.0), wall("right", 0.0), wall("bottom", 0.0), wall("top", 1.0)],
         traction: vec![],
         pin_pressure: true,
         windkessel: Vec::new(),
+        backflow: Vec::new(),
     };
     (disc, problem)
 }

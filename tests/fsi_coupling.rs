@@ -27,7 +27,14 @@ fn rotated(mut m: Mesh<2>, deg: f64, pivot: [f64; 2]) -> Mesh<2> {
 fn tiny_model() -> FsiModel<2> {
     let fluid = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Alternating);
     let solid = rotated(rectangle_quads(0.3, 0.7, 0.47, 0.53, 2, 1, GeometryOrder::Quadratic), 20.0, [0.5, 0.5]);
-    let params = FluidParams { viscosity: 0.1, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
+    let params = FluidParams {
+        viscosity: 0.1,
+        density: 1.0,
+        inv_dt: 0.0,
+        convection: true,
+        convective_form: Default::default(),
+        viscous_form: ViscousForm::Stress,
+    };
     let flow = FlowProblem {
         formulation: Formulation::Plane,
         params,
@@ -35,6 +42,7 @@ fn tiny_model() -> FsiModel<2> {
         dirichlet: vec![],
         traction: vec![],
         windkessel: vec![],
+        backflow: Vec::new(),
         pin_pressure: false,
     };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));

@@ -78,7 +78,14 @@ fn rotated(mut m: Mesh<2>, deg: f64, pivot: [f64; 2]) -> Mesh<2> {
 /// The channel flow problem; the inflow is ramped linearly to 1 over `[0, t_ramp]` (`t_ramp = 0`:
 /// steady inflow 1).
 fn channel(t_ramp: f64) -> FlowProblem<2> {
-    let params = FluidParams { viscosity: ETA, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
+    let params = FluidParams {
+        viscosity: ETA,
+        density: 1.0,
+        inv_dt: 0.0,
+        convection: true,
+        convective_form: Default::default(),
+        viscous_form: ViscousForm::Stress,
+    };
     let wall = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(|_: &[f64; 2], _| [0.0; 2]) };
     let inflow = DirichletBc {
         boundary: "left".into(),
@@ -93,6 +100,7 @@ fn channel(t_ramp: f64) -> FlowProblem<2> {
         traction: vec![],
         pin_pressure: false,
         windkessel: Vec::new(),
+        backflow: Vec::new(),
     }
 }
 
@@ -350,7 +358,14 @@ fn model_problem_2_trace_mode_multiplier_matches_the_dirichlet_twin_to_2e_9() {
 fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacobian() {
     let fluid_mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 4, DiagonalPattern::Alternating);
     let plate = rotated(rectangle_quads(0.3, 0.7, 0.47, 0.53, 2, 1, GeometryOrder::Quadratic), 20.0, [0.5, 0.5]);
-    let params = FluidParams { viscosity: 0.1, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: ViscousForm::Stress };
+    let params = FluidParams {
+        viscosity: 0.1,
+        density: 1.0,
+        inv_dt: 0.0,
+        convection: true,
+        convective_form: Default::default(),
+        viscous_form: ViscousForm::Stress,
+    };
     let flow = FlowProblem {
         formulation: Formulation::Plane,
         params,
@@ -358,6 +373,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
         dirichlet: vec![],
         traction: vec![],
         windkessel: vec![],
+        backflow: Vec::new(),
         pin_pressure: false,
     };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));

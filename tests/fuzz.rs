@@ -427,7 +427,7 @@ fn cheap_to_check(case: &Case, dir: &Path) -> bool {
         }
     };
     let tables = case.boundary.iter().all(|b| match &b.time_function {
-        Some(TimeFunction::Table { file }) => small_file(&dir.join(file), 20_000),
+        Some(TimeFunction::Table { file, .. }) => small_file(&dir.join(file), 20_000),
         _ => true,
     });
     fluid <= 4000 && solid <= 200 && tables

@@ -53,12 +53,20 @@ fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
     let wall = |name: &str, u: f64| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(move |_: &[f64; 2], _| [u, 0.0]) };
     let problem = FlowProblem {
         formulation: Formulation::Plane,
-        params: FluidParams { viscosity: 1e-3, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+        params: FluidParams {
+            viscosity: 1e-3,
+            density: 1.0,
+            inv_dt: 0.0,
+            convection: true,
+            convective_form: Default::default(),
+            viscous_form: Default::default(),
+        },
         body_force: None,
         dirichlet: vec![wall("top", 1.0), wall("bottom", 0.0), wall("left", 0.0), wall("right", 0.0)],
         traction: vec![],
         pin_pressure: true,
         windkessel: Vec::new(),
+        backflow: Vec::new(),
     };
     let newton = NewtonOptions { max_iterations: 3, ..Default::default() };
     let mut cuts = Vec::new();

@@ -466,8 +466,13 @@ pub enum TimeFunction {
     QuarterSineHold { rise: f64 },
     /// Linear interpolation in a CSV file of `t,value` rows (a header line is allowed; finite
     /// numbers, `t` strictly increasing), held constant outside its range. Path relative to the
-    /// case file.
-    Table { file: PathBuf },
+    /// case file. With `period` (> 0), the table repeats: the value at `t` is the table's at
+    /// `t - period floor(t / period)` (a cardiac cycle's waveform over several beats).
+    Table {
+        file: PathBuf,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        period: Option<f64>,
+    },
 }
 
 /// The fluid mesh: a built-in generator or a Gmsh file.
@@ -541,6 +546,12 @@ pub struct FluidSpec {
     /// condition eta du/dn - p n = t: the "do-nothing" outlet of the Schaefer-Turek benchmarks).
     #[serde(default)]
     pub viscous_form: crate::physics::fluid::ViscousForm,
+    /// `convective` (default, the paper's: `rho u . grad u`) or `skew-symmetric` (adds
+    /// `rho / 2 (div u) u`, zero for the exact solution, so that the discrete convection cannot
+    /// feed kinetic energy inside the fluid: flows at high cell Reynolds numbers; see
+    /// [`crate::physics::fluid::ConvectiveForm`]).
+    #[serde(default)]
+    pub convective_form: crate::physics::fluid::ConvectiveForm,
 }
 
 /// A number or an expression of `x, y, z, r, t` (exmex syntax: `+ - * / ^`, `sin`, `cos`,
@@ -608,7 +619,11 @@ pub struct BoundarySpec {
     /// Velocity or traction components, or the pressure (one entry); numbers must be finite.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub value: Vec<Scalar>,
-    /// For `symmetry`: the coordinate axis the plane is normal to.
+    /// For `symmetry`: the coordinate axis the plane is normal to. For `pressure`, `free` and
+    /// `windkessel` (optional): the axis the boundary is normal to, across which the fluid then
+    /// flows normally (its other velocity components held at 0): a traction inlet or outlet at
+    /// a high Reynolds number otherwise lets fluid in sideways, which grows without bound at
+    /// the corners with a wall.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal_axis: Option<usize>,
     /// Multiplies `value` (unsteady runs).
@@ -617,6 +632,13 @@ pub struct BoundarySpec {
     /// For `windkessel`: its constants.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub windkessel: Option<WindkesselSpec>,
+    /// For `pressure`, `traction`, `free` and `windkessel` (Navier-Stokes): the backflow
+    /// stabilisation `beta` in [0, 1] (default 0, none): where fluid enters, the traction gains
+    /// `beta rho / 2 (u . n) u`, which cancels the kinetic energy the entering fluid brings
+    /// (see [`crate::discretize::flow::BackflowBc`]). With beta = 1 on an inlet crossed normally,
+    /// a pressure there is the total pressure of a chamber at rest upstream.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub backflow_stabilization: Option<f64>,
 }
 
 /// Solver options.
@@ -1441,7 +1463,8 @@ pub enum TimeFn {
     Ramp(f64),
     Sine(f64, f64),
     QuarterSineHold(f64),
-    Table(Arc<Vec<(f64, f64)>>),
+    /// The rows and the period (if the table repeats).
+    Table(Arc<Vec<(f64, f64)>>, Option<f64>),
 }
 
 impl TimeFn {
@@ -1452,11 +1475,11 @@ impl TimeFn {
             TimeFunction::Ramp { duration } => TimeFn::Ramp(*duration),
             TimeFunction::Sine { period, phase } => TimeFn::Sine(*period, *phase),
             TimeFunction::QuarterSineHold { rise } => TimeFn::QuarterSineHold(*rise),
-            TimeFunction::Table { file } => {
+            TimeFunction::Table { file, period } => {
                 let path = case_dir.join(file);
                 let name = path.display().to_string();
                 let text = std::fs::read_to_string(&path).map_err(|source| CaseError::Io { file: name.clone(), source })?;
-                TimeFn::Table(Arc::new(parse_table(&text, &name)?))
+                TimeFn::Table(Arc::new(parse_table(&text, &name)?), *period)
             }
         })
     }
@@ -1475,7 +1498,8 @@ impl TimeFn {
                     1.0
                 }
             }
-            TimeFn::Table(rows) => interpolate(rows, t),
+            TimeFn::Table(rows, None) => interpolate(rows, t),
+            TimeFn::Table(rows, Some(p)) => interpolate(rows, t - p * (t / p).floor()),
         }
     }
 }
@@ -1535,10 +1559,15 @@ mod time_function_tests {
         assert_eq!(TimeFn::QuarterSineHold(2.0).eval(5.0), 1.0);
         assert!((TimeFn::Sine(4.0, 0.0).eval(1.0) - 1.0).abs() < 1e-15);
         let rows = parse_table("t,value\n0,0\n1,2\n3,2\n", "x.csv").unwrap();
-        let f = TimeFn::Table(Arc::new(rows));
+        let f = TimeFn::Table(Arc::new(rows.clone()), None);
         assert_eq!(f.eval(0.5), 1.0);
         assert_eq!(f.eval(10.0), 2.0);
         assert_eq!(f.eval(-1.0), 0.0);
+        // Repeated with period 4: t = 8.5 and 4.5 read the table at 0.5.
+        let periodic = TimeFn::Table(Arc::new(rows), Some(4.0));
+        assert_eq!(periodic.eval(8.5), 1.0);
+        assert_eq!(periodic.eval(4.5), 1.0);
+        assert_eq!(periodic.eval(3.5), 2.0);
         assert!(parse_table("0,1\n0,2\n", "x.csv").unwrap_err().to_string().contains("times must increase"));
         assert!(parse_table("0,1\nfoo\n", "x.csv").unwrap_err().to_string().contains("line 2"));
     }

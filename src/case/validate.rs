@@ -147,6 +147,23 @@ fn boundaries(c: &Case, p: &mut Problems) {
         if b.kind == BoundaryType::Symmetry && !matches!(b.normal_axis, Some(a) if a < d) {
             p.push(format!("boundary '{}': type = \"symmetry\" needs normal_axis in 0..{d}", b.name));
         }
+        if let Some(beta) = b.backflow_stabilization {
+            if !matches!(b.kind, BoundaryType::Pressure | BoundaryType::Traction | BoundaryType::Free | BoundaryType::Windkessel) {
+                p.push(format!("boundary '{}': backflow_stabilization applies to traction boundaries, not type = {}", b.name, spelled(&b.kind)));
+            } else if !(0.0..=1.0).contains(&beta) {
+                p.push(format!("boundary '{}': backflow_stabilization must be in [0, 1], got {beta}", b.name));
+            }
+        }
+        let normal_flow = matches!(b.kind, BoundaryType::Pressure | BoundaryType::Free | BoundaryType::Windkessel);
+        match b.normal_axis {
+            Some(a) if normal_flow && a >= d => p.push(format!("boundary '{}': normal_axis must be in 0..{d}, got {a}", b.name)),
+            Some(_) if !normal_flow && b.kind != BoundaryType::Symmetry => p.push(format!(
+                "boundary '{}': normal_axis applies to symmetry, pressure, free and windkessel boundaries, not type = {}",
+                b.name,
+                spelled(&b.kind)
+            )),
+            _ => {}
+        }
         windkessel(b, p);
         for v in &b.value {
             if let Err(e) = Expr::compile(v) {
@@ -201,7 +218,8 @@ fn boundary_time_functions(c: &Case, p: &mut Problems) {
         match &b.time_function {
             Some(TimeFunction::Ramp { duration: v })
             | Some(TimeFunction::Sine { period: v, .. })
-            | Some(TimeFunction::QuarterSineHold { rise: v }) => {
+            | Some(TimeFunction::QuarterSineHold { rise: v })
+            | Some(TimeFunction::Table { period: Some(v), .. }) => {
                 p.positive(*v, &format!("boundary '{}': time_function duration/period/rise", b.name))
             }
             _ => {}

@@ -71,6 +71,21 @@ pub enum ViscousForm {
     Laplace,
 }
 
+/// Form of the convective term (Navier-Stokes).
+/// - `Convective`: `(rho u . grad u, v)` (the paper's);
+/// - `SkewSymmetric`: `(rho u . grad u, v) + (rho / 2 (div u) u, v)` (Temam 1968). The added
+///   term vanishes for the exact solution; it makes the discrete convective term's work on the
+///   velocity itself a boundary term, `rho / 2 int (u . n) |u|^2`, where the P2+/P1disc velocity
+///   is divergence-free only weakly, so that the kinetic energy cannot grow through it inside
+///   the fluid. It keeps flows at high cell Reynolds numbers from blowing up at single nodes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ConvectiveForm {
+    #[default]
+    Convective,
+    SkewSymmetric,
+}
+
 /// Material and time-discretisation parameters of the fluid kernel.
 #[derive(Clone, Copy, Debug)]
 pub struct FluidParams {
@@ -82,6 +97,8 @@ pub struct FluidParams {
     pub inv_dt: f64,
     /// Include the convective term `rho u . grad u` (Navier-Stokes) or not (Stokes).
     pub convection: bool,
+    /// Form of the convective term.
+    pub convective_form: ConvectiveForm,
     /// Form of the viscous term.
     pub viscous_form: ViscousForm,
 }
@@ -120,6 +137,8 @@ pub fn fluid_cell<const D: usize>(
         ViscousForm::Stress => (1.0, 2.0),
         ViscousForm::Laplace => (0.0, 1.0),
     };
+    // rho / 2 of the skew-symmetric form's term (rho / 2) (div u) u; 0 in the convective form.
+    let skew = if params.convection && params.convective_form == ConvectiveForm::SkewSymmetric { 0.5 * rho } else { 0.0 };
     let mut psi = [0.0; 4];
     for q in 0..cv.num_points() {
         let x = cv.x[q];
@@ -154,7 +173,7 @@ pub fn fluid_cell<const D: usize>(
         for a in 0..D {
             m[a] = rho * params.inv_dt * (u[a] - u_old[a]) - f[a];
             if params.convection {
-                m[a] += rho * (0..D).map(|b| u[b] * gu[a][b]).sum::<f64>();
+                m[a] += rho * (0..D).map(|b| u[b] * gu[a][b]).sum::<f64>() + skew * div_u * u[a];
             }
         }
         // Residual.
@@ -206,6 +225,20 @@ pub fn fluid_cell<const D: usize>(
                 let a = 1;
                 for j in 0..nv {
                     ke[(i * D + a) * n + j * D + a] += hoop_k * eta * wpi * phi[j] / (r * r);
+                }
+            }
+            if skew != 0.0 {
+                // d/du_jb of (rho / 2) (div u) u_a phi_i: (rho / 2) phi_i (u_a ddiv_jb + div u
+                // delta_ab phi_j), ddiv_jb = dphi_j/dx_b (+ phi_j / r for b = r when axisymmetric).
+                for j in 0..nv {
+                    for a in 0..D {
+                        let row = (i * D + a) * n + j * D;
+                        for b in 0..D {
+                            let ddiv = dphi[j][b] + if axi && b == 1 { phi[j] / r } else { 0.0 };
+                            ke[row + b] += skew * wpi * u[a] * ddiv;
+                        }
+                        ke[row + a] += skew * wpi * div_u * phi[j];
+                    }
                 }
             }
             for a in 0..D {
@@ -260,8 +293,11 @@ mod tests {
         cv.reinit(&[[0.2, 0.3], [1.1, 0.4], [0.5, 1.2]]).unwrap();
         let nu = 14;
         let n = nu + 3;
-        for form_v in [ViscousForm::Stress, ViscousForm::Laplace] {
-            let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true, viscous_form: form_v };
+        let forms = [ViscousForm::Stress, ViscousForm::Laplace]
+            .into_iter()
+            .flat_map(|v| [(v, ConvectiveForm::Convective), (v, ConvectiveForm::SkewSymmetric)]);
+        for (form_v, form_c) in forms {
+            let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true, convective_form: form_c, viscous_form: form_v };
             let mut s = 7u64;
             let mut rnd = || {
                 s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
@@ -296,5 +332,43 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The skew-symmetric convective term's work on the velocity itself is the boundary term
+    /// `rho / 2 int_dK (u . n) |u|^2` on a cell, for any velocity (one not divergence-free
+    /// here); the convective form's differs from it by `rho / 2 int_K (div u) |u|^2`.
+    #[test]
+    fn skew_symmetric_convection_works_on_the_velocity_only_through_the_boundary() {
+        let fun = ReferenceElement::p2plus_triangle();
+        let geo = ReferenceElement::p1_triangle();
+        let coords = [[0.2, 0.3], [1.1, 0.4], [0.5, 1.2]];
+        let mut cv = CellValues::new(quadrature::triangle(8), &fun, &geo);
+        cv.reinit(&coords).unwrap();
+        let (points, weights) = quadrature::for_facets(fdfsi_fem::element::ReferenceCell::Triangle, 8);
+        let mut fv = fdfsi_fem::values::FacetValues::new(fdfsi_fem::element::ReferenceCell::Triangle, &points, &weights, &fun, &geo);
+        let (nu, n) = (14, 17);
+        let u: Vec<f64> = (0..nu).map(|k| ((k * 7 + 3) % 11) as f64 / 5.0 - 1.0).collect();
+        let rho = 1.3;
+        let work = |form: ConvectiveForm| {
+            let params =
+                FluidParams { viscosity: 0.0, density: rho, inv_dt: 0.0, convection: true, convective_form: form, viscous_form: ViscousForm::Stress };
+            let (mut ke, mut re) = (vec![0.0; n * n], vec![0.0; n]);
+            let st = CellState { u: &u, u_old: &u, p: &[0.0; 3] };
+            fluid_cell(&cv, Formulation::Plane, &params, &st, &|_| [0.0; 2], &mut ke, &mut re);
+            (0..nu).map(|k| re[k] * u[k]).sum::<f64>()
+        };
+        let mut boundary = 0.0;
+        for facet in 0..3 {
+            fv.reinit(&coords, facet).unwrap();
+            for q in 0..fv.num_points() {
+                let phi = fv.phi(q);
+                let uq: [f64; 2] = std::array::from_fn(|a| (0..7).map(|i| u[i * 2 + a] * phi[i]).sum());
+                let un = uq[0] * fv.normal[q][0] + uq[1] * fv.normal[q][1];
+                boundary += 0.5 * rho * fv.jxw[q] * un * (uq[0] * uq[0] + uq[1] * uq[1]);
+            }
+        }
+        let (skew, plain) = (work(ConvectiveForm::SkewSymmetric), work(ConvectiveForm::Convective));
+        assert!((skew - boundary).abs() < 1e-12 * boundary.abs().max(1.0), "skew-symmetric {skew} vs boundary {boundary}");
+        assert!((plain - boundary).abs() > 1e-3 * boundary.abs().max(1.0), "convective {plain} vs boundary {boundary}");
     }
 }

@@ -3,7 +3,7 @@
 
 use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, TimeFn};
-use crate::discretize::flow::{DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn, WindkesselBc};
+use crate::discretize::flow::{BackflowBc, DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn, WindkesselBc};
 use crate::discretize::fsi::FsiError;
 use crate::discretize::solid::SolidError;
 use crate::physics::fluid::FluidParams;
@@ -111,6 +111,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
     let mut dirichlet = Vec::new();
     let mut traction = Vec::new();
     let mut windkessel = Vec::new();
+    let mut backflow = Vec::new();
     let all: Vec<usize> = (0..D).collect();
     let zero: VectorFn<D> = Arc::new(|_: &[f64; D], _| [0.0; D]);
     // Exterior facets whose normal velocity is not prescribed fix the pressure level.
@@ -124,6 +125,13 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
             Some(f) => TimeFn::load(f, case_dir)?,
             None => TimeFn::Constant,
         };
+        if let Some(beta) = b.backflow_stabilization.filter(|&beta| beta > 0.0) {
+            backflow.push(BackflowBc { boundary: b.name.clone(), beta });
+        }
+        // A traction boundary crossed normally: the other components held at 0.
+        if let (Some(axis), BoundaryType::Pressure | BoundaryType::Free | BoundaryType::Windkessel) = (b.normal_axis, b.kind) {
+            dirichlet.push(bc((0..D).filter(|&a| a != axis).collect(), zero.clone()));
+        }
         match b.kind {
             BoundaryType::Velocity => {
                 dirichlet.push(bc(all.clone(), vector_fn(compile_all(&b.value)?, time)));
@@ -191,12 +199,14 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
             density: fluid.density,
             inv_dt: 0.0,
             convection: case.physics.model == FlowModel::NavierStokes,
+            convective_form: fluid.convective_form,
             viscous_form: fluid.viscous_form,
         },
         body_force,
         dirichlet,
         traction,
         windkessel,
+        backflow,
         pin_pressure: !pressure_fixed,
     })
 }

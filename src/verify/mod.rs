@@ -98,7 +98,14 @@ pub fn manufactured_problem<const D: usize>(
     let ex = exact.clone();
     FlowProblem {
         formulation,
-        params: FluidParams { viscosity: exact.viscosity(), density: 1.0, inv_dt: 0.0, convection: false, viscous_form: Default::default() },
+        params: FluidParams {
+            viscosity: exact.viscosity(),
+            density: 1.0,
+            inv_dt: 0.0,
+            convection: false,
+            convective_form: Default::default(),
+            viscous_form: Default::default(),
+        },
         body_force: Some(Arc::new(move |x: &[f64; D], _t| ex.body_force(x))),
         dirichlet: dirichlet
             .iter()
@@ -116,6 +123,7 @@ pub fn manufactured_problem<const D: usize>(
             .collect(),
         pin_pressure: false,
         windkessel: Vec::new(),
+        backflow: Vec::new(),
     }
 }
 
@@ -293,12 +301,20 @@ pub fn kovasznay(effort: Effort) -> Result<Vec<Study>, FlowError> {
         let bc = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(move |x: &[f64; 2], _| vel(x)) };
         let problem = FlowProblem {
             formulation: Formulation::Plane,
-            params: FluidParams { viscosity: 1.0 / re, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+            params: FluidParams {
+                viscosity: 1.0 / re,
+                density: 1.0,
+                inv_dt: 0.0,
+                convection: true,
+                convective_form: Default::default(),
+                viscous_form: Default::default(),
+            },
             body_force: None,
             dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
             traction: vec![],
             pin_pressure: true,
             windkessel: Vec::new(),
+            backflow: Vec::new(),
         };
         let sol = solve_steady(&disc, &problem, &mut FaerLu::default(), &NewtonOptions::default())?;
         // The discrete pressure has zero mean; compare with the exact pressure shifted likewise.
@@ -343,12 +359,20 @@ pub fn time_error(scheme: crate::time::TimeScheme, dt: f64, t_end: f64) -> Resul
     let bc = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(exact) };
     let problem = FlowProblem {
         formulation: Formulation::Plane,
-        params: FluidParams { viscosity: 1.0, density: 1.0, inv_dt: 0.0, convection: true, viscous_form: Default::default() },
+        params: FluidParams {
+            viscosity: 1.0,
+            density: 1.0,
+            inv_dt: 0.0,
+            convection: true,
+            convective_form: Default::default(),
+            viscous_form: Default::default(),
+        },
         body_force: Some(Arc::new(move |x: &[f64; 2], t| [dg(t) * x[1] * (1.0 - x[1]) + 2.0 * g(t), 0.0])),
         dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
         traction: vec![],
         pin_pressure: true,
         windkessel: Vec::new(),
+        backflow: Vec::new(),
     };
     let mut x = vec![0.0; disc.num_dofs()];
     let options = TimeOptions { dt, t_end, scheme, max_cuts: 0 };
