@@ -227,3 +227,35 @@ pub fn adapt_fluid_with<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &
     let background = Background::new(&fluid)?;
     Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat), covered)?)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `normal_axis` on a pressure inlet holds the other velocity components at 0 there (a
+    /// Dirichlet condition on component 1 only); `backflow_stabilization` becomes a
+    /// [`BackflowBc`]; neither is there without its key.
+    #[test]
+    fn a_pressure_inlet_crossed_normally_holds_its_tangential_velocity() {
+        let text = |extra: &str| {
+            format!(
+                "title = \"t\"\n[mesh]\nkind = \"channel\"\nlength = 2.0\nheight = 1.0\nn = [4, 2]\n[physics]\nformulation = \"plane\"\n\
+                 model = \"navier-stokes\"\n[fluid]\ndensity = 1.0\nviscosity = 0.01\n[[boundary]]\nname = \"inlet\"\ntype = \"pressure\"\n\
+                 value = [1.0]\n{extra}\n[[boundary]]\nname = \"outlet\"\ntype = \"free\"\n"
+            )
+        };
+        let problem = |extra: &str| {
+            let case = Case::from_toml_str(&text(extra), "t.toml").unwrap();
+            let AnyMesh::D2(mesh) = build_mesh(&case, Path::new(".")).unwrap() else { panic!("2D") };
+            flow_problem::<2>(&case, &mesh, Path::new(".")).unwrap()
+        };
+        let plain = problem("");
+        assert!(plain.dirichlet.iter().all(|bc| bc.boundary != "inlet") && plain.backflow.is_empty());
+        let normal = problem("normal_axis = 0\nbackflow_stabilization = 0.5");
+        let held: Vec<_> = normal.dirichlet.iter().filter(|bc| bc.boundary == "inlet").collect();
+        assert_eq!(held.len(), 1);
+        assert_eq!(held[0].components, vec![1]);
+        assert_eq!((held[0].value)(&[0.0, 0.5], 0.3), [0.0, 0.0]);
+        assert_eq!(normal.backflow, vec![BackflowBc { boundary: "inlet".into(), beta: 0.5 }]);
+    }
+}
