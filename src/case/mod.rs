@@ -550,7 +550,7 @@ pub struct FluidSpec {
     /// `rho / 2 (div u) u`, zero for the exact solution, so that the discrete convection cannot
     /// feed kinetic energy inside the fluid: flows at high cell Reynolds numbers; see
     /// [`crate::physics::fluid::ConvectiveForm`]).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "is_default")]
     pub convective_form: crate::physics::fluid::ConvectiveForm,
 }
 
@@ -620,10 +620,11 @@ pub struct BoundarySpec {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub value: Vec<Scalar>,
     /// For `symmetry`: the coordinate axis the plane is normal to. For `pressure`, `free` and
-    /// `windkessel` (optional): the axis the boundary is normal to, across which the fluid then
-    /// flows normally (its other velocity components held at 0): a traction inlet or outlet at
-    /// a high Reynolds number otherwise lets fluid in sideways, which grows without bound at
-    /// the corners with a wall.
+    /// `windkessel` (optional): the axis the boundary is normal to (not checked against its
+    /// facets), across which the fluid then flows normally (its other velocity components held
+    /// at 0): a traction inlet or outlet at a high Reynolds number otherwise lets fluid in
+    /// sideways, which grows without bound at the corners with a wall. At a node shared with
+    /// another Dirichlet boundary the first one in the case file sets a component.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal_axis: Option<usize>,
     /// Multiplies `value` (unsteady runs).
@@ -633,8 +634,8 @@ pub struct BoundarySpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub windkessel: Option<WindkesselSpec>,
     /// For `pressure`, `traction`, `free` and `windkessel` (Navier-Stokes): the backflow
-    /// stabilisation `beta` in [0, 1] (default 0, none): where fluid enters, the traction gains
-    /// `beta rho / 2 (u . n) u`, which cancels the kinetic energy the entering fluid brings
+    /// stabilisation `beta` in [0, 1] (default 0, none): the traction gains
+    /// `beta rho / 2 min(u . n, 0) u`, which cancels the kinetic energy the entering fluid brings
     /// (see [`crate::discretize::flow::BackflowBc`]). With beta = 1 on an inlet crossed normally,
     /// a pressure there is the total pressure of a chamber at rest upstream.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -868,6 +869,31 @@ pub struct OutputSpec {
     /// `summary.json` at the end of a time-dependent run.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub oscillation: Vec<OscillationSpec>,
+    /// Per-cycle statistics of a periodically driven run (a valve over cardiac cycles), written
+    /// to `summary.json` at the end of a time-dependent run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycles: Option<CyclesSpec>,
+}
+
+/// `[output.cycles]`: the statistics of every whole cycle `K` (1-based) of `period`
+/// ([`crate::post::cycles`]), written to `summary.json` as `cycle_K_forward_volume`,
+/// `cycle_K_backward_volume`, `cycle_K_leak_volume`, `cycle_K_closing_time`,
+/// `cycle_K_opening_time` (from the cycle's start) and `cycle_K_peak_QUANTITY`.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CyclesSpec {
+    /// The period (> 0), e.g. the cardiac cycle's.
+    pub period: f64,
+    /// The flux through the valve, forward positive: a quantity of the run (e.g. a
+    /// `[[output.combination]]` of the inlet flux and the leaflet's sweep).
+    pub flux: String,
+    /// A quantity positive while the valve is closed, e.g. `NAME_contact_force` of its
+    /// `[[solid.contact]]`: the leak volume and the closing and opening times need it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub contact_force: Option<String>,
+    /// Quantities whose largest value in each cycle is reported (e.g. `max_speed`: the peak jet).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub peak: Vec<String>,
 }
 
 /// The last period of a quantity of `history.csv` ([`crate::post::oscillation`]): its mean
@@ -1069,7 +1095,7 @@ impl Case {
     /// The quantities every run of this kind writes besides the case's own (they may appear in
     /// `[[output.combination]]`): in FSI runs `coupling_force_x`, `_y` (`_z`), the force of the
     /// fluid on the solid, and `coupling_facets`; with contact planes also `closed_gap_cells`,
-    /// the fluid cells cut off where the solid has closed on them.
+    /// the fluid cells cut off where the solid has closed on them (in this order).
     pub fn builtin_quantities(&self) -> Vec<String> {
         if self.kind() != RunKind::Fsi {
             return Vec::new();
@@ -1079,6 +1105,19 @@ impl Case {
         if self.solid.as_ref().is_some_and(|s| s.contact.iter().any(|c| c.against.is_none())) {
             names.push("closed_gap_cells".into());
         }
+        names
+    }
+
+    /// All the quantities a run writes besides the case's own: the
+    /// [`Case::builtin_quantities`], for each `[[solid.contact]]` boundary `B`
+    /// `B_contact_force`, `B_contact_pressure_max` and `B_gap_min`, and for each Windkessel
+    /// outlet `O` `O_flux`, `O_pressure` and `O_capacitor_pressure`.
+    pub fn run_quantities(&self) -> Vec<String> {
+        let mut names = self.builtin_quantities();
+        let contacts = self.solid.iter().flat_map(|s| &s.contact);
+        names.extend(contacts.flat_map(|c| ["contact_force", "contact_pressure_max", "gap_min"].map(|q| format!("{}_{q}", c.boundary))));
+        let outlets = self.boundary.iter().filter(|b| b.kind == BoundaryType::Windkessel);
+        names.extend(outlets.flat_map(|b| ["flux", "pressure", "capacitor_pressure"].map(|q| format!("{}_{q}", b.name))));
         names
     }
 

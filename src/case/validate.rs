@@ -2,7 +2,7 @@
 //! of the case file. The problems are collected in the order the tables are checked.
 
 use super::{
-    spelled, BoundaryIntegralKind, BoundarySpec, BoundaryType, Case, CaseError, Expr, FibreSpec, MeshSpec, ProbeField, RunKind, Scalar,
+    spelled, BoundaryIntegralKind, BoundarySpec, BoundaryType, Case, CaseError, Expr, FibreSpec, FlowModel, MeshSpec, ProbeField, RunKind, Scalar,
     SolidBoundaryType, SolidMeshSpec, SolidModel, SolidSpec, TimeFunction, MAX_CUTS, MAX_GENERATED_CELLS, MAX_STEPS,
 };
 use crate::discretize::fsi::MultiplierSpace;
@@ -152,6 +152,8 @@ fn boundaries(c: &Case, p: &mut Problems) {
                 p.push(format!("boundary '{}': backflow_stabilization applies to traction boundaries, not type = {}", b.name, spelled(&b.kind)));
             } else if !(0.0..=1.0).contains(&beta) {
                 p.push(format!("boundary '{}': backflow_stabilization must be in [0, 1], got {beta}", b.name));
+            } else if c.physics.model != FlowModel::NavierStokes {
+                p.push(format!("boundary '{}': backflow_stabilization needs model = \"navier-stokes\" (Stokes flow has no convection)", b.name));
             }
         }
         let normal_flow = matches!(b.kind, BoundaryType::Pressure | BoundaryType::Free | BoundaryType::Windkessel);
@@ -301,10 +303,21 @@ fn fsi_time(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `[[output.combination]]`: each term names a quantity defined before it; `[[output.oscillation]]`:
-/// a quantity of a time-dependent run.
+/// `[[output.combination]]`: each term names a quantity defined before it; `[[output.oscillation]]`
+/// and `[output.cycles]`: quantities of a time-dependent run.
 fn combinations(c: &Case, p: &mut Problems) {
-    let builtin = c.builtin_quantities();
+    let builtin = c.run_quantities();
+    // Every quantity is one column of history.csv: its name once.
+    let own = c.output.probe.iter().map(|q| &q.name).chain(c.output.boundary_integral.iter().map(|q| &q.name));
+    let own = own.chain(c.output.domain.iter().map(|q| &q.name)).chain(c.output.combination.iter().map(|q| &q.name));
+    let mut seen: HashSet<&str> = HashSet::new();
+    for name in own {
+        if builtin.contains(name) {
+            p.push(format!("output quantity '{name}': the run writes a quantity of that name itself; choose another"));
+        } else if !seen.insert(name) {
+            p.push(format!("output quantity '{name}' is defined twice"));
+        }
+    }
     let mut known: HashSet<&str> = c.output.probe.iter().map(|q| q.name.as_str()).collect();
     known.extend(c.output.boundary_integral.iter().map(|q| q.name.as_str()));
     known.extend(c.output.domain.iter().map(|q| q.name.as_str()));
@@ -333,6 +346,21 @@ fn combinations(c: &Case, p: &mut Problems) {
         }
         if c.time.is_none() {
             p.push(format!("oscillation of '{}': needs a time-dependent run ([time])", o.quantity));
+        }
+    }
+    if let Some(cycles) = &c.output.cycles {
+        p.positive(cycles.period, "output.cycles.period");
+        for name in known.iter().filter(|n| n.starts_with("cycle_")) {
+            p.push(format!("output quantity '{name}': with [output.cycles] the names cycle_* are its own; choose another"));
+        }
+        if c.time.is_none() {
+            p.push("output.cycles: needs a time-dependent run ([time])");
+        }
+        let named = std::iter::once(("flux", &cycles.flux)).chain(cycles.contact_force.iter().map(|f| ("contact_force", f)));
+        for (key, name) in named.chain(cycles.peak.iter().map(|q| ("peak", q))) {
+            if !known.contains(name.as_str()) {
+                p.push(format!("output.cycles.{key}: unknown quantity '{name}'"));
+            }
         }
     }
 }

@@ -1,4 +1,5 @@
 //! Post-processing: the quantities of `history.csv` and `summary.json`, the profiles, and the
-//! statistics of periodic quantities.
+//! statistics of periodic quantities and of driven cycles.
+pub mod cycles;
 pub mod oscillation;
 pub mod quantities;

@@ -10,6 +10,7 @@ use crate::case::Case;
 use crate::io::checkpoint::{Checkpoint, Progress, RestartState, CHECKPOINT_VERSION};
 use crate::io::plot::Table;
 use crate::io::History;
+use crate::post::cycles::cycles;
 use crate::post::oscillation::last_period;
 use crate::time::march::{march, MarchOptions, Schedule, StepDone, Stepper, Watch};
 use crate::time::Timings;
@@ -254,6 +255,7 @@ where
     march(stepper, schedule, start.first, &march_options, &mut timings, &mut recorder).map_err(|e| RunError::from_march(e, &options.out_dir))?;
     let statistics = oscillations(case, &options.out_dir, recorder.obs)?;
     recorder.last.extend(statistics);
+    recorder.last.extend(cycle_statistics(case, &options.out_dir)?);
     recorder.log_quantities();
     Ok(Recorded {
         steps: schedule.num_steps() - recorder.initial_state.as_ref().map_or(0, |i| i.steps_before),
@@ -290,6 +292,32 @@ fn oscillations(case: &Case, out_dir: &Path, obs: &mut dyn RunObserver) -> Resul
                 o.quantity, o.from
             )),
         }
+    }
+    Ok(out)
+}
+
+/// The `[output.cycles]` statistics ([`cycles`]) of the run's whole `history.csv`: for each
+/// whole cycle `K`, `cycle_K_forward_volume`, `_backward_volume`, `_leak_volume`,
+/// `_closing_time`, `_opening_time` and `_peak_QUANTITY`.
+fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, RunError> {
+    let Some(spec) = &case.output.cycles else { return Ok(Vec::new()) };
+    let table = Table::read(&out_dir.join("history.csv"))?;
+    let column = |name: &str| table.column(name).ok_or_else(|| RunError::Unsupported(format!("output.cycles: history.csv has no column '{name}'")));
+    let (t, q) = (column("time")?, column(&spec.flux)?);
+    let force = spec.contact_force.as_deref().map(column).transpose()?;
+    let peaks = spec.peak.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
+    let peak_refs: Vec<&[f64]> = peaks.iter().map(Vec::as_slice).collect();
+    let mut out = Vec::new();
+    for c in cycles(&t, &q, force.as_deref(), &peak_refs, spec.period) {
+        let k = c.index;
+        out.extend([
+            (format!("cycle_{k}_forward_volume"), c.forward_volume),
+            (format!("cycle_{k}_backward_volume"), c.backward_volume),
+            (format!("cycle_{k}_leak_volume"), c.leak_volume),
+            (format!("cycle_{k}_closing_time"), c.closing_time),
+            (format!("cycle_{k}_opening_time"), c.opening_time),
+        ]);
+        out.extend(spec.peak.iter().zip(&c.peaks).map(|(name, v)| (format!("cycle_{k}_peak_{name}"), *v)));
     }
     Ok(out)
 }
