@@ -39,4 +39,5 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("turek-hron-fsi2", include_str!("../../cases/turek-hron-fsi2.toml")),
     ("turek-hron-fsi3", include_str!("../../cases/turek-hron-fsi3.toml")),
     ("fluid-film", include_str!("../../cases/fluid-film.toml")),
+    ("valve-2d", include_str!("../../cases/valve-2d.toml")),
 ];

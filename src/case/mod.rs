@@ -875,7 +875,7 @@ pub struct OutputSpec {
     pub cycles: Option<CyclesSpec>,
 }
 
-/// `[output.cycles]`: the statistics of every whole cycle `K` (1-based) of `period`
+/// `[output.cycles]`: the statistics of every whole cycle `K` (1-based) of `period` from `start`
 /// ([`crate::post::cycles`]), written to `summary.json` as `cycle_K_forward_volume`,
 /// `cycle_K_backward_volume`, `cycle_K_leak_volume`, `cycle_K_closing_time`,
 /// `cycle_K_opening_time` (from the cycle's start) and `cycle_K_peak_QUANTITY`.
@@ -884,6 +884,11 @@ pub struct OutputSpec {
 pub struct CyclesSpec {
     /// The period (> 0), e.g. the cardiac cycle's.
     pub period: f64,
+    /// When the first cycle starts (>= 0; default 0): cycle `K` spans
+    /// `[start + (K - 1) period, start + K period]`. A valve's cycles from mid-diastole each
+    /// hold one opening and one closing, however these shift from beat to beat.
+    #[serde(default)]
+    pub start: f64,
     /// The flux through the valve, forward positive: a quantity of the run (e.g. a
     /// `[[output.combination]]` of the inlet flux and the leaflet's sweep).
     pub flux: String,

@@ -350,6 +350,9 @@ fn combinations(c: &Case, p: &mut Problems) {
     }
     if let Some(cycles) = &c.output.cycles {
         p.positive(cycles.period, "output.cycles.period");
+        if !(cycles.start >= 0.0 && cycles.start.is_finite()) {
+            p.push(format!("output.cycles.start must be a finite time >= 0, got {}", cycles.start));
+        }
         for name in known.iter().filter(|n| n.starts_with("cycle_")) {
             p.push(format!("output quantity '{name}': with [output.cycles] the names cycle_* are its own; choose another"));
         }

@@ -1,6 +1,6 @@
 //! Per-cycle statistics of a periodically driven run (a heart valve over cardiac cycles): the
 //! volumes through the valve, when it closes and opens, and the peaks of chosen quantities, for
-//! every whole cycle `k` (1-based) of `[(k - 1) T, k T]` in the run's history.
+//! every whole cycle `k` (1-based) of `[t_0 + (k - 1) T, t_0 + k T]` in the run's history.
 //!
 //! With `Q(t)` the flux through the valve (forward positive) and `F(t)` the force of the
 //! valve's contact (closed while `F > 0`), over cycle `k`:
@@ -29,21 +29,23 @@ pub struct Cycle {
     pub peaks: Vec<f64>,
 }
 
-/// The whole cycles of period `period` (cycle `k` spans `[(k - 1) T, k T]`) in the samples `t`
+/// The whole cycles of period `period` (cycle `k` spans `[t_0 + (k - 1) T, t_0 + k T]`, `t_0` the
+/// `offset`: e.g. mid-diastole, so that each cycle holds one opening and one closing of a valve
+/// whatever their small shifts from beat to beat) in the samples `t`
 /// (increasing) of the flux `q`, the contact force `force` (if any) and the peak quantities
 /// `peaks`. A cycle is whole when the samples cover it to a step at its start (a run's history
 /// starts at its first step's end) and to half a step at its end; a history that starts later
 /// (a run started from another's state) has no whole cycles before that. A non-finite flux makes
 /// the cycle's volumes `NaN`.
-pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], period: f64) -> Vec<Cycle> {
+pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], period: f64, offset: f64) -> Vec<Cycle> {
     let (Some(&first), Some(&last)) = (t.first(), t.last()) else { return Vec::new() };
     let step = if t.len() > 1 { (last - first) / (t.len() - 1) as f64 } else { 0.0 };
-    let whole = ((last + 0.5 * step) / period).floor() as usize;
-    let covered = |k: usize| (k - 1) as f64 * period >= first - 1.5 * step;
+    let whole = ((last - offset + 0.5 * step) / period).floor().max(0.0) as usize;
+    let covered = |k: usize| offset + (k - 1) as f64 * period >= first - 1.5 * step;
     (1..=whole)
         .filter(|&k| covered(k))
         .map(|k| {
-            let (start, end) = ((k - 1) as f64 * period, k as f64 * period);
+            let (start, end) = (offset + (k - 1) as f64 * period, offset + k as f64 * period);
             // The samples of the cycle, with the one at its start (the end of the cycle before)
             // for the integrals and the changes of state.
             let tol = 1e-9 * period;
@@ -102,7 +104,7 @@ mod tests {
             .collect();
         let force: Vec<f64> = t.iter().map(|&t| if phase(t) >= 0.6 || phase(t) < 0.1 { 1.0 } else { 0.0 }).collect();
         let speed: Vec<f64> = t.iter().map(|&t| 2.0 + t).collect();
-        let c = cycles(&t, &q, Some(&force), &[&speed], 1.0);
+        let c = cycles(&t, &q, Some(&force), &[&speed], 1.0, 0.0);
         assert_eq!(c.len(), 2, "2.5 cycles: two whole ones");
         for (k, cycle) in c.iter().enumerate() {
             assert_eq!(cycle.index, k + 1);
@@ -115,18 +117,23 @@ mod tests {
             assert!((cycle.peaks[0] - (2.0 + (k + 1) as f64)).abs() < 1e-9, "{cycle:?}");
         }
         // Without a contact force: no leak, no times.
-        let open = cycles(&t, &q, None, &[], 1.0);
+        let open = cycles(&t, &q, None, &[], 1.0, 0.0);
         assert!(open[0].leak_volume.is_nan() && open[0].closing_time.is_nan() && open[0].opening_time.is_nan());
-        assert!(cycles(&t[..50], &q[..50], None, &[], 1.0).is_empty());
+        assert!(cycles(&t[..50], &q[..50], None, &[], 1.0, 0.0).is_empty());
         // A history from the first step's end (no t = 0 row) still has its first cycle; one
         // that starts at t = 0.6 has only the second.
-        assert_eq!(cycles(&t[1..], &q[1..], None, &[], 1.0).len(), 2);
-        let later = cycles(&t[60..], &q[60..], None, &[], 1.0);
+        assert_eq!(cycles(&t[1..], &q[1..], None, &[], 1.0, 0.0).len(), 2);
+        let later = cycles(&t[60..], &q[60..], None, &[], 1.0, 0.0);
         assert_eq!(later.iter().map(|c| c.index).collect::<Vec<_>>(), vec![2]);
         // A NaN in the flux: no volumes for its cycle.
         let mut broken = q.clone();
         broken[30] = f64::NAN;
-        let b = cycles(&t, &broken, None, &[], 1.0);
+        let b = cycles(&t, &broken, None, &[], 1.0, 0.0);
         assert!(b[0].forward_volume.is_nan() && b[1].forward_volume.is_finite());
+        // Cycles from t = 0.8 (closed): [0.8, 1.8] whole, one opening and one closing in it.
+        let shifted = cycles(&t, &q, Some(&force), &[], 1.0, 0.8);
+        assert_eq!(shifted.len(), 1);
+        assert!((shifted[0].opening_time - 0.3).abs() < 1e-9 && (shifted[0].closing_time - 0.8).abs() < 1e-9, "{shifted:?}");
+        assert!((shifted[0].forward_volume - c[1].forward_volume).abs() < 1e-12);
     }
 }

@@ -308,7 +308,7 @@ fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, R
     let peaks = spec.peak.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
     let peak_refs: Vec<&[f64]> = peaks.iter().map(Vec::as_slice).collect();
     let mut out = Vec::new();
-    for c in cycles(&t, &q, force.as_deref(), &peak_refs, spec.period) {
+    for c in cycles(&t, &q, force.as_deref(), &peak_refs, spec.period, spec.start) {
         let k = c.index;
         out.extend([
             (format!("cycle_{k}_forward_volume"), c.forward_volume),
