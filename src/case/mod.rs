@@ -1120,9 +1120,9 @@ impl Case {
     pub fn run_quantities(&self) -> Vec<String> {
         let mut names = self.builtin_quantities();
         let contacts = self.solid.iter().flat_map(|s| &s.contact);
-        names.extend(contacts.flat_map(|c| ["contact_force", "contact_pressure_max", "gap_min"].map(|q| format!("{}_{q}", c.boundary))));
+        names.extend(contacts.flat_map(|c| CONTACT_QUANTITIES.map(|q| format!("{}_{q}", c.boundary))));
         let outlets = self.boundary.iter().filter(|b| b.kind == BoundaryType::Windkessel);
-        names.extend(outlets.flat_map(|b| ["flux", "pressure", "capacitor_pressure"].map(|q| format!("{}_{q}", b.name))));
+        names.extend(outlets.flat_map(|b| WINDKESSEL_QUANTITIES.map(|q| format!("{}_{q}", b.name))));
         names
     }
 
@@ -1140,6 +1140,14 @@ impl Case {
         }
     }
 }
+
+/// The quantities each `[[solid.contact]]` boundary `B` writes, `B_SUFFIX`, in this order: the
+/// contact force, the largest contact pressure, the smallest gap.
+pub const CONTACT_QUANTITIES: [&str; 3] = ["contact_force", "contact_pressure_max", "gap_min"];
+
+/// The quantities each Windkessel outlet `O` writes, `O_SUFFIX`, in this order: its flux `Q`, the
+/// outlet pressure `R_p Q + P_c` and the capacitor pressure `P_c`.
+pub const WINDKESSEL_QUANTITIES: [&str; 3] = ["flux", "pressure", "capacitor_pressure"];
 
 /// At most this many halvings of a failing step (`time.max_cuts`).
 pub const MAX_CUTS: usize = 20;

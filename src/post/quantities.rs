@@ -10,7 +10,7 @@
 //!   traction or pressure condition puts on the boundary;
 //! - max speed: `max |u|` over the vertices, edge midpoints and centroids of the cells.
 
-use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec};
+use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec, WINDKESSEL_QUANTITIES};
 use crate::discretize::flow::{FlowDiscretization, FlowError, FlowProblem};
 use fdfsi_fem::element::MAX_DOFS;
 use fdfsi_fem::locate::{cells_containing, locate_point};
@@ -249,9 +249,8 @@ pub fn windkessel_states<const D: usize>(disc: &FlowDiscretization<D>, problem: 
     for (k, wk) in problem.windkessel.iter().enumerate() {
         let (iq, ic) = disc.windkessel_dofs(k);
         let name = &wk.boundary;
-        out.push((format!("{name}_flux"), x[iq]));
-        out.push((format!("{name}_pressure"), wk.outlet_pressure(x[iq], x[ic])));
-        out.push((format!("{name}_capacitor_pressure"), x[ic]));
+        let values = [x[iq], wk.outlet_pressure(x[iq], x[ic]), x[ic]];
+        out.extend(WINDKESSEL_QUANTITIES.iter().zip(values).map(|(q, v)| (format!("{name}_{q}"), v)));
     }
     out
 }

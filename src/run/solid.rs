@@ -16,7 +16,7 @@
 
 use super::record::{march_and_record, RunOutputs, Start};
 use super::{RunError, RunObserver, RunOptions, RunSummary};
-use crate::case::{Case, CaseError, ProbeField};
+use crate::case::{Case, CaseError, ProbeField, CONTACT_QUANTITIES};
 use crate::discretize::solid::{LoadState, SolidDiscretization, SolidProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::solid_grid;
@@ -173,9 +173,7 @@ pub(crate) fn contact_quantities<const D: usize>(disc: &SolidDiscretization<D>, 
             _ => f64::NAN,
         };
         let name = &surface.boundary;
-        out.push((format!("{name}_contact_force"), around * force));
-        out.push((format!("{name}_contact_pressure_max"), peak));
-        out.push((format!("{name}_gap_min"), gap));
+        out.extend(CONTACT_QUANTITIES.iter().zip([around * force, peak, gap]).map(|(q, v)| (format!("{name}_{q}"), v)));
     }
     out
 }
