@@ -206,7 +206,7 @@ fn fsi_model_problem_4_matches_the_direct_solve() {
     let run = |method: LinearMethod, refactor_iterations: Option<usize>| {
         let mut case = Case::read(&dir.join("model-problem-4.toml")).unwrap();
         case.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
-        let solid = case.solid.as_mut().unwrap();
+        let solid = case.solid.first_mut().unwrap();
         solid.mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
         case.time.as_mut().unwrap().end = 0.3;
         case.solver.linear.method = method;

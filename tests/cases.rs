@@ -461,7 +461,7 @@ fn turek_hron_csm1_and_csm2_bend_the_bar_to_the_benchmark() {
     use fdfsi::case::SolidMeshSpec;
     for (name, ux, uy) in [("turek-hron-csm1", -7.187e-3, -66.10e-3), ("turek-hron-csm2", -0.4690e-3, -16.97e-3)] {
         for (mesh, tol) in [("turek-hron-bar-40", 1e-2), ("turek-hron-bar-80", 2e-3)] {
-            let (s, _) = run_with(name, |c| c.solid.as_mut().unwrap().mesh = SolidMeshSpec::Gmsh { file: format!("../meshes/{mesh}.msh").into() });
+            let (s, _) = run_with(name, |c| c.solid.first_mut().unwrap().mesh = SolidMeshSpec::Gmsh { file: format!("../meshes/{mesh}.msh").into() });
             let (ex, ey) = ((q(&s, "ux_A") - ux).abs() / ux.abs(), (q(&s, "uy_A") - uy).abs() / uy.abs());
             println!("{name} on {mesh}: ux_A {:.5e} ({ex:.2e}), uy_A {:.5e} ({ey:.2e})", q(&s, "ux_A"), q(&s, "uy_A"));
             assert!(ex < tol && ey < tol, "{name} on {mesh}: errors {ex:.2e}, {ey:.2e}");
@@ -477,7 +477,7 @@ fn turek_hron_csm1_and_csm2_bend_the_bar_to_the_benchmark() {
 fn turek_hron_csm1_is_the_same_in_updated_lagrangian_form() {
     use fdfsi::discretize::solid::Lagrangian;
     let (total, _) = run("turek-hron-csm1");
-    let (updated, _) = run_with("turek-hron-csm1", |c| c.solid.as_mut().unwrap().loading.mode = Lagrangian::Updated);
+    let (updated, _) = run_with("turek-hron-csm1", |c| c.solid.first_mut().unwrap().loading.mode = Lagrangian::Updated);
     for name in ["ux_A", "uy_A"] {
         let (a, b) = (q(&total, name), q(&updated, name));
         println!("{name}: total {a:.12e}, updated {b:.12e}");
@@ -822,7 +822,7 @@ fn model_problem_3_centre_displacement_is_converged_in_the_mesh() {
     use fdfsi::case::{MeshSpec, SolidMeshSpec};
     let (_, out) = run_with("model-problem-3", |c| {
         c.mesh = Some(MeshSpec::Rectangle { x: [0.0, 4.0], y: [0.0, 1.0], n: [80, 20] });
-        let solid = c.solid.as_mut().unwrap();
+        let solid = c.solid.first_mut().unwrap();
         solid.mesh = SolidMeshSpec::Rectangle { x: [1.975, 2.025], y: [0.0, 1.0], n: [1, 20] };
     });
     let w = *history_columns(&out)["centre_displacement"].last().unwrap();
@@ -838,7 +838,7 @@ fn model_problem_4_coarse_first_steps_seal_the_pipe_and_bulge_the_membrane() {
     use fdfsi::case::{MeshSpec, SolidMeshSpec};
     let (s, out) = run_with("model-problem-4", |c| {
         c.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
-        let solid = c.solid.as_mut().unwrap();
+        let solid = c.solid.first_mut().unwrap();
         solid.mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
         c.time.as_mut().unwrap().end = 0.5;
     });

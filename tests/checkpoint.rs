@@ -173,7 +173,7 @@ fn interrupted_and_resumed_after(
     assert_eq!(step, stop_after + 1);
     assert!(err.to_string().contains("fdfsi run --resume"), "{err}");
     // Flow runs and dynamic solid runs record the initial state too.
-    let records_start = case.solid.is_none() || (case.mesh.is_none() && case.time.is_some());
+    let records_start = case.solid.is_empty() || (case.mesh.is_none() && case.time.is_some());
     assert_eq!(history(&parts).len(), if records_start { step + 1 } else { step });
     damage(&parts);
     let (resumed_case, resume) = RunOptions::resume(&parts).unwrap();

@@ -422,20 +422,10 @@ point = [4.5, 0.5]
     assert!(spike < 0.1, "reopening overshoot {spike}");
 }
 
-/// Two meshes as one solid mesh of two bodies: the boundaries of `a` named `A_NAME`, those of
-/// `b` `B_NAME` (`names` = (`A`, `B`)).
+/// Two meshes as one solid mesh of two bodies: the boundaries of `a` named `A/NAME`, those of
+/// `b` `B/NAME` (`names` = (`A`, `B`)).
 fn two_bodies(a: Mesh<2>, b: Mesh<2>, names: (&str, &str)) -> Mesh<2> {
-    use fdfsi::fem::mesh::BoundaryFacet;
-    let mut m = a.clone();
-    let (np, nc) = (a.points.len(), a.num_cells());
-    m.points.extend(&b.points);
-    m.cell_nodes.extend(b.cell_nodes.iter().map(|p| p + np));
-    m.cell_tags.extend(&b.cell_tags);
-    let shift = a.boundary_names.iter().map(|(_, t)| *t).max().unwrap_or(0) + 1;
-    m.boundary.extend(b.boundary.iter().map(|f| BoundaryFacet { cell: f.cell + nc, facet: f.facet, tag: f.tag + shift }));
-    m.boundary_names = a.boundary_names.iter().map(|(n, t)| (format!("{}_{n}", names.0), *t)).collect();
-    m.boundary_names.extend(b.boundary_names.iter().map(|(n, t)| (format!("{}_{n}", names.1), t + shift)));
-    m
+    Mesh::disjoint_union(&[(names.0, &a), (names.1, &b)]).unwrap()
 }
 
 /// The patch test with two bodies: an upper block of 4 x 2 cells pressed by a dead load
@@ -452,22 +442,22 @@ fn two_blocks_with_non_matching_meshes_carry_a_uniform_contact_pressure() {
         let lower = rectangle_quads(0.0, 1.0, 0.0, 0.5, 3, 2, GeometryOrder::Quadratic);
         let upper = rectangle_quads(0.0, 1.0, 0.5, 1.0, 4, 2, GeometryOrder::Quadratic);
         let problem = SolidProblem::new(Formulation::Plane, material.clone())
-            .with_displacement("lower_bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
-            .with_displacement("lower_left", &[0], |_: &[f64; 2], _| [0.0; 2])
-            .with_displacement("upper_left", &[0], |_: &[f64; 2], _| [0.0; 2])
-            .with_traction("upper_top", move |_: &[f64; 2], l| [0.0, -p * l])
-            .with_contact_against("upper_bottom", "lower_top");
+            .with_displacement("lower/bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("lower/left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("upper/left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_traction("upper/top", move |_: &[f64; 2], l| [0.0, -p * l])
+            .with_contact_against("upper/bottom", "lower/top");
         (two_bodies(lower, upper, ("lower", "upper")), problem, 9)
     };
     let axisymmetric = || {
         let lower = rectangle_quads(0.0, 0.5, 0.0, 1.0, 2, 3, GeometryOrder::Quadratic);
         let upper = rectangle_quads(0.5, 1.0, 0.0, 1.0, 2, 4, GeometryOrder::Quadratic);
         let problem = SolidProblem::new(Formulation::Axisymmetric, material.clone())
-            .with_displacement("lower_bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
-            .with_displacement("upper_bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
-            .with_displacement("lower_left", &[0], |_: &[f64; 2], _| [0.0; 2])
-            .with_traction("upper_right", move |_: &[f64; 2], l| [-p * l, 0.0])
-            .with_contact_against("upper_left", "lower_right");
+            .with_displacement("lower/bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("upper/bottom", &[1], |_: &[f64; 2], _| [0.0; 2])
+            .with_displacement("lower/left", &[0], |_: &[f64; 2], _| [0.0; 2])
+            .with_traction("upper/right", move |_: &[f64; 2], l| [-p * l, 0.0])
+            .with_contact_against("upper/left", "lower/right");
         (two_bodies(lower, upper, ("lower", "upper")), problem, 8)
     };
     for (mesh, problem, nodes) in [plane(), axisymmetric()] {

@@ -285,7 +285,7 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let mut case = Case::read(&dir.join("model-problem-4.toml")).unwrap();
     case.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
-    case.solid.as_mut().unwrap().mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
+    case.solid.first_mut().unwrap().mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
     let AnyMesh::D3(mesh) = fdfsi::setup::build_mesh(&case, &dir).unwrap() else { panic!("3D") };
     let model = fdfsi::setup::fsi_model::<D>(&case, &mesh, &dir).unwrap();
     let disc = FsiDiscretization::build(&model, &vec![0.0; model.solid.num_dofs()], &Default::default()).unwrap();

@@ -411,7 +411,7 @@ fn cheap_to_check(case: &Case, dir: &Path) -> bool {
             }
         }
     };
-    let solid = match case.solid.as_ref().map(|s| &s.mesh) {
+    let solid = match case.solid.first().map(|s| &s.mesh) {
         None => 0,
         Some(SolidMeshSpec::Rectangle { n, .. }) | Some(SolidMeshSpec::Quadrilateral { n, .. }) => prod(n, 1),
         Some(SolidMeshSpec::Box { n, .. }) => prod(n, 1),

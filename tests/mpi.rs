@@ -177,7 +177,7 @@ fn model_problem_4_on_two_ranks_gives_the_serial_quantities() {
     for solver in [PetscMethod::Mumps, PetscMethod::AugmentedLagrangian] {
         let log = compare("model-problem-4", solver, 1e-8, 1e-8, |c| {
             c.mesh = Some(MeshSpec::Pipe { radius: 1.0, length: 4.0, n_radial: 4, n_axial: 6, quarter: true });
-            let solid = c.solid.as_mut().unwrap();
+            let solid = c.solid.first_mut().unwrap();
             solid.mesh = SolidMeshSpec::QuarterDisc { radius: 1.0, z: [1.975, 2.025], n_core: 3, n_ring: 2, n_layers: 1 };
             c.time.as_mut().unwrap().end = 0.3;
         });

@@ -131,7 +131,7 @@ fn inertia_with_long_steps_tends_to_the_quasi_static_solution() {
         .with_displacement("left", &[0, 1], |_: &[f64; 2], _| [0.0; 2])
         .with_traction("right", |_: &[f64; 2], l| [0.0, 0.02 * l]);
     let stat = solve_quasi_static(&disc, &problem, &LoadStepping::uniform(Lagrangian::Total, 1), &mut FaerLu::default(), &study_newton()).unwrap();
-    problem.density = 1.0;
+    problem.bodies[0].density = 1.0;
     let zero = vec![0.0; disc.num_dofs()];
     // An implicit-Euler step of `dt` from rest: `a = 1 / dt`, `u* = v* = 0`.
     let euler = |dt: f64| InertiaHistory { a: 1.0 / dt, u_star: &zero, v_star: &zero };

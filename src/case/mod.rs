@@ -47,6 +47,39 @@ use thiserror::Error;
 pub mod builtin;
 mod validate;
 
+/// `[solid]` (one table) or `[[solid]]` (several) as one list: a single solid is written back as
+/// `[solid]`, so a case's `case.toml` (and its hash) does not change with the form.
+mod one_or_many {
+    use super::SolidSpec;
+    use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
+    use serde::de::{MapAccess, SeqAccess, Visitor};
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(solids: &[SolidSpec], s: S) -> Result<S::Ok, S::Error> {
+        match solids {
+            [one] => one.serialize(s),
+            several => several.serialize(s),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<SolidSpec>, D::Error> {
+        struct OneOrMany;
+        impl<'de> Visitor<'de> for OneOrMany {
+            type Value = Vec<SolidSpec>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a [solid] table or [[solid]] tables")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Value, A::Error> {
+                Ok(vec![SolidSpec::deserialize(MapAccessDeserializer::new(map))?])
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Value, A::Error> {
+                Vec::deserialize(SeqAccessDeserializer::new(seq))
+            }
+        }
+        d.deserialize_any(OneOrMany)
+    }
+}
+
 /// A case-file error.
 #[derive(Debug, Error)]
 pub enum CaseError {
@@ -80,9 +113,11 @@ pub struct Case {
     /// Body force per unit volume, per component (numbers or expressions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_force: Option<Vec<Scalar>>,
-    /// A solid immersed in the fluid: its mesh, placement and coupled surface gamma_s.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub solid: Option<SolidSpec>,
+    /// The solid immersed in the fluid: its mesh, placement and coupled surface gamma_s. One
+    /// `[solid]` table, or several `[[solid]]` tables (each with a `name`: two leaflets), whose
+    /// meshes are joined into one solid of several bodies (see [`Case::solid_boundary`]).
+    #[serde(default, with = "one_or_many", skip_serializing_if = "Vec::is_empty")]
+    pub solid: Vec<SolidSpec>,
     /// Time stepping; without it the problem is steady.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time: Option<TimeSpec>,
@@ -129,6 +164,11 @@ impl std::fmt::Display for BoundaryNames {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolidSpec {
+    /// The solid's name; required with several `[[solid]]` tables (unique, without `/`). Their
+    /// boundaries are then `NAME/BOUNDARY` wherever they are seen from outside their own table
+    /// (the solid output, contact quantities, `against` another solid).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     /// The solid mesh (9-node quadrilaterals / 27-node hexahedra).
     pub mesh: SolidMeshSpec,
     /// The solid boundary coupled to the fluid (gamma_s): one name, or several (`["bottom",
@@ -1090,7 +1130,7 @@ impl Case {
     /// The kind of run the case describes: a solid alone (no fluid `[mesh]`), FSI (a fluid and a
     /// solid with a material `model`), or flow (a fluid, with a fixed solid if any).
     pub fn kind(&self) -> RunKind {
-        match (&self.mesh, &self.solid) {
+        match (&self.mesh, self.solid.first()) {
             (None, _) => RunKind::Solid,
             (Some(_), Some(s)) if s.model != SolidModel::Fixed => RunKind::Fsi,
             _ => RunKind::Flow,
@@ -1107,7 +1147,7 @@ impl Case {
         }
         let mut names: Vec<String> = ["x", "y", "z"][..self.dim()].iter().map(|c| format!("coupling_force_{c}")).collect();
         names.push("coupling_facets".into());
-        if self.solid.as_ref().is_some_and(|s| s.contact.iter().any(|c| c.against.is_none())) {
+        if self.solid.iter().any(|s| s.contact.iter().any(|c| c.against.is_none())) {
             names.push("closed_gap_cells".into());
         }
         names
@@ -1119,8 +1159,8 @@ impl Case {
     /// outlet `O` `O_flux`, `O_pressure` and `O_capacitor_pressure`.
     pub fn run_quantities(&self) -> Vec<String> {
         let mut names = self.builtin_quantities();
-        let contacts = self.solid.iter().flat_map(|s| &s.contact);
-        names.extend(contacts.flat_map(|c| CONTACT_QUANTITIES.map(|q| format!("{}_{q}", c.boundary))));
+        let contacts = self.solid.iter().enumerate().flat_map(|(k, s)| s.contact.iter().map(move |c| self.solid_boundary(k, &c.boundary)));
+        names.extend(contacts.flat_map(|b| CONTACT_QUANTITIES.map(|q| format!("{b}_{q}"))));
         let outlets = self.boundary.iter().filter(|b| b.kind == BoundaryType::Windkessel);
         names.extend(outlets.flat_map(|b| WINDKESSEL_QUANTITIES.map(|q| format!("{}_{q}", b.name))));
         names
@@ -1128,7 +1168,36 @@ impl Case {
 
     /// What becomes of the fluid the solid covers (`kept` without a solid).
     pub fn covered_fluid(&self) -> crate::adapt::CoveredFluid {
-        self.solid.as_ref().map(|s| s.covered_fluid).unwrap_or_default()
+        self.solid.first().map(|s| s.covered_fluid).unwrap_or_default()
+    }
+
+    /// The first (or only) solid: with several, the options of the whole solid are its (`model`
+    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `loading`; validation holds them
+    /// equal).
+    pub fn first_solid(&self) -> Option<&SolidSpec> {
+        self.solid.first()
+    }
+
+    /// The name, in the joined solid mesh, of the boundary `local` of solid `k`: `local` itself
+    /// with one solid, `NAME/local` with several (`NAME` solid `k`'s name). A name that already
+    /// starts with another solid's `NAME/` is kept: a contact `against` another solid.
+    pub fn solid_boundary(&self, k: usize, local: &str) -> String {
+        if self.solid.len() < 2 {
+            return local.to_string();
+        }
+        let named = |s: &SolidSpec| s.name.as_deref().is_some_and(|n| local.strip_prefix(n).is_some_and(|rest| rest.starts_with('/')));
+        if self.solid.iter().any(named) {
+            return local.to_string();
+        }
+        format!("{}/{local}", self.solid[k].name.as_deref().unwrap_or_default())
+    }
+
+    /// The name of gamma_s in the joined solid mesh: the union of every solid's `surface` (its
+    /// names joined by `+`); `None` if a solid has none.
+    pub fn solid_surface(&self) -> Option<String> {
+        let names: Option<Vec<String>> =
+            self.solid.iter().enumerate().map(|(k, s)| s.surface.as_ref().map(|b| self.solid_boundary(k, &b.joined()))).collect();
+        names.filter(|n| !n.is_empty()).map(|n| n.join("+"))
     }
 
     /// Spatial dimension implied by the formulation.
@@ -1388,6 +1457,31 @@ impl Expr {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One `[solid]` table is written back as one (a case's `case.toml`, and its hash, do not
+    /// change), several `[[solid]]` tables as several; both read back the same; and the boundary
+    /// names seen from outside a table are qualified by the solid's name only with several.
+    #[test]
+    fn one_solid_or_several_round_trip() {
+        let table = |header: &str, name: &str| {
+            format!("{header}\nname = \"{name}\"\nmesh = {{ kind = \"rectangle\", x = [0.0, 1.0], y = [0.0, 1.0], n = [1, 1] }}\nsurface = \"top\"\nmodel = \"neo-hookean\"\nshear_modulus = 1.0\n\n[[solid.boundary]]\nname = \"left\"\ntype = \"displacement\"\nvalue = [0.0, 0.0]\n")
+        };
+        let head = "title = \"t\"\n[physics]\nformulation = \"plane\"\n";
+        let one = Case::from_toml_str(&format!("{head}{}", table("[solid]", "a")), "one.toml").unwrap();
+        assert_eq!(one.solid.len(), 1);
+        let text = one.to_toml();
+        assert!(text.contains("\n[solid]\n") && !text.contains("[[solid]]"), "{text}");
+        assert_eq!((one.solid_boundary(0, "left"), one.solid_surface()), ("left".into(), Some("top".into())));
+        let two = Case::from_toml_str(&format!("{head}{}{}", table("[[solid]]", "a"), table("[[solid]]", "b")), "two.toml").unwrap();
+        assert_eq!(two.solid.iter().map(|s| s.name.as_deref().unwrap()).collect::<Vec<_>>(), ["a", "b"]);
+        assert_eq!(two.solid[1].boundary[0].name, "left", "a [[solid.boundary]] belongs to the [[solid]] before it");
+        let text = two.to_toml();
+        assert_eq!(text.matches("[[solid]]").count(), 2, "{text}");
+        assert_eq!(Case::from_toml_str(&text, "two.toml").unwrap().to_toml(), text);
+        assert_eq!(two.solid_boundary(1, "left"), "b/left");
+        assert_eq!(two.solid_boundary(1, "a/right"), "a/right", "another solid's boundary is named in full");
+        assert_eq!(two.solid_surface(), Some("a/top+b/top".into()));
+    }
 
     /// Every pair of elastic constants of one material (Turek-Hron's bar: G = 0.5e6, nu = 0.4,
     /// so E = 1.4e6, lambda = 2e6, K = 2e6 + 1e6/3) gives its G and K.

@@ -18,7 +18,7 @@ impl Case {
         boundaries(self, &mut problems);
         body_force(self, &mut problems);
         output(self, &mut problems);
-        solid(self, &mut problems);
+        solids(self, &mut problems);
         time(self, &mut problems);
         boundary_time_functions(self, &mut problems);
         solver(self, &mut problems);
@@ -70,7 +70,7 @@ impl Problems {
 
 /// `[fluid]`: required with a fluid `[mesh]`; without one, a solid-only run needs a material model.
 fn fluid(c: &Case, p: &mut Problems) {
-    match (&c.mesh, &c.fluid, &c.solid) {
+    match (&c.mesh, &c.fluid, c.solid.first()) {
         (Some(_), Some(f), _) => {
             p.positive(f.density, "fluid.density");
             p.positive(f.viscosity, "fluid.viscosity");
@@ -232,7 +232,8 @@ fn boundary_time_functions(c: &Case, p: &mut Problems) {
 /// `body_force` (of the fluid) and `solid.body_force`: one expression per dimension.
 fn body_force(c: &Case, p: &mut Problems) {
     let d = c.dim();
-    let forces = [("body_force", c.body_force.as_ref()), ("solid.body_force", c.solid.as_ref().and_then(|s| s.body_force.as_ref()))];
+    let solids = c.solid.iter().map(|s| (solid_key(c, s, "solid.body_force"), s.body_force.as_ref()));
+    let forces = std::iter::once(("body_force".to_string(), c.body_force.as_ref())).chain(solids);
     for (key, f) in forces {
         let Some(f) = f else { continue };
         if f.len() != d {
@@ -276,7 +277,7 @@ fn output(c: &Case, p: &mut Problems) {
 /// `[[output.probe]]`: point, field and component.
 fn probes(c: &Case, p: &mut Problems) {
     let d = c.dim();
-    let moving_solid = c.solid.as_ref().is_some_and(|s| s.model != SolidModel::Fixed);
+    let moving_solid = c.solid.first().is_some_and(|s| s.model != SolidModel::Fixed);
     for probe in &c.output.probe {
         if probe.point.len() != d {
             p.push(format!("probe '{}': point needs {d} coordinates", probe.name));
@@ -368,9 +369,74 @@ fn combinations(c: &Case, p: &mut Problems) {
     }
 }
 
+/// `key` of the solid `s`: as it is with one solid, `solid 'NAME': key` with several.
+fn solid_key(c: &Case, s: &SolidSpec, key: &str) -> String {
+    match (&s.name, c.solid.len() > 1) {
+        (Some(name), true) => format!("solid '{name}': {key}"),
+        _ => key.to_string(),
+    }
+}
+
+/// `[solid]`, or several `[[solid]]` tables: each named (uniquely, without `/`), the options of
+/// the whole solid the same in each (see [`Case::first_solid`]), and each checked as one solid
+/// (its problems prefixed by its name).
+fn solids(c: &Case, p: &mut Problems) {
+    let [first, ..] = c.solid.as_slice() else { return };
+    if c.solid.len() == 1 {
+        return solid(c, first, p);
+    }
+    for (k, s) in c.solid.iter().enumerate() {
+        let Some(name) = s.name.as_deref() else {
+            p.push(format!("[[solid]] {}: several solids need a name each (name = \"...\")", k + 1));
+            continue;
+        };
+        if name.is_empty() || name.contains('/') || name.contains('+') {
+            p.push(format!("[[solid]] {}: name = {name:?} must be non-empty, without '/' or '+'", k + 1));
+        }
+        if c.solid[..k].iter().any(|o| o.name.as_deref() == Some(name)) {
+            p.push(format!("[[solid]] {}: the name '{name}' is given twice", k + 1));
+        }
+    }
+    // Each option of the whole solid as a text to compare.
+    type Spelled = fn(&SolidSpec) -> String;
+    let shared: [(&str, Spelled); 5] = [
+        ("model (fixed or a material law)", |s| (s.model == SolidModel::Fixed).to_string()),
+        ("multiplier", |s| spelled(&s.multiplier)),
+        ("covered_fluid", |s| spelled(&s.covered_fluid)),
+        ("eps_hat", |s| s.eps_hat.to_string()),
+        ("loading", |s| format!("{{ steps = {}, mode = {} }}", s.loading.steps, spelled(&s.loading.mode))),
+    ];
+    // The pressure field is the whole solid's: a mixed law (`neo-hookean`) in every solid or in none.
+    let mixed = |s: &SolidSpec| s.model == SolidModel::NeoHookean;
+    for s in &c.solid[1..] {
+        for (what, of) in &shared {
+            if of(s) != of(first) {
+                p.push(solid_key(c, s, &format!("{what} must be that of the first solid (the whole solid's): {} against {}", of(s), of(first))));
+            }
+        }
+        if mixed(s) != mixed(first) && s.model != SolidModel::Fixed && first.model != SolidModel::Fixed {
+            p.push(solid_key(
+                c,
+                s,
+                &format!(
+                    "model = {} and the first solid's {}: the solids' laws must all be mixed (\"neo-hookean\", with a pressure field) or all displacement-based",
+                    spelled(&s.model),
+                    spelled(&first.model)
+                ),
+            ));
+        }
+    }
+    for s in &c.solid {
+        let mut own = Problems(Vec::new());
+        solid(c, s, &mut own);
+        for problem in own.0 {
+            p.push(solid_key(c, s, &problem));
+        }
+    }
+}
+
 /// `[solid]`: coupling surface, material, multiplier, `eps_hat`, mesh, placement and load steps.
-fn solid(c: &Case, p: &mut Problems) {
-    let Some(solid) = &c.solid else { return };
+fn solid(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     if c.mesh.is_some() && solid.surface.is_none() {
         p.push("solid.surface (the solid boundary coupled to the fluid) is required with a fluid");
     }

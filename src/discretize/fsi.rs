@@ -33,7 +33,7 @@
 //! `rho a (u - u*)` with the velocities of `t_n` (and `t_{n-1}`) transferred to the new mesh,
 //! the solid velocity `u_s = a (Delta u - d)` in the coupling constraint, with
 //! `d = u*_s - u_n` (0 for Euler), and the optional solid inertia
-//! `rho_0 a^2 (Delta u - d - v* / a)` ([`SolidProblem::density`]). Implicit Euler: `a = 1/dt`,
+//! `rho_0 a^2 (Delta u - d - v* / a)` ([`SolidBody::density`](crate::discretize::solid::SolidBody::density)). Implicit Euler: `a = 1/dt`,
 //! `d = 0`, `v* = v_n`. The geometry of a step (gamma_s, the adapted mesh, gamma_f) is that of
 //! `t_n` for implicit Euler, as in the paper (adapt, then solve), and for BDF2 the solid
 //! extrapolated to `t_{n+1}`, `u_n + omega (u_n - u_{n-1})` ([`StepStart::geometry`]), so that
@@ -1159,7 +1159,7 @@ impl<const D: usize> FsiDiscretization<D> {
     ) -> Result<(), FsiAssemblyError> {
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
         let solid = &model.problem.solid;
-        let inertia = input.solid_target.filter(|_| solid.density > 0.0).map(|t| (solid.density * input.a * input.a, t));
+        let inertia = input.solid_target.filter(|_| solid.has_inertia()).map(|t| (input.a * input.a, t));
         let (base, f) = (Some(input.solid_base), Some(input.solid_f));
         Ok(model.solid.assemble_into(solid, input.time, base, f, inertia, &x[os..ol], &constrained[os..ol], colouring, target)?)
     }
@@ -1705,7 +1705,7 @@ impl<const D: usize> StepStart<D> {
         let (_, u_star) = step_history(scheme, dt, omega, &state.solid_x, previous.map(|p| p.solid_x.as_slice()));
         let (_, v_star) = step_history(scheme, dt, omega, &state.solid_v, previous.map(|p| p.solid_v.as_slice()));
         let shift: Vec<f64> = (0..u_star.len()).map(|i| if i < nus { u_star[i] - state.solid_x[i] } else { 0.0 }).collect();
-        let solid_target = (model.problem.solid.density > 0.0).then(|| (0..shift.len()).map(|i| shift[i] + v_star[i] / a).collect());
+        let solid_target = model.problem.solid.has_inertia().then(|| (0..shift.len()).map(|i| shift[i] + v_star[i] / a).collect());
         let solid_shift = (scheme == TimeScheme::Bdf2).then_some(shift);
         Ok(StepStart { disc, geometry, fluid, time, dt, scheme, a, u_old, x, constrained, fixed, solid_fixed, solid_shift, solid_target, seconds })
     }

@@ -107,42 +107,84 @@ impl<const D: usize> ContactBc<D> {
     }
 }
 
+/// One body of a solid problem: its material law, density and body force. A problem with
+/// several bodies (`[[solid]]` tables: two leaflets) holds them on one mesh of disjoint parts,
+/// each cell in one body ([`SolidProblem::cell_body`]).
+#[derive(Clone)]
+pub struct SolidBody<const D: usize> {
+    pub material: Arc<dyn SolidMaterial>,
+    /// Reference density `rho_0` for solid inertia ([`solve_dynamic_step`]); 0 (the default of
+    /// [`SolidBody::new`]) switches inertia off. Quasi-static solves ignore it.
+    pub density: f64,
+    /// Body force `b(X, load)` per unit reference volume (e.g. `rho_0 g`): the external work
+    /// `int b . w dV_0`.
+    pub body_force: Option<LoadFn<D>>,
+}
+
+impl<const D: usize> SolidBody<D> {
+    /// A body of `material` without inertia or body force.
+    pub fn new(material: Arc<dyn SolidMaterial>) -> Self {
+        SolidBody { material, density: 0.0, body_force: None }
+    }
+}
+
 /// A solid problem.
 #[derive(Clone)]
 pub struct SolidProblem<const D: usize> {
     pub formulation: Formulation,
-    pub material: Arc<dyn SolidMaterial>,
+    /// The bodies (at least one); with one, every cell is in it.
+    pub bodies: Vec<SolidBody<D>>,
+    /// The body of each cell (an index into `bodies`); empty: every cell in body 0.
+    pub cell_body: Vec<usize>,
     pub dirichlet: Vec<DisplacementBc<D>>,
     pub traction: Vec<DeadTractionBc<D>>,
     pub pressure: Vec<FollowerPressureBc>,
     /// Fix the mean-value pressure dof of cell 0 to this value (needed for a mixed law when the
     /// displacement is prescribed on the whole boundary).
     pub pin_pressure: Option<f64>,
-    /// Reference density `rho_0` for solid inertia ([`solve_dynamic_step`]); 0 (the default of
-    /// [`SolidProblem::new`]) switches inertia off. Quasi-static solves ignore it.
-    pub density: f64,
-    /// Body force `b(X, load)` per unit reference volume (e.g. `rho_0 g`): the external work
-    /// `int b . w dV_0`.
-    pub body_force: Option<LoadFn<D>>,
     /// Contact with rigid planes and between boundaries, in the order of the discretisation's
     /// contact surfaces ([`SolidDiscretization::build_with_contact`]).
     pub contact: Vec<ContactBc<D>>,
 }
 
 impl<const D: usize> SolidProblem<D> {
-    /// A problem without boundary conditions, pressure pin, inertia or body force.
+    /// A problem of one body without boundary conditions, pressure pin, inertia or body force.
     pub fn new(formulation: Formulation, material: Arc<dyn SolidMaterial>) -> Self {
+        Self::with_bodies(formulation, vec![SolidBody::new(material)], Vec::new())
+    }
+
+    /// A problem of several bodies, `cell_body[c]` the body of cell `c` (empty: one body).
+    pub fn with_bodies(formulation: Formulation, bodies: Vec<SolidBody<D>>, cell_body: Vec<usize>) -> Self {
         SolidProblem {
             formulation,
-            material,
+            bodies,
+            cell_body,
             dirichlet: Vec::new(),
             traction: Vec::new(),
             pressure: Vec::new(),
             pin_pressure: None,
-            density: 0.0,
-            body_force: None,
             contact: Vec::new(),
         }
+    }
+
+    /// The body of cell `c`.
+    pub fn body(&self, c: usize) -> &SolidBody<D> {
+        &self.bodies[self.cell_body.get(c).copied().unwrap_or(0)]
+    }
+
+    /// The material law of body 0 (the only one of a single solid).
+    pub fn material(&self) -> &dyn SolidMaterial {
+        self.bodies[0].material.as_ref()
+    }
+
+    /// Whether any body has inertia (a density > 0).
+    pub fn has_inertia(&self) -> bool {
+        self.bodies.iter().any(|b| b.density > 0.0)
+    }
+
+    /// The material laws' names, joined by `, ` (one per body).
+    pub fn material_names(&self) -> String {
+        self.bodies.iter().map(|b| b.material.name()).collect::<Vec<_>>().join(", ")
     }
     /// Adds a prescribed displacement.
     pub fn with_displacement(
@@ -206,6 +248,8 @@ pub enum SolidError {
     Assembly(#[from] SolidAssemblyError),
     #[error(transparent)]
     Newton(#[from] NewtonError<SolidAssemblyError>),
+    #[error("the bodies of the solid: {0}")]
+    Bodies(String),
     #[error("load step {step} to load factor {load:.6} failed with the smallest increment {increment:.3e}: {reason}; lower stepping.min_increment or refine the mesh")]
     StepFailed { step: usize, load: f64, increment: f64, reason: String },
 }
@@ -297,7 +341,8 @@ impl<const D: usize> SolidDiscretization<D> {
     /// Fails when two contact boundaries against the same plane share a node (its two
     /// conditions would be one: give their union as one boundary).
     pub fn build_for(mesh: Mesh<D>, problem: &SolidProblem<D>) -> Result<Self, SolidError> {
-        let disc = Self::build_with_contact(mesh, problem.formulation, problem.material.as_ref(), &problem.contact)?;
+        Self::check_bodies(&mesh, problem)?;
+        let disc = Self::build_with_contact(mesh, problem.formulation, problem.material(), &problem.contact)?;
         for (i, a) in problem.contact.iter().enumerate() {
             for (j, b) in problem.contact.iter().enumerate().skip(i + 1) {
                 let shared = disc.contact[i].nodes.iter().any(|n| disc.contact[j].nodes.binary_search(n).is_ok());
@@ -307,6 +352,35 @@ impl<const D: usize> SolidDiscretization<D> {
             }
         }
         Ok(disc)
+    }
+
+    /// The bodies of `problem` on `mesh`: at least one, a body for each cell (or none given, with
+    /// one body), and all of one kind of law (mixed or displacement-based: the pressure field is
+    /// the whole mesh's).
+    fn check_bodies(mesh: &Mesh<D>, problem: &SolidProblem<D>) -> Result<(), SolidError> {
+        let n = problem.bodies.len();
+        if n == 0 {
+            return Err(SolidError::Bodies("the problem has no body".into()));
+        }
+        let cells = &problem.cell_body;
+        if cells.is_empty() && n > 1 {
+            return Err(SolidError::Bodies(format!("{n} bodies and no body given per cell")));
+        }
+        if !cells.is_empty() && cells.len() != mesh.num_cells() {
+            return Err(SolidError::Bodies(format!("a body is given for {} cells of {}", cells.len(), mesh.num_cells())));
+        }
+        if let Some(c) = cells.iter().position(|&b| b >= n) {
+            return Err(SolidError::Bodies(format!("cell {c} is in body {}, of {n}", cells[c])));
+        }
+        let mixed = |b: &SolidBody<D>| b.material.pressure_compliance().is_some();
+        if let Some(b) = problem.bodies.iter().position(|b| mixed(b) != mixed(&problem.bodies[0])) {
+            return Err(SolidError::Bodies(format!(
+                "body {b} ({}) and body 0 ({}) are not both mixed (with a pressure field) or both displacement-based",
+                problem.bodies[b].material.name(),
+                problem.bodies[0].material.name()
+            )));
+        }
+        Ok(())
     }
 
     /// [`SolidDiscretization::build`] with the boundaries of `contact` (the problem's, in order)
@@ -605,8 +679,10 @@ impl<const D: usize> SolidDiscretization<D> {
     ///
     /// `x` holds the unknowns: the displacement from the integration configuration `X + base`
     /// (`base = None`: reference, total Lagrangian) and the pressure. `f_prev[c * nq + q]` is the
-    /// deformation gradient of the integration configuration (`None`: identity). Rows of
-    /// constrained dofs become identity rows with zero right-hand side.
+    /// deformation gradient of the integration configuration (`None`: identity). `inertia =
+    /// (a^2, x*)` adds `rho_0 a^2 (x - x*)` per unit reference volume (the time scheme's
+    /// acceleration; `rho_0` the density of each cell's body). Rows of constrained dofs become
+    /// identity rows with zero right-hand side.
     #[allow(clippy::too_many_arguments)]
     pub fn assemble_system(
         &self,
@@ -643,7 +719,6 @@ impl<const D: usize> SolidDiscretization<D> {
         let nu = nv * D;
         let n = self.layout.dofs_per_cell();
         let nq = self.points_per_cell();
-        let material = problem.material.as_ref();
         let formulation = self.formulation;
         target.add_cells(
             colouring,
@@ -657,14 +732,15 @@ impl<const D: usize> SolidDiscretization<D> {
                 for (i, &d) in local.dofs.iter().enumerate() {
                     loc[i] = x[d];
                 }
-                let inert = inertia.map(|(coef, target)| {
+                let body = problem.body(c);
+                let inert = inertia.filter(|_| body.density > 0.0).map(|(a2, target)| {
                     for (i, &d) in local.dofs[..nu].iter().enumerate() {
                         tgt[i] = target[d];
                     }
-                    coef
+                    body.density * a2
                 });
                 let x0 = &self.qp_x0[c * nq..(c + 1) * nq];
-                if let Some(b) = &problem.body_force {
+                if let Some(b) = &body.body_force {
                     for (v, x) in bf.iter_mut().zip(x0) {
                         *v = b(x, load);
                     }
@@ -676,13 +752,10 @@ impl<const D: usize> SolidDiscretization<D> {
                     x0,
                     x0_centroid: self.centroid_x0[c],
                     inertia: inert.map(|coefficient| InertiaState { coefficient, target: &tgt[..] }),
-                    body_force: problem.body_force.as_ref().map(|_| &bf[..]),
+                    body_force: body.body_force.as_ref().map(|_| &bf[..]),
                 };
-                solid_cell(cv, formulation, material, &state, &mut local.ke, &mut local.fe).map_err(|e| SolidAssemblyError::Inverted {
-                    cell: c,
-                    point: e.point,
-                    det: e.det,
-                })?;
+                solid_cell(cv, formulation, body.material.as_ref(), &state, &mut local.ke, &mut local.fe)
+                    .map_err(|e| SolidAssemblyError::Inverted { cell: c, point: e.point, det: e.det })?;
                 local.fe.iter_mut().for_each(|v| *v = -*v);
                 Ok(())
             },
@@ -798,11 +871,13 @@ impl<const D: usize> SolidDiscretization<D> {
             "the problem's contact boundaries are the discretisation's contact surfaces"
         );
         let vf = self.displacement_field();
+        // The stiffest body's shear modulus scales every complementarity row.
+        let shear = problem.bodies.iter().map(|b| b.material.shear_modulus()).fold(0.0, f64::max);
         for (surface, bc) in self.contact.iter().zip(&problem.contact) {
             let rows = self.contact_rows(surface, bc, base, x);
             for (j, (&node, &w)) in surface.nodes.iter().zip(&surface.weights).enumerate() {
                 let l = surface.first + j;
-                let c = complementarity_scale(problem.material.shear_modulus(), w, self.formulation.weight(&self.nodes_x0[node]), D);
+                let c = complementarity_scale(shear, w, self.formulation.weight(&self.nodes_x0[node]), D);
                 // A node whose motion along n is held by Dirichlet conditions, like every master
                 // node of its row, cannot close a gap: it stays off contact (its multiplier 0),
                 // or its row would be empty; so does a node with no master under it.
@@ -1233,7 +1308,7 @@ pub fn solve_dynamic_step<const D: usize>(
     }
     let a = history.a;
     let target: Vec<f64> = (0..n).map(|i| if i < nu_global { history.u_star[i] + history.v_star[i] / a } else { 0.0 }).collect();
-    let inertia = (problem.density > 0.0).then_some((problem.density * a * a, target.as_slice()));
+    let inertia = problem.has_inertia().then_some((a * a, target.as_slice()));
     let report = newton::solve(&mut x, &disc.pattern, solver, options, |xx, k, rhs| {
         disc.assemble_system(problem, load, None, None, inertia, xx, &constrained, k, rhs)
     })?;

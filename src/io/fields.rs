@@ -86,9 +86,8 @@ pub fn gamma_f_grid<const D: usize>(disc: &crate::discretize::fsi::FsiDiscretiza
 /// components); with contact surfaces, point data `contact_pressure` and `contact_gap` (their
 /// nodes' multiplier and gap to the plane; 0 elsewhere); for a fibre-reinforced law
 /// `fibre_stretch` (the mean of `|F a_0| = sqrt(I4)` over the cell's quadrature points with a
-/// fibre; 0 where it has none).
+/// fibre; 0 where it has none); with several bodies, cell data `body` (each cell's body, from 0).
 pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Result<UnstructuredGrid, OutputError> {
-    let material = problem.material.as_ref();
     let field = disc.displacement_field();
     let n = field.nodes.num_nodes;
     let points: Vec<[f64; 3]> = (0..n)
@@ -131,6 +130,7 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
     for c in 0..nc {
         let p_c = if disc.mixed { pressure_at(disc, x, c, &disc.centroid_x0[c]) } else { 0.0 };
         pressure.push(p_c);
+        let material = problem.body(c).material.as_ref();
         let mut mean = [[0.0; 3]; 3];
         let (mut stretch, mut fibred) = (0.0, 0);
         for q in 0..nq {
@@ -158,6 +158,9 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
     grid.add_cell_data("cauchy_stress", 9, stress)?;
     if fibre_stretch.iter().any(|&s| s > 0.0) {
         grid.add_cell_data("fibre_stretch", 1, fibre_stretch)?;
+    }
+    if problem.bodies.len() > 1 {
+        grid.add_cell_data("body", 1, (0..nc).map(|c| problem.cell_body[c] as f64).collect())?;
     }
     Ok(grid)
 }

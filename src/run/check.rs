@@ -19,7 +19,7 @@ use crate::case::{name_of, BoundaryNames, Case, CaseError, ProbeField, RunKind, 
 use crate::discretize::flow::{Entries, FlowDiscretization};
 use crate::discretize::fsi::FsiDiscretization;
 use crate::discretize::solid::SolidDiscretization;
-use crate::setup::{adapt_fluid, build_mesh, flow_problem, fsi_model, solid_problem, SetupError};
+use crate::setup::{adapt_fluid, build_mesh, flow_problem, fsi_model, solid_problem, SetupError, SolidMesh};
 use crate::time::num_steps;
 use fdfsi_fem::adapt::{CellLocator, GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
 use fdfsi_fem::element::ReferenceCell;
@@ -156,47 +156,59 @@ impl Ctx<'_> {
     }
 
     fn solid_spec(&self) -> Result<&SolidSpec, RunError> {
-        self.case.solid.as_ref().ok_or_else(|| self.invalid("no [solid] table".into()))
+        self.case.first_solid().ok_or_else(|| self.invalid("no [solid] table".into()))
     }
 
-    /// The placed solid mesh; `solid.surface` and the `[[solid.boundary]]` names must be its
-    /// boundaries.
-    fn solid_mesh<const D: usize>(&self, spec: &SolidSpec) -> Result<Mesh<D>, RunError> {
-        let mut mesh = crate::setup::placed_solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("[solid] mesh: {e}")))?;
+    /// The placed solid mesh, several solids joined ([`crate::setup::solid_mesh`]); each
+    /// solid's `surface` and `[[solid.boundary]]` names must be boundaries of its own mesh.
+    fn solid_mesh<const D: usize>(&self) -> Result<SolidMesh<D>, RunError> {
+        for spec in &self.case.solid {
+            let whose = match (&spec.name, self.case.solid.len() > 1) {
+                (Some(name), true) => format!("solid '{name}': "),
+                _ => String::new(),
+            };
+            self.solid_names::<D>(spec, &whose)?;
+        }
+        Ok(crate::setup::solid_mesh::<D>(self.case, self.dir)?)
+    }
+
+    /// `solid.surface` and the `[[solid.boundary]]` names of `spec` must be boundaries of its
+    /// placed mesh; `whose` starts each message (the solid's name, when there are several).
+    fn solid_names<const D: usize>(&self, spec: &SolidSpec, whose: &str) -> Result<(), RunError> {
+        let mesh = crate::setup::placed_solid_mesh::<D>(spec, self.dir).map_err(|e| self.invalid(format!("{whose}[solid] mesh: {e}")))?;
         let names: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
         match &spec.surface {
-            Some(BoundaryNames::One(s)) => self.known_name(&names, s, &format!("solid.surface = \"{s}\""), "the solid mesh")?,
+            Some(BoundaryNames::One(s)) => self.known_name(&names, s, &format!("{whose}solid.surface = \"{s}\""), "the solid mesh")?,
             Some(BoundaryNames::Several(list)) => {
                 for s in list {
-                    self.known_name(&names, s, &format!("solid.surface = {list:?}: \"{s}\""), "the solid mesh")?;
+                    self.known_name(&names, s, &format!("{whose}solid.surface = {list:?}: \"{s}\""), "the solid mesh")?;
                 }
             }
             None => {}
         }
-        crate::setup::merge_surface(&mut mesh, spec)?;
         if spec.model != crate::case::SolidModel::Fixed {
             for b in &spec.boundary {
-                self.known_name(&names, &b.name, &format!("[[solid.boundary]] name = \"{}\"", b.name), "the solid mesh")?;
+                self.known_name(&names, &b.name, &format!("{whose}[[solid.boundary]] name = \"{}\"", b.name), "the solid mesh")?;
             }
         }
-        Ok(mesh)
+        Ok(())
     }
 
     /// A solid-only run.
     fn solid_only<const D: usize>(&self) -> Result<CheckSummary, RunError> {
         let case = self.case;
         let spec = self.solid_spec()?;
-        let mesh = self.solid_mesh::<D>(spec)?;
+        let SolidMesh { mesh, cell_body } = self.solid_mesh::<D>()?;
         let cells = mesh.num_cells();
         // As `fdfsi run` builds it: loads ramped without [time], evaluated in time with it.
-        let problem = solid_problem::<D>(case, spec, case.time.is_none())?;
+        let problem = solid_problem::<D>(case, cell_body, case.time.is_none())?;
         let disc = SolidDiscretization::build_for(mesh, &problem)?;
         disc.check_problem(&problem)?;
         let lagrangian = if case.time.is_some() { crate::discretize::solid::Lagrangian::Total } else { spec.loading.mode };
         let description = format!(
             "{}: solid-only ({}), {D}D mesh of {cells} cells; {}; nnz {}; {:?} Lagrangian",
             case.title,
-            problem.material.name(),
+            problem.material_names(),
             disc.layout
                 .fields
                 .iter()
@@ -229,7 +241,7 @@ impl Ctx<'_> {
         let fsi = case.kind() == RunKind::Fsi;
         let own: Vec<String> = mesh.boundary_names.iter().map(|(n, _)| n.clone()).collect();
         let mut adapted_names = own.clone();
-        if case.solid.is_some() {
+        if !case.solid.is_empty() {
             adapted_names.extend([GAMMA_F, GAMMA_F_PLUS, GAMMA_F_MINUS].map(String::from));
         }
         for b in &case.boundary {
@@ -242,9 +254,9 @@ impl Ctx<'_> {
         for p in &case.output.profile {
             self.known_boundary(&adapted_names, &p.boundary, &format!("[[output.profile]] '{}'", p.name))?;
         }
-        let solid = match &case.solid {
+        let solid = match case.first_solid() {
             Some(spec) => {
-                let s = self.solid_mesh::<D>(spec)?;
+                let s = self.solid_mesh::<D>()?.mesh;
                 self.solid_inside(&mesh, &s)?;
                 Some((spec, s))
             }
@@ -252,11 +264,11 @@ impl Ctx<'_> {
         };
         let cells = mesh.num_cells();
         let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.domain.len() + case.output.combination.len();
-        if let (true, Some((spec, _))) = (fsi, solid) {
-            let surface = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
+        if let (true, Some(_)) = (fsi, solid) {
+            let surface = case.solid_surface().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
             // The model `fdfsi run` builds, at t = 0: the same unknowns as its first step.
             let model = fsi_model(case, &mesh, self.dir)?;
-            let material = model.problem.solid.material.name();
+            let material = model.problem.solid.material_names();
             let disc = FsiDiscretization::build_with(&model, &vec![0.0; model.solid.num_dofs()], &Default::default(), Entries::Counted)?;
             self.probes_inside(&disc.flow.mesh)?;
             let dofs = disc.layout.dofs_per_part();
@@ -287,9 +299,9 @@ impl Ctx<'_> {
                 history_bytes: history_bytes(steps, quantities + D + 1),
             });
         }
-        let adapted = match &case.solid {
-            Some(_) => adapt_fluid(case, mesh, self.dir)?.adapted.mesh,
-            None => mesh,
+        let adapted = match case.solid.is_empty() {
+            false => adapt_fluid(case, mesh, self.dir)?.adapted.mesh,
+            true => mesh,
         };
         self.probes_inside(&adapted)?;
         let problem = flow_problem(case, &adapted, self.dir)?;
@@ -297,12 +309,12 @@ impl Ctx<'_> {
         // The entries counted, not stored: a run may hold only its rows of them.
         let disc = FlowDiscretization::build_for(adapted, &problem, Entries::Counted)?;
         let dofs = with_total(super::flow::flow_dofs(&disc));
-        let solid_text = match &case.solid {
-            Some(s) => format!(
+        let solid_text = match case.solid.is_empty() {
+            false => format!(
                 "; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells",
-                s.surface.as_ref().map(|s| s.joined()).unwrap_or_else(|| "?".into())
+                case.solid_surface().unwrap_or_else(|| "?".into())
             ),
-            None => String::new(),
+            true => String::new(),
         };
         let description = format!(
             "{}: {} flow ({}), {D}D mesh of {cells} cells{solid_text}; nnz {}",
@@ -344,11 +356,8 @@ impl Ctx<'_> {
         if let Some(x) = first {
             let (lo, hi) = bounding_box(&fluid.points);
             let span: Vec<String> = (0..D).map(|d| format!("[{}, {}]", lo[d], hi[d])).collect();
-            let placed = if self.case.solid.as_ref().is_some_and(|s| s.rotate_deg != 0.0 || s.translate.is_some()) {
-                " (placed by rotate_deg/translate)"
-            } else {
-                ""
-            };
+            let placed =
+                if self.case.solid.iter().any(|s| s.rotate_deg != 0.0 || s.translate.is_some()) { " (placed by rotate_deg/translate)" } else { "" };
             let which = if outside == total { "all".to_string() } else { format!("{outside} of {total}") };
             return Err(self.invalid(format!(
                 "solid: {which} vertices of the solid mesh{placed} lie outside the fluid mesh, the first at {}; \

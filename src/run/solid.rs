@@ -20,7 +20,7 @@ use crate::case::{Case, CaseError, ProbeField, CONTACT_QUANTITIES};
 use crate::discretize::solid::{LoadState, SolidDiscretization, SolidProblem};
 use crate::io::checkpoint::RestartState;
 use crate::io::fields::solid_grid;
-use crate::setup::{displacement_probes, solid_mesh, solid_problem, SetupError};
+use crate::setup::{displacement_probes, solid_mesh, solid_problem, SetupError, SolidMesh};
 use crate::time::march::StepDone;
 use crate::time::solid::{DynamicState, DynamicStepper, QuasiStaticStepper};
 use crate::time::Schedule;
@@ -44,20 +44,23 @@ fn invalid(message: String) -> RunError {
 }
 
 fn run_dim<const D: usize>(case: &Case, options: &RunOptions, obs: &mut dyn RunObserver) -> Result<RunSummary, RunError> {
-    let spec = case.solid.as_ref().ok_or_else(|| invalid("no [solid] table".into()))?;
+    let spec = case.first_solid().ok_or_else(|| invalid("no [solid] table".into()))?;
     let t = Instant::now();
-    let mesh = solid_mesh::<D>(spec, &options.case_dir)?;
+    let SolidMesh { mesh, cell_body } = solid_mesh::<D>(case, &options.case_dir)?;
     let cells = mesh.num_cells();
     let time = case.time.as_ref();
-    let problem = solid_problem::<D>(case, spec, time.is_none())?;
+    let problem = solid_problem::<D>(case, cell_body, time.is_none())?;
     let disc = SolidDiscretization::build_for(mesh, &problem)?;
     disc.check_problem(&problem)?;
     let mesh_seconds = t.elapsed().as_secs_f64();
     let steps = match time {
         None => format!("{} load steps", spec.loading.steps),
-        Some(ts) => format!("{} time steps of {} ({:?}), density {}", crate::time::num_steps(ts.dt, ts.end), ts.dt, ts.scheme, spec.density),
+        Some(ts) => {
+            let densities: Vec<String> = problem.bodies.iter().map(|b| b.density.to_string()).collect();
+            format!("{} time steps of {} ({:?}), density {}", crate::time::num_steps(ts.dt, ts.end), ts.dt, ts.scheme, densities.join(", "))
+        }
     };
-    obs.log(&format!("solid: {} on {cells} cells, {} dofs; {steps}", problem.material.name(), disc.num_dofs()));
+    obs.log(&format!("solid: {} on {cells} cells, {} dofs; {steps}", problem.material_names(), disc.num_dofs()));
     if let Some(p) = case.output.probe.iter().find(|p| p.field != ProbeField::Displacement) {
         return Err(invalid(format!("probe '{}': solid-only runs have displacement probes only", p.name)));
     }

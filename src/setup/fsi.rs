@@ -10,15 +10,16 @@ use fdfsi_fem::mesh::Mesh;
 /// The FSI model of a case on its (original) fluid mesh; relative paths in the case are resolved
 /// against `case_dir`.
 pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &std::path::Path) -> Result<FsiModel<D>, SetupError> {
-    let spec = case.solid.as_ref().ok_or_else(|| invalid("no [solid] table".into()))?;
+    let spec = case.first_solid().ok_or_else(|| invalid("no [solid] table".into()))?;
     case.time.as_ref().ok_or_else(|| invalid("FSI runs need a [time] table".into()))?;
-    let surface = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
+    let surface = case.solid_surface().ok_or_else(|| invalid("solid.surface is required with a fluid".into()))?;
     let fluid = flow_problem(case, fluid_mesh, case_dir)?;
-    let solid_mesh = super::solid_mesh::<D>(spec, case_dir)?;
-    let solid = super::solid_problem::<D>(case, spec, false)?;
+    let solid_mesh = super::solid_mesh::<D>(case, case_dir)?;
+    let solid = super::solid_problem::<D>(case, solid_mesh.cell_body, false)?;
     let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
-    let cut_offs: Vec<Option<f64>> = spec.contact.iter().map(|c| c.fluid_cut_off).collect();
-    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh)?
+    // In the order of the problem's contacts: solid after solid.
+    let cut_offs: Vec<Option<f64>> = case.solid.iter().flat_map(|s| &s.contact).map(|c| c.fluid_cut_off).collect();
+    Ok(FsiModel::new(problem, fluid_mesh, solid_mesh.mesh)?
         .with_multiplier(spec.multiplier)
         .with_covered_fluid(spec.covered_fluid)
         .with_cut_offs(&cut_offs))

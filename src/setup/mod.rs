@@ -19,7 +19,7 @@ mod fsi;
 mod solid;
 
 pub use fsi::fsi_model;
-pub use solid::{displacement_probes, material, merge_surface, placed_solid_mesh, solid_mesh, solid_problem};
+pub use solid::{displacement_probes, material, merge_surface, placed_solid_mesh, solid_mesh, solid_problem, SolidMesh};
 
 /// A case that cannot be built: what is wrong, and where.
 #[derive(Debug, Error)]
@@ -78,7 +78,7 @@ pub fn build_mesh(case: &Case, case_dir: &Path) -> Result<AnyMesh, SetupError> {
 /// (the facets on gamma_s then form the boundary `gamma_f`), with the counts of the adaptation.
 pub fn fluid_mesh(case: &Case, case_dir: &Path) -> Result<(AnyMesh, Option<AdaptStats>), SetupError> {
     let mesh = build_mesh(case, case_dir)?;
-    if case.solid.is_none() {
+    if case.solid.is_empty() {
         return Ok((mesh, None));
     }
     Ok(match mesh {
@@ -220,9 +220,9 @@ pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path)
 
 /// As [`adapt_fluid`], with the covered cells kept or removed as `covered` says.
 pub fn adapt_fluid_with<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path, covered: CoveredFluid) -> Result<AdaptedFluid<D>, SetupError> {
-    let spec = case.solid.as_ref().ok_or_else(|| SetupError::SolidMesh("the case has no [solid] table".into()))?;
-    let solid = solid_mesh::<D>(spec, case_dir)?;
-    let name = spec.surface.as_ref().map(|s| s.joined()).ok_or_else(|| SetupError::SolidMesh("solid.surface is not set".into()))?;
+    let spec = case.first_solid().ok_or_else(|| SetupError::SolidMesh("the case has no [solid] table".into()))?;
+    let solid = solid_mesh::<D>(case, case_dir)?.mesh;
+    let name = case.solid_surface().ok_or_else(|| SetupError::SolidMesh("solid.surface is not set".into()))?;
     let surface = Surface::from_mesh_boundary(&solid, &name)?;
     let background = Background::new(&fluid)?;
     Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat), covered)?)

@@ -2,7 +2,7 @@
 
 use super::{invalid, SetupError};
 use crate::case::{Case, Expr, ProbeField, SolidBoundaryType, SolidMeshSpec, SolidModel, SolidSpec};
-use crate::discretize::solid::{SolidDiscretization, SolidProblem};
+use crate::discretize::solid::{SolidBody, SolidDiscretization, SolidProblem};
 use crate::physics::contact::RigidPlane;
 use crate::physics::solid::{FibreField, FibreReinforced, NeoHookeanCompressible, NeoHookeanMixed, SaintVenantKirchhoff, SolidMaterial};
 use fdfsi_fem::element::ReferenceCell;
@@ -12,12 +12,41 @@ use fdfsi_fem::mesh::{GeometryOrder, Mesh};
 use std::path::Path;
 use std::sync::Arc;
 
+/// The solid mesh of a case, and the body of each of its cells.
+pub struct SolidMesh<const D: usize> {
+    pub mesh: Mesh<D>,
+    /// The body (the index of its `[[solid]]` table) of each cell; empty with one solid.
+    pub cell_body: Vec<usize>,
+}
+
 /// Builds the solid mesh of a case at its placed position, with the union of the boundaries of a
 /// `surface` of several names added under their joined name ([`crate::case::BoundaryNames`]).
-pub fn solid_mesh<const D: usize>(solid: &SolidSpec, case_dir: &Path) -> Result<Mesh<D>, SetupError> {
-    let mut mesh = placed_solid_mesh(solid, case_dir)?;
-    merge_surface(&mut mesh, solid)?;
-    Ok(mesh)
+/// Several solids (`[[solid]]`) are joined into one mesh of disjoint parts, solid after solid,
+/// their boundaries named as [`Case::solid_boundary`] says, and gamma_s, the union of their
+/// surfaces, added as [`Case::solid_surface`].
+pub fn solid_mesh<const D: usize>(case: &Case, case_dir: &Path) -> Result<SolidMesh<D>, SetupError> {
+    let parts = case
+        .solid
+        .iter()
+        .map(|spec| {
+            let mut mesh = placed_solid_mesh(spec, case_dir)?;
+            merge_surface(&mut mesh, spec)?;
+            Ok(mesh)
+        })
+        .collect::<Result<Vec<Mesh<D>>, SetupError>>()?;
+    if parts.len() < 2 {
+        let mesh = parts.into_iter().next().ok_or_else(|| SetupError::SolidMesh("the case has no [solid] table".into()))?;
+        return Ok(SolidMesh { mesh, cell_body: Vec::new() });
+    }
+    let named: Vec<(&str, &Mesh<D>)> = case.solid.iter().map(|s| s.name.as_deref().unwrap_or_default()).zip(&parts).collect();
+    let mut mesh = Mesh::disjoint_union(&named).map_err(|e| SetupError::SolidMesh(format!("the solids' meshes: {e}")))?;
+    let surfaces: Vec<String> =
+        case.solid.iter().enumerate().filter_map(|(k, s)| s.surface.as_ref().map(|b| case.solid_boundary(k, &b.joined()))).collect();
+    if let Some(gamma_s) = case.solid_surface() {
+        mesh.merge_boundaries(&surfaces, &gamma_s).map_err(|e| SetupError::SolidMesh(format!("gamma_s, the union of the solids' surfaces: {e}")))?;
+    }
+    let cell_body = parts.iter().enumerate().flat_map(|(k, m)| std::iter::repeat_n(k, m.num_cells())).collect();
+    Ok(SolidMesh { mesh, cell_body })
 }
 
 /// Adds the union of the boundaries `solid.surface` names, if it names several, under their
@@ -106,49 +135,65 @@ fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, SetupError> {
     values.iter().map(|v| Expr::compile(v).map_err(invalid)).collect()
 }
 
-/// The solid problem of a case. When `ramp` (quasi-static runs) the boundary values and the body
-/// force are multiplied by the load factor and their expressions see `t = 0`; otherwise
+/// The solid problem of a case, on its solid mesh whose cells are in the bodies `cell_body`
+/// ([`solid_mesh`]): one body per `[[solid]]` table, with its material, density and body force,
+/// and each table's boundary conditions and contacts on its boundaries (named as
+/// [`Case::solid_boundary`] says). When `ramp` (quasi-static runs) the boundary values and the
+/// body force are multiplied by the load factor and their expressions see `t = 0`; otherwise
 /// (time-dependent solid-only and FSI runs, whose solvers pass the time in the load argument)
 /// they are evaluated at `t` = that time.
-pub fn solid_problem<const D: usize>(case: &Case, spec: &SolidSpec, ramp: bool) -> Result<SolidProblem<D>, SetupError> {
+pub fn solid_problem<const D: usize>(case: &Case, cell_body: Vec<usize>, ramp: bool) -> Result<SolidProblem<D>, SetupError> {
     // (scale, t) of a load argument.
     let at = move |load: f64| if ramp { (load, 0.0) } else { (1.0, load) };
-    let mut p = SolidProblem::new(case.physics.formulation, material(spec)?);
-    p.density = spec.density;
-    for c in &spec.contact {
-        if let Some(master) = &c.against {
-            p = p.with_contact_against(&c.boundary, master);
-            continue;
+    let bodies = case.solid.iter().map(|spec| body(spec, ramp)).collect::<Result<Vec<SolidBody<D>>, SetupError>>()?;
+    let mut p = SolidProblem::with_bodies(case.physics.formulation, bodies, cell_body);
+    for (k, spec) in case.solid.iter().enumerate() {
+        let name = |local: &str| case.solid_boundary(k, local);
+        for c in &spec.contact {
+            if let Some(master) = &c.against {
+                p = p.with_contact_against(&name(&c.boundary), &name(master));
+                continue;
+            }
+            let (point, normal) =
+                (std::array::from_fn(|d| c.point.get(d).copied().unwrap_or(0.0)), std::array::from_fn(|d| c.normal.get(d).copied().unwrap_or(0.0)));
+            let plane = RigidPlane::new(point, normal)
+                .ok_or_else(|| invalid(format!("solid.contact '{}': the normal {:?} is not a direction", c.boundary, c.normal)))?;
+            p = p.with_contact(&name(&c.boundary), plane);
         }
-        let (point, normal) =
-            (std::array::from_fn(|d| c.point.get(d).copied().unwrap_or(0.0)), std::array::from_fn(|d| c.normal.get(d).copied().unwrap_or(0.0)));
-        let plane = RigidPlane::new(point, normal)
-            .ok_or_else(|| invalid(format!("solid.contact '{}': the normal {:?} is not a direction", c.boundary, c.normal)))?;
-        p = p.with_contact(&c.boundary, plane);
-    }
-    for b in &spec.boundary {
-        let exprs = compile(&b.value)?;
-        match b.kind {
-            SolidBoundaryType::Displacement => {
-                let comps: Vec<usize> = b.components.clone().unwrap_or_else(|| (0..D).collect());
-                p = p.with_displacement(&b.name, &comps, move |x, load| vector_at(&exprs, x, at(load)));
-            }
-            SolidBoundaryType::Traction => {
-                p = p.with_traction(&b.name, move |x, load| vector_at(&exprs, x, at(load)));
-            }
-            SolidBoundaryType::Pressure => {
-                p = p.with_pressure(&b.name, move |load| {
-                    let (scale, t) = at(load);
-                    scale * exprs[0].eval(&[0.0; 3], t)
-                });
+        for b in &spec.boundary {
+            let exprs = compile(&b.value)?;
+            let boundary = name(&b.name);
+            match b.kind {
+                SolidBoundaryType::Displacement => {
+                    let comps: Vec<usize> = b.components.clone().unwrap_or_else(|| (0..D).collect());
+                    p = p.with_displacement(&boundary, &comps, move |x, load| vector_at(&exprs, x, at(load)));
+                }
+                SolidBoundaryType::Traction => {
+                    p = p.with_traction(&boundary, move |x, load| vector_at(&exprs, x, at(load)));
+                }
+                SolidBoundaryType::Pressure => {
+                    p = p.with_pressure(&boundary, move |load| {
+                        let (scale, t) = at(load);
+                        scale * exprs[0].eval(&[0.0; 3], t)
+                    });
+                }
             }
         }
-    }
-    if let Some(f) = &spec.body_force {
-        let exprs = compile(f)?;
-        p.body_force = Some(Arc::new(move |x, load| vector_at(&exprs, x, at(load))));
     }
     Ok(p)
+}
+
+/// The body of a solid spec: its material, density and body force (see [`solid_problem`] for
+/// `ramp`).
+fn body<const D: usize>(spec: &SolidSpec, ramp: bool) -> Result<SolidBody<D>, SetupError> {
+    let at = move |load: f64| if ramp { (load, 0.0) } else { (1.0, load) };
+    let mut body = SolidBody::new(material(spec)?);
+    body.density = spec.density;
+    if let Some(f) = &spec.body_force {
+        let exprs = compile(f)?;
+        body.body_force = Some(Arc::new(move |x, load| vector_at(&exprs, x, at(load))));
+    }
+    Ok(body)
 }
 
 /// `scale * e_a(x, t)` for each component `a`.

@@ -417,8 +417,8 @@ pub fn solid_time_convergence(scheme: crate::time::TimeScheme) -> Result<Study, 
             let p = stress(t);
             [p[0][1], p[1][1]]
         });
-    problem.density = rho;
-    problem.body_force = Some(Arc::new(move |x: &[f64; 2], t| affine(rho * s2(t), x)));
+    problem.bodies[0].density = rho;
+    problem.bodies[0].body_force = Some(Arc::new(move |x: &[f64; 2], t| affine(rho * s2(t), x)));
     let mesh = fdfsi_fem::generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, fdfsi_fem::mesh::GeometryOrder::Quadratic);
     let disc = SolidDiscretization::build(mesh, Formulation::Plane, material.as_ref())?;
     let steps = [10usize, 20, 40, 80];

@@ -205,6 +205,66 @@ impl<const D: usize> Mesh<D> {
         self.add_boundary_name(merged, tag);
         Ok(())
     }
+
+    /// The meshes `parts` side by side as one mesh of disjoint parts (no nodes shared), in
+    /// order: part `k`'s nodes and cells follow those of parts `0..k`. Its boundary `B` and
+    /// region `R` become `NAME/B` and `NAME/R` (`NAME` the part's name), each under a tag of its
+    /// own (tags without a name too, unnamed). The parts must be of one cell type and geometric
+    /// order.
+    pub fn disjoint_union(parts: &[(&str, &Mesh<D>)]) -> Result<Mesh<D>, MeshError> {
+        let Some((_, first)) = parts.first() else { return Err(MeshError::Invalid("a union of no meshes".into())) };
+        let mut union = Mesh {
+            points: Vec::new(),
+            cell_type: first.cell_type,
+            order: first.order,
+            cell_nodes: Vec::new(),
+            cell_tags: Vec::new(),
+            region_names: Vec::new(),
+            boundary: Vec::new(),
+            boundary_names: Vec::new(),
+        };
+        let (mut next_boundary, mut next_region) = (0u32, 0u32);
+        for (name, part) in parts {
+            if (part.cell_type, part.order) != (first.cell_type, first.order) {
+                return Err(MeshError::Invalid(format!(
+                    "part '{name}' has {:?} {:?} cells, the first part {:?} {:?}: the parts must be of one kind",
+                    part.order, part.cell_type, first.order, first.cell_type
+                )));
+            }
+            let (nodes, cells) = (union.points.len(), union.num_cells());
+            union.points.extend_from_slice(&part.points);
+            union.cell_nodes.extend(part.cell_nodes.iter().map(|&n| n + nodes));
+            let regions = retag(&part.cell_tags, &part.region_names, name, &mut next_region, &mut union.region_names);
+            union.cell_tags.extend(part.cell_tags.iter().map(|t| regions[t]));
+            let boundary_tags: Vec<u32> = part.boundary.iter().map(|b| b.tag).collect();
+            let boundaries = retag(&boundary_tags, &part.boundary_names, name, &mut next_boundary, &mut union.boundary_names);
+            union.boundary.extend(part.boundary.iter().map(|b| BoundaryFacet { cell: b.cell + cells, facet: b.facet, tag: boundaries[&b.tag] }));
+        }
+        Ok(union)
+    }
+}
+
+/// New tags, from `*next + 1` on, for the tags `used` and those of `names`, the names prefixed by
+/// `part/` and added to `union_names`: the map from old tags to new.
+fn retag(
+    used: &[u32],
+    names: &[(String, u32)],
+    part: &str,
+    next: &mut u32,
+    union_names: &mut Vec<(String, u32)>,
+) -> std::collections::HashMap<u32, u32> {
+    let mut old: Vec<u32> = used.iter().copied().chain(names.iter().map(|(_, t)| *t)).collect();
+    old.sort_unstable();
+    old.dedup();
+    let map: std::collections::HashMap<u32, u32> = old
+        .into_iter()
+        .map(|t| {
+            *next += 1;
+            (t, *next)
+        })
+        .collect();
+    union_names.extend(names.iter().map(|(n, t)| (format!("{part}/{n}"), map[t])));
+    map
 }
 
 fn names(list: &[(String, u32)]) -> String {
@@ -453,6 +513,28 @@ mod tests {
         let mut m = two_triangles();
         m.cell_nodes.swap(1, 2);
         assert!(matches!(m.check(), Err(MeshError::InvertedCell { cell: 0, .. })));
+    }
+
+    #[test]
+    fn disjoint_union_keeps_each_part_under_its_name() {
+        let a = crate::generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 1, GeometryOrder::Quadratic);
+        let b = crate::generate::rectangle_quads(2.0, 3.0, 0.0, 2.0, 1, 3, GeometryOrder::Quadratic);
+        let u = Mesh::disjoint_union(&[("a", &a), ("b", &b)]).unwrap();
+        u.check().unwrap();
+        assert_eq!((u.points.len(), u.num_cells()), (a.points.len() + b.points.len(), 5));
+        assert_eq!(u.points[a.points.len()], b.points[0]);
+        assert_eq!(u.cell(2), b.cell(0).iter().map(|n| n + a.points.len()).collect::<Vec<_>>());
+        for (part, name, mesh, cells) in [("a", "left", &a, 0), ("b", "top", &b, 2)] {
+            let facets = u.boundary_facets(&format!("{part}/{name}")).unwrap();
+            let own = mesh.boundary_facets(name).unwrap();
+            assert_eq!(facets.len(), own.len());
+            assert!(facets.iter().zip(&own).all(|(f, o)| f.cell == o.cell + cells && f.facet == o.facet));
+        }
+        assert!(u.boundary_tag("left").is_err(), "names are prefixed by their part's");
+        let tags: std::collections::HashSet<u32> = u.boundary_names.iter().map(|(_, t)| *t).collect();
+        assert_eq!(tags.len(), u.boundary_names.len(), "a tag of its own for each boundary");
+        let tri = two_triangles();
+        assert!(Mesh::disjoint_union(&[("a", &a), ("t", &tri)]).is_err(), "one kind of cell");
     }
 
     #[test]
