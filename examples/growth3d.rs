@@ -41,6 +41,7 @@ fn main() {
             convection,
             convective_form: Default::default(),
             viscous_form: Default::default(),
+            stabilization: Default::default(),
         },
         body_force: None,
         dirichlet: ["xmin", "xmax", "ymin", "ymax", "zmin"].iter().map(|b| wall(b, 0.0)).chain([wall("zmax", 1.0)]).collect(),

@@ -47,6 +47,7 @@ fn cavity(viscosity: f64, inv_dt: f64) -> (FlowDiscretization<2>, FlowProblem<2>
             convection: true,
             convective_form: Default::default(),
             viscous_form: Default::default(),
+            stabilization: Default::default(),
         },
         body_force: None,
         dirichlet: vec![wall("left", 0.0), wall("right", 0.0), wall("bottom", 0.0), wall("top", 1.0)],

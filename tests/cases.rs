@@ -152,6 +152,27 @@ fn channel_stokes_is_poiseuille_mid_channel() {
     }
 }
 
+/// SUPG is consistent on a whole case: the channel at Reynolds number 100 (viscosity 0.01, cell
+/// Reynolds number up to 26), Navier-Stokes with `stabilization = "supg"`, is still plane
+/// Poiseuille flow mid-channel, to 1e-9, with its pressure drop `12 eta U / H^2` per length: the
+/// strong residual, second derivatives included, is zero there, so the stabilisation adds
+/// nothing.
+#[test]
+fn channel_navier_stokes_with_supg_is_still_poiseuille() {
+    use fdfsi::case::FlowModel;
+    use fdfsi::physics::fluid::Stabilization;
+    let (s, _) = run_with("channel-stokes", |c| {
+        c.physics.model = FlowModel::NavierStokes;
+        let fluid = c.fluid.as_mut().unwrap();
+        fluid.viscosity = 0.01;
+        fluid.stabilization = Stabilization::Supg;
+    });
+    println!("centre velocity {:.12}, pressure drop {:.12}", q(&s, "centre_velocity"), q(&s, "pressure_at_x9") - q(&s, "centre_pressure"));
+    assert!((q(&s, "centre_velocity") - 1.5).abs() < 1e-9, "{}", q(&s, "centre_velocity"));
+    let dp = q(&s, "pressure_at_x9") - q(&s, "centre_pressure");
+    assert!((dp - 0.12).abs() < 1e-9, "pressure drop per unit length {dp}");
+}
+
 #[test]
 fn axisymmetric_pipe_is_hagen_poiseuille_to_round_off() {
     let (s, _) = run("pipe-axisymmetric-stokes");

@@ -34,6 +34,7 @@ fn tiny_model() -> FsiModel<2> {
         convection: true,
         convective_form: Default::default(),
         viscous_form: ViscousForm::Stress,
+        stabilization: Default::default(),
     };
     let flow = FlowProblem {
         formulation: Formulation::Plane,

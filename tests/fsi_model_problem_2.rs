@@ -85,6 +85,7 @@ fn channel(t_ramp: f64) -> FlowProblem<2> {
         convection: true,
         convective_form: Default::default(),
         viscous_form: ViscousForm::Stress,
+        stabilization: Default::default(),
     };
     let wall = |name: &str| DirichletBc { boundary: name.into(), components: vec![0, 1], value: Arc::new(|_: &[f64; 2], _| [0.0; 2]) };
     let inflow = DirichletBc {
@@ -365,6 +366,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
         convection: true,
         convective_form: Default::default(),
         viscous_form: ViscousForm::Stress,
+        stabilization: Default::default(),
     };
     let flow = FlowProblem {
         formulation: Formulation::Plane,

@@ -60,6 +60,7 @@ fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
             convection: true,
             convective_form: Default::default(),
             viscous_form: Default::default(),
+            stabilization: Default::default(),
         },
         body_force: None,
         dirichlet: vec![wall("top", 1.0), wall("bottom", 0.0), wall("left", 0.0), wall("right", 0.0)],

@@ -592,6 +592,11 @@ pub struct FluidSpec {
     /// [`crate::physics::fluid::ConvectiveForm`]).
     #[serde(default, skip_serializing_if = "is_default")]
     pub convective_form: crate::physics::fluid::ConvectiveForm,
+    /// `none` (default, the paper's Galerkin method) or `supg` (Navier-Stokes:
+    /// streamline-upwind/Petrov-Galerkin, consistent, for flows whose cell Reynolds number is
+    /// large; see [`crate::physics::fluid::Stabilization`]).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub stabilization: crate::physics::fluid::Stabilization,
 }
 
 /// A number or an expression of `x, y, z, r, t` (exmex syntax: `+ - * / ^`, `sin`, `cos`,

@@ -74,6 +74,9 @@ fn fluid(c: &Case, p: &mut Problems) {
         (Some(_), Some(f), _) => {
             p.positive(f.density, "fluid.density");
             p.positive(f.viscosity, "fluid.viscosity");
+            if f.stabilization != crate::physics::fluid::Stabilization::None && c.physics.model != FlowModel::NavierStokes {
+                p.push("fluid.stabilization = \"supg\" needs model = \"navier-stokes\" (Stokes flow has no convection to stabilise)");
+            }
         }
         (Some(_), None, _) => p.push("a fluid mesh needs a [fluid] table (density, viscosity)"),
         (None, _, Some(s)) if s.model != SolidModel::Fixed => {}

@@ -8,7 +8,7 @@
 //! [`FlowSolution`].
 
 use super::system_cell_dofs;
-use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation};
+use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation, Stabilization};
 use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
@@ -547,7 +547,7 @@ impl<const D: usize> FlowDiscretization<D> {
         colouring: &Colouring,
         target: &mut impl SystemTarget,
     ) -> Result<(), AssemblyError> {
-        target.add_cells(colouring, constrained, self.cell_scratch(), self.cell_kernel(problem, x, x_old, t))?;
+        target.add_cells(colouring, constrained, self.cell_scratch(problem.params.stabilization), self.cell_kernel(problem, x, x_old, t))?;
         self.add_tractions(problem, t, |dof, v| {
             if !constrained[dof] {
                 target.add_rhs(dof, -v);
@@ -562,9 +562,17 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 
     /// A fresh scratch of [`FlowDiscretization::cell_kernel`], per thread.
-    fn cell_scratch(&self) -> impl Fn() -> CellScratch<D> + Sync + Send + '_ {
+    /// With SUPG the cell values carry the basis' second derivatives.
+    fn cell_scratch(&self, stabilization: Stabilization) -> impl Fn() -> CellScratch<D> + Sync + Send + '_ {
         let n = self.layout.dofs_per_cell();
-        move || (self.cell_values(self.cell_rule.clone()), Vec::new(), Vec::new(), vec![0.0; n])
+        move || {
+            let cv = self.cell_values(self.cell_rule.clone());
+            let cv = match stabilization {
+                Stabilization::None => cv,
+                Stabilization::Supg => cv.with_hessians(&self.velocity_element, &self.geometry_element),
+            };
+            (cv, Vec::new(), Vec::new(), vec![0.0; n])
+        }
     }
 
     /// The flow's cell kernel at `x` (history `x_old`, time `t`): the cell's unknowns, its
@@ -1024,6 +1032,7 @@ mod tests {
                 convection: true,
                 convective_form: Default::default(),
                 viscous_form: Default::default(),
+                stabilization: Default::default(),
             };
             let backflow = vec![BackflowBc { boundary: "right".into(), beta: 0.8 }];
             let problem = FlowProblem {

@@ -86,6 +86,26 @@ pub enum ConvectiveForm {
     SkewSymmetric,
 }
 
+/// Stabilisation of the convection (Navier-Stokes).
+/// - `None`: the paper's Galerkin method (P2+/P1disc is inf-sup stable: the pressure needs none);
+/// - `Supg`: streamline-upwind/Petrov-Galerkin (Brooks & Hughes 1982), the test function of the
+///   momentum equation moved along the flow in each cell: adds
+///   `sum_K int_K tau (u . grad v) . r(u, p)`, with `r = rho (du/dt + u . grad u) + grad p -
+///   div(eta (grad u + grad u^T)) - f` the strong momentum residual (the Laplace form's viscous
+///   term `eta Laplace u`; axisymmetric with its hoop terms), zero for the exact solution: the
+///   method stays consistent. `tau = ((2 a)^2 + (2 |u| / h)^2 + 9 (4 nu / h^2)^2)^(-1/2)`
+///   (Shakib, Hughes & Johan 1991), `a` the time scheme's `1/dt` factor (0 when steady),
+///   `nu = eta / rho`, `h = (D! |K|)^(1/D) / 2` (the cell's size over the velocity's degree). It
+///   removes the node-to-node wiggles of the Galerkin velocity where the cell Reynolds number
+///   `|u| h / nu` is large. The Jacobian is exact (`tau`'s dependence on `u` included).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stabilization {
+    #[default]
+    None,
+    Supg,
+}
+
 /// Material and time-discretisation parameters of the fluid kernel.
 #[derive(Clone, Copy, Debug)]
 pub struct FluidParams {
@@ -101,6 +121,9 @@ pub struct FluidParams {
     pub convective_form: ConvectiveForm,
     /// Form of the viscous term.
     pub viscous_form: ViscousForm,
+    /// Stabilisation of the convection; SUPG needs cell values made
+    /// [`CellValues::with_hessians`].
+    pub stabilization: Stabilization,
 }
 
 /// Local unknowns of one cell: velocity `u[i * D + a]` (node `i`, component `a`), the previous
@@ -139,6 +162,11 @@ pub fn fluid_cell<const D: usize>(
     };
     // rho / 2 of the skew-symmetric form's term (rho / 2) (div u) u; 0 in the convective form.
     let skew = if params.convection && params.convective_form == ConvectiveForm::SkewSymmetric { 0.5 * rho } else { 0.0 };
+    let supg = (params.convection && params.stabilization == Stabilization::Supg).then(|| {
+        let measure: f64 = cv.jxw.iter().sum();
+        let factorial = if D == 3 { 6.0 } else { 2.0 };
+        Supg { h: 0.5 * (factorial * measure).powf(1.0 / D as f64), sym, axi }
+    });
     let mut psi = [0.0; 4];
     for q in 0..cv.num_points() {
         let x = cv.x[q];
@@ -168,6 +196,11 @@ pub fn fluid_cell<const D: usize>(
         let hoop = if axi { u[1] / r } else { 0.0 };
         div_u += hoop;
         let f = body_force(&x);
+        if let Some(supg) = &supg {
+            let grad_p: [f64; D] = std::array::from_fn(|a| state.p[a + 1]);
+            let point = SupgPoint { w, r, u, u_old, gu, grad_p, f, phi, dphi, hessian: cv.hessian_phi(q) };
+            supg.add(params, &point, state.u, n, ke, re);
+        }
         // Momentum "force" per component: inertia + convection - body force.
         let mut m = [0.0; D];
         for a in 0..D {
@@ -256,6 +289,101 @@ pub fn fluid_cell<const D: usize>(
     }
 }
 
+/// The SUPG term of one cell ([`Stabilization::Supg`]): its size `h`, the viscous form's
+/// weight `sym` of the transposed gradient, and whether it is axisymmetric.
+struct Supg {
+    h: f64,
+    sym: f64,
+    axi: bool,
+}
+
+/// The fields at one quadrature point, for [`Supg::add`]: weight `w` (times `r`), radius `r` (1
+/// in plane), `u`, `u_old`, `gu[a][b] = du_a/dx_b`, the pressure gradient, the body force, the
+/// basis values, gradients and second derivatives.
+struct SupgPoint<'a, const D: usize> {
+    w: f64,
+    r: f64,
+    u: [f64; D],
+    u_old: [f64; D],
+    gu: [[f64; D]; D],
+    grad_p: [f64; D],
+    f: [f64; D],
+    phi: &'a [f64],
+    dphi: &'a [[f64; D]],
+    hessian: &'a [[[f64; D]; D]],
+}
+
+impl Supg {
+    /// Adds `w tau (u . grad phi_i) r_a` to the residual rows of the velocity and its exact
+    /// derivatives to `ke` (`n` local unknowns; the velocity `u_nodes[i * D + a]`).
+    fn add<const D: usize>(&self, params: &FluidParams, pt: &SupgPoint<'_, D>, u_nodes: &[f64], n: usize, ke: &mut [f64], re: &mut [f64]) {
+        let (eta, rho, a_t, h, r) = (params.viscosity, params.density, params.inv_dt, self.h, pt.r);
+        let (u, gu, phi, dphi, hess) = (&pt.u, &pt.gu, pt.phi, pt.dphi, pt.hessian);
+        let nv = phi.len();
+        // Second derivatives of u: Laplace u and grad div u, with the axisymmetric hoop terms
+        // (x = (z, r), no swirl): Laplace u_a += (du_a/dr) / r - [a = r] u_r / r^2,
+        // d_a div u += (du_r/dx_a) / r - [a = r] u_r / r^2.
+        let mut lap = [0.0; D];
+        let mut grad_div = [0.0; D];
+        for (i, hi) in hess.iter().enumerate() {
+            for a in 0..D {
+                let ua = u_nodes[i * D + a];
+                for b in 0..D {
+                    lap[a] += ua * hi[b][b];
+                    grad_div[b] += ua * hi[a][b];
+                }
+            }
+        }
+        if self.axi {
+            for a in 0..D {
+                lap[a] += gu[a][1] / r;
+                grad_div[a] += gu[1][a] / r;
+            }
+            lap[1] -= u[1] / (r * r);
+            grad_div[1] -= u[1] / (r * r);
+        }
+        let residual: [f64; D] = std::array::from_fn(|a| {
+            let convection: f64 = (0..D).map(|b| u[b] * gu[a][b]).sum();
+            rho * a_t * (u[a] - pt.u_old[a]) + rho * convection + pt.grad_p[a] - pt.f[a] - eta * (lap[a] + self.sym * grad_div[a])
+        });
+        let nu = eta / rho;
+        let speed2: f64 = u.iter().map(|v| v * v).sum();
+        let tau = 1.0 / ((2.0 * a_t).powi(2) + 4.0 * speed2 / (h * h) + 144.0 * (nu / (h * h)).powi(2)).sqrt();
+        // d tau / d u_b = -tau^3 (4 / h^2) u_b (times phi_j).
+        let dtau: [f64; D] = std::array::from_fn(|b| -tau.powi(3) * 4.0 / (h * h) * u[b]);
+        let streamline: Vec<f64> = (0..nv).map(|i| (0..D).map(|b| u[b] * dphi[i][b]).sum()).collect();
+        let w = pt.w;
+        let nu_dofs = nv * D;
+        for i in 0..nv {
+            let s_i = streamline[i];
+            for a in 0..D {
+                let row = (i * D + a) * n;
+                re[i * D + a] += w * tau * s_i * residual[a];
+                // The pressure: d r_a / d p_k = d psi_k / dx_a, 1 for k = a + 1 (psi = {1, x - c}).
+                ke[row + nu_dofs + a + 1] += w * tau * s_i;
+                for j in 0..nv {
+                    let (pj, dpj, hj) = (phi[j], &dphi[j], &hess[j]);
+                    let trace: f64 = (0..D).map(|c| hj[c][c]).sum::<f64>() + if self.axi { dpj[1] / r } else { 0.0 };
+                    for b in 0..D {
+                        // d r_a / d u_jb.
+                        let mut dr = rho * pj * gu[a][b];
+                        let mut dvisc = self.sym * hj[a][b];
+                        if self.axi && b == 1 {
+                            dvisc += self.sym * (dpj[a] / r - if a == 1 { pj / (r * r) } else { 0.0 });
+                        }
+                        if a == b {
+                            dr += rho * a_t * pj + rho * streamline[j];
+                            dvisc += trace - if self.axi && a == 1 { pj / (r * r) } else { 0.0 };
+                        }
+                        dr -= eta * dvisc;
+                        ke[row + j * D + b] += w * (dtau[b] * pj * s_i * residual[a] + tau * pj * dphi[i][b] * residual[a] + tau * s_i * dr);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Traction (Neumann) facet kernel: subtracts `int_facet t . v (r)` from the residual rows of the
 /// velocity. `phi` at each point comes from `fv`; `traction(x, n)` gives `t`.
 #[allow(clippy::type_complexity, reason = "the traction as a function of position and normal")]
@@ -297,7 +425,15 @@ mod tests {
             .into_iter()
             .flat_map(|v| [(v, ConvectiveForm::Convective), (v, ConvectiveForm::SkewSymmetric)]);
         for (form_v, form_c) in forms {
-            let params = FluidParams { viscosity: 0.7, density: 1.3, inv_dt: 5.0, convection: true, convective_form: form_c, viscous_form: form_v };
+            let params = FluidParams {
+                viscosity: 0.7,
+                density: 1.3,
+                inv_dt: 5.0,
+                convection: true,
+                convective_form: form_c,
+                viscous_form: form_v,
+                stabilization: Stabilization::None,
+            };
             let mut s = 7u64;
             let mut rnd = || {
                 s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
@@ -334,6 +470,145 @@ mod tests {
         }
     }
 
+    /// With SUPG the kernel's Jacobian (`tau`'s dependence on `u`, the streamline test function,
+    /// the strong residual's second derivatives) equals a central finite difference of its
+    /// residual: plane and axisymmetric, both viscous forms, steady and unsteady, on a straight
+    /// and a curved (P2 geometry) cell.
+    #[test]
+    fn supg_jacobian_matches_finite_differences_of_residual() {
+        let fun = ReferenceElement::p2plus_triangle();
+        let straight = ReferenceElement::p1_triangle();
+        let curved = ReferenceElement::p2_triangle();
+        let cells: [(&ReferenceElement<2>, Vec<[f64; 2]>); 2] = [
+            (&straight, vec![[0.2, 0.3], [1.1, 0.4], [0.5, 1.2]]),
+            (&curved, vec![[0.2, 0.3], [1.1, 0.4], [0.5, 1.2], [0.65, 0.3], [0.9, 0.9], [0.3, 0.75]]),
+        ];
+        let (nu, n) = (14, 17);
+        let mut s = 11u64;
+        let mut rnd = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let x0: Vec<f64> = (0..n).map(|_| 3.0 * rnd()).collect();
+        let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
+        let f = |x: &[f64; 2]| [x[0].sin(), x[1] * x[0]];
+        for (geo, coords) in &cells {
+            let mut cv = CellValues::new(quadrature::triangle(5), &fun, geo).with_hessians(&fun, geo);
+            cv.reinit(coords).unwrap();
+            for (form_v, inv_dt, form) in [
+                (ViscousForm::Stress, 5.0, Formulation::Plane),
+                (ViscousForm::Laplace, 0.0, Formulation::Plane),
+                (ViscousForm::Stress, 0.0, Formulation::Axisymmetric),
+                (ViscousForm::Laplace, 5.0, Formulation::Axisymmetric),
+            ] {
+                let params = FluidParams {
+                    viscosity: 0.07,
+                    density: 1.3,
+                    inv_dt,
+                    convection: true,
+                    convective_form: ConvectiveForm::Convective,
+                    viscous_form: form_v,
+                    stabilization: Stabilization::Supg,
+                };
+                let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
+                    ke.iter_mut().for_each(|v| *v = 0.0);
+                    re.iter_mut().for_each(|v| *v = 0.0);
+                    let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
+                    fluid_cell(&cv, form, &params, &st, &f, ke, re);
+                };
+                let (mut ke, mut re) = (vec![0.0; n * n], vec![0.0; n]);
+                eval(&x0, &mut ke, &mut re);
+                // The SUPG term is there: the residual differs from Galerkin's.
+                let galerkin = FluidParams { stabilization: Stabilization::None, ..params };
+                let (mut kg, mut rg) = (vec![0.0; n * n], vec![0.0; n]);
+                let st = CellState { u: &x0[..nu], u_old: &u_old, p: &x0[nu..] };
+                fluid_cell(&cv, form, &galerkin, &st, &f, &mut kg, &mut rg);
+                assert!(re.iter().zip(&rg).any(|(a, b)| (a - b).abs() > 1e-3 * b.abs().max(1.0)), "{form:?}: no SUPG term");
+                let h = 1e-6;
+                for j in 0..n {
+                    let (mut xp, mut xm) = (x0.clone(), x0.clone());
+                    xp[j] += h;
+                    xm[j] -= h;
+                    let (mut kp, mut rp, mut rm) = (vec![0.0; n * n], vec![0.0; n], vec![0.0; n]);
+                    eval(&xp, &mut kp, &mut rp);
+                    eval(&xm, &mut kp, &mut rm);
+                    for i in 0..n {
+                        let fd = (rp[i] - rm[i]) / (2.0 * h);
+                        assert!(
+                            (fd - ke[i * n + j]).abs() < 1e-6 * (1.0 + fd.abs()),
+                            "{form:?} {form_v:?} inv_dt {inv_dt} ({} geometry nodes): K[{i}][{j}] = {} vs FD {fd}",
+                            coords.len(),
+                            ke[i * n + j]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// SUPG is consistent: where the velocity and the pressure are the exact solution (here a
+    /// quadratic velocity with its pressure, interpolated exactly by P2+/P1disc, and the body
+    /// force that makes them solve the Navier-Stokes equations), the SUPG term of the residual
+    /// is zero; axisymmetric too (a straight cell: on a curved one P2+ does not hold quadratics).
+    #[test]
+    fn supg_vanishes_on_an_exact_solution() {
+        let fun = ReferenceElement::p2plus_triangle();
+        let geo = ReferenceElement::p1_triangle();
+        let coords = [[0.2, 0.3], [1.1, 0.4], [0.5, 1.2]];
+        let mut cv = CellValues::new(quadrature::triangle(6), &fun, &geo).with_hessians(&fun, &geo);
+        cv.reinit(&coords).unwrap();
+        // The velocity nodes' positions: the map of the reference nodes.
+        let tab = geo.tabulate(fun.nodes());
+        let nodes: Vec<[f64; 2]> = (0..7).map(|i| std::array::from_fn(|d| (0..3).map(|k| tab.values[i * 3 + k] * coords[k][d]).sum())).collect();
+        let (eta, rho, inv_dt) = (0.3, 1.3, 4.0);
+        // u = (x^2 + y, x y - 1) (not divergence-free: the residual holds any u), u_old = u - (1, 2) / inv_dt,
+        // p = 2 + x - 3 y: f = rho (du/dt + u . grad u) + grad p - div(eta (grad u + grad u^T)) - eta / r-terms.
+        let u_at = |x: &[f64; 2]| [x[0] * x[0] + x[1], x[0] * x[1] - 1.0];
+        let (p0, px, py) = (2.0, 1.0, -3.0);
+        for (form, form_v) in
+            [(Formulation::Plane, ViscousForm::Stress), (Formulation::Plane, ViscousForm::Laplace), (Formulation::Axisymmetric, ViscousForm::Stress)]
+        {
+            let axi = form == Formulation::Axisymmetric;
+            let sym = if form_v == ViscousForm::Stress { 1.0 } else { 0.0 };
+            let force = |x: &[f64; 2]| -> [f64; 2] {
+                let [u, v] = u_at(x);
+                let g = [[2.0 * x[0], 1.0], [x[1], x[0]]];
+                // Laplace u = (2, 0); grad div u = grad(2 x + x) = (3, 0).
+                let mut lap = [2.0, 0.0];
+                let mut grad_div = [3.0, 0.0];
+                if axi {
+                    let r = x[1];
+                    lap = [lap[0] + g[0][1] / r, lap[1] + g[1][1] / r - v / (r * r)];
+                    grad_div = [grad_div[0] + g[1][0] / r, grad_div[1] + g[1][1] / r - v / (r * r)];
+                }
+                let dudt = [1.0, 2.0];
+                std::array::from_fn(|a| rho * (dudt[a] + u * g[a][0] + v * g[a][1]) + [px, py][a] - eta * (lap[a] + sym * grad_div[a]))
+            };
+            let u: Vec<f64> = nodes.iter().flat_map(&u_at).collect();
+            let u_old: Vec<f64> = u.iter().enumerate().map(|(k, v)| v - [1.0, 2.0][k % 2] / inv_dt).collect();
+            let c = cv.centroid;
+            let p = [p0 + px * c[0] + py * c[1], px, py];
+            let params = |stabilization| FluidParams {
+                viscosity: eta,
+                density: rho,
+                inv_dt,
+                convection: true,
+                convective_form: ConvectiveForm::Convective,
+                viscous_form: form_v,
+                stabilization,
+            };
+            let residual = |stabilization| {
+                let (mut ke, mut re) = (vec![0.0; 17 * 17], vec![0.0; 17]);
+                fluid_cell(&cv, form, &params(stabilization), &CellState { u: &u, u_old: &u_old, p: &p }, &force, &mut ke, &mut re);
+                re
+            };
+            let (with, without) = (residual(Stabilization::Supg), residual(Stabilization::None));
+            let scale = without.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let worst = with.iter().zip(&without).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(worst < 1e-12 * scale, "{form:?} {form_v:?}: SUPG term {worst:e} of {scale:e}");
+        }
+    }
+
     /// The skew-symmetric convective term's work on the velocity itself is the boundary term
     /// `rho / 2 int_dK (u . n) |u|^2` on a cell, for any velocity (one not divergence-free
     /// here); the convective form's differs from it by `rho / 2 int_K (div u) |u|^2`.
@@ -350,8 +625,15 @@ mod tests {
         let u: Vec<f64> = (0..nu).map(|k| ((k * 7 + 3) % 11) as f64 / 5.0 - 1.0).collect();
         let rho = 1.3;
         let work = |form: ConvectiveForm| {
-            let params =
-                FluidParams { viscosity: 0.0, density: rho, inv_dt: 0.0, convection: true, convective_form: form, viscous_form: ViscousForm::Stress };
+            let params = FluidParams {
+                viscosity: 0.0,
+                density: rho,
+                inv_dt: 0.0,
+                convection: true,
+                convective_form: form,
+                viscous_form: ViscousForm::Stress,
+                stabilization: Stabilization::None,
+            };
             let (mut ke, mut re) = (vec![0.0; n * n], vec![0.0; n]);
             let st = CellState { u: &u, u_old: &u, p: &[0.0; 3] };
             fluid_cell(&cv, Formulation::Plane, &params, &st, &|_| [0.0; 2], &mut ke, &mut re);

@@ -201,6 +201,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
             convection: case.physics.model == FlowModel::NavierStokes,
             convective_form: fluid.convective_form,
             viscous_form: fluid.viscous_form,
+            stabilization: fluid.stabilization,
         },
         body_force,
         dirichlet,

@@ -27,7 +27,7 @@ pub mod solid_exact;
 pub mod womersley;
 
 use crate::discretize::flow::{flow_errors, solve_steady, DirichletBc, ExactFlow, FlowDiscretization, FlowError, FlowProblem, TractionBc};
-use crate::physics::fluid::{FluidParams, Formulation};
+use crate::physics::fluid::{FluidParams, Formulation, Stabilization};
 use crate::solve::linear::FaerLu;
 use crate::solve::newton::NewtonOptions;
 use fdfsi_fem::generate::{box_tetrahedra, rectangle_triangles, DiagonalPattern};
@@ -105,6 +105,7 @@ pub fn manufactured_problem<const D: usize>(
             convection: false,
             convective_form: Default::default(),
             viscous_form: Default::default(),
+            stabilization: Default::default(),
         },
         body_force: Some(Arc::new(move |x: &[f64; D], _t| ex.body_force(x))),
         dirichlet: dirichlet
@@ -260,8 +261,9 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
     progress("stokes-3d");
     runs.push(stokes_3d(effort)?);
     let mut studies: Vec<Study> = runs.iter().flat_map(|r| r.studies.clone()).collect();
-    progress("kovasznay");
-    studies.extend(kovasznay(effort)?);
+    progress("kovasznay, kovasznay-supg");
+    studies.extend(kovasznay(effort, Stabilization::None)?);
+    studies.extend(kovasznay(effort, Stabilization::Supg)?);
     progress("time-euler, time-bdf2");
     studies.push(time_convergence(crate::time::TimeScheme::Euler)?);
     studies.push(time_convergence(crate::time::TimeScheme::Bdf2)?);
@@ -279,8 +281,9 @@ pub fn run_all(effort: Effort, mut progress: impl FnMut(&str)) -> Result<(Verify
 /// Kovasznay flow (steady Navier-Stokes, Re = 40) on `[-0.5, 1] x [-0.5, 1.5]` with the exact
 /// velocity on the whole boundary (pressure fixed to zero mean); EXACT-SOLUTIONS.md 2.4:
 /// `u = 1 - e^{l x} cos(2 pi y)`, `v = l/(2 pi) e^{l x} sin(2 pi y)`, `p = (1 - e^{2 l x}) / 2`
-/// (+ const), `l = Re/2 - sqrt(Re^2/4 + 4 pi^2)`. Expected rates 3 (velocity L2), 2 (H1, p).
-pub fn kovasznay(effort: Effort) -> Result<Vec<Study>, FlowError> {
+/// (+ const), `l = Re/2 - sqrt(Re^2/4 + 4 pi^2)`. Expected rates 3 (velocity L2), 2 (H1, p),
+/// with SUPG too (`kovasznay-supg`: the stabilisation is consistent).
+pub fn kovasznay(effort: Effort, stabilization: Stabilization) -> Result<Vec<Study>, FlowError> {
     use std::f64::consts::PI;
     let re = 40.0;
     let l = re / 2.0 - (re * re / 4.0 + 4.0 * PI * PI).sqrt();
@@ -308,6 +311,7 @@ pub fn kovasznay(effort: Effort) -> Result<Vec<Study>, FlowError> {
                 convection: true,
                 convective_form: Default::default(),
                 viscous_form: Default::default(),
+                stabilization,
             },
             body_force: None,
             dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),
@@ -323,7 +327,11 @@ pub fn kovasznay(effort: Effort) -> Result<Vec<Study>, FlowError> {
         errs.push(flow_errors(&disc, Formulation::Plane, &sol.x, &ExactFlow { velocity: &vel, gradient: &grad, pressure: &p }, 8)?);
     }
     let h: Vec<f64> = levels.iter().map(|&n| 1.0 / n as f64).collect();
-    Ok(three_studies("kovasznay", &h, &errs))
+    let name = match stabilization {
+        Stabilization::None => "kovasznay",
+        Stabilization::Supg => "kovasznay-supg",
+    };
+    Ok(three_studies(name, &h, &errs))
 }
 
 /// Mean of `(1 - e^{2 l x}) / 2` over `[-0.5, 1] x [-0.5, 1.5]`.
@@ -366,6 +374,7 @@ pub fn time_error(scheme: crate::time::TimeScheme, dt: f64, t_end: f64) -> Resul
             convection: true,
             convective_form: Default::default(),
             viscous_form: Default::default(),
+            stabilization: Default::default(),
         },
         body_force: Some(Arc::new(move |x: &[f64; 2], t| [dg(t) * x[1] * (1.0 - x[1]) + 2.0 * g(t), 0.0])),
         dirichlet: ["left", "right", "bottom", "top"].iter().map(|b| bc(b)).collect(),

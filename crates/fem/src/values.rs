@@ -129,6 +129,44 @@ pub struct CellValues<const D: usize> {
     pub dphi: Vec<[f64; D]>,
     /// Physical centroid (image of the reference centroid).
     pub centroid: [f64; D],
+    /// Second derivatives of the function basis, when asked for ([`CellValues::with_hessians`]).
+    hessians: Option<Hessians<D>>,
+}
+
+/// The second derivatives of a cell's function basis: in reference coordinates (computed once),
+/// with those of the geometry basis, and in physical coordinates (after each reinit).
+#[derive(Clone, Debug)]
+struct Hessians<const D: usize> {
+    /// `d^2 phi_i / dxi_a dxi_b` at point `q`: `function[q * n + i][a][b]`.
+    function: Vec<[[f64; D]; D]>,
+    /// `d^2 N_k / dxi_a dxi_b` of the geometry basis, likewise.
+    geometry: Vec<[[f64; D]; D]>,
+    /// `d^2 phi_i / dx_a dx_b` at point `q`, likewise.
+    physical: Vec<[[f64; D]; D]>,
+}
+
+/// The reference second derivatives of `element`'s basis at `points`, `[q * n + i][a][b]`: the
+/// derivatives of the tabulated gradients by the fourth-order central difference
+/// `(-g(xi + 2h) + 8 g(xi + h) - 8 g(xi - h) + g(xi - 2h)) / (12 h)`, exact for gradients of
+/// degree up to 4 (the bases here are polynomials of degree at most 4: P2+ tetrahedra have a
+/// quartic bubble), so only round-off, about `1e-16 / h`, remains. The bases are polynomials,
+/// defined outside the reference cell too.
+fn reference_hessians<const D: usize>(element: &ReferenceElement<D>, points: &[[f64; D]]) -> Vec<[[f64; D]; D]> {
+    const H: f64 = 1e-2;
+    let n = element.num_dofs();
+    let mut out = vec![[[0.0; D]; D]; points.len() * n];
+    for b in 0..D {
+        for (step, weight) in [(2.0, -1.0), (1.0, 8.0), (-1.0, -8.0), (-2.0, 1.0)] {
+            let shifted: Vec<[f64; D]> = points.iter().map(|p| std::array::from_fn(|d| p[d] + if d == b { step * H } else { 0.0 })).collect();
+            let tab = element.tabulate(&shifted);
+            for (o, g) in out.iter_mut().zip(&tab.grads) {
+                for a in 0..D {
+                    o[a][b] += weight * g[a] / (12.0 * H);
+                }
+            }
+        }
+    }
+    out
 }
 
 impl<const D: usize> CellValues<D> {
@@ -140,7 +178,44 @@ impl<const D: usize> CellValues<D> {
         let geo_at_centroid = geometry.tabulate(&[c]).values;
         let nq = qr.len();
         let n = function.num_dofs();
-        CellValues { qr, geo, geo_at_centroid, fun, x: vec![[0.0; D]; nq], jxw: vec![0.0; nq], dphi: vec![[0.0; D]; nq * n], centroid: [0.0; D] }
+        CellValues {
+            qr,
+            geo,
+            geo_at_centroid,
+            fun,
+            x: vec![[0.0; D]; nq],
+            jxw: vec![0.0; nq],
+            dphi: vec![[0.0; D]; nq * n],
+            centroid: [0.0; D],
+            hessians: None,
+        }
+    }
+
+    /// The same values with the second derivatives of the function basis as well
+    /// ([`CellValues::hessian_phi`]); `function` and `geometry` are the elements given to
+    /// [`CellValues::new`].
+    pub fn with_hessians(mut self, function: &ReferenceElement<D>, geometry: &ReferenceElement<D>) -> Self {
+        let (points, n) = (&self.qr.points, self.fun.num_dofs);
+        self.hessians = Some(Hessians {
+            function: reference_hessians(function, points),
+            geometry: reference_hessians(geometry, points),
+            physical: vec![[[0.0; D]; D]; points.len() * n],
+        });
+        self
+    }
+
+    /// Physical second derivatives `d^2 phi_i / dx_a dx_b` of the basis at point `q`, `[i][a][b]`
+    /// (valid after [`Self::reinit`]). With `x(xi)` the geometry map,
+    /// `d^2 phi / dxi_i dxi_j = sum_ab d^2 phi / dx_a dx_b J_ai J_bj + sum_c dphi/dx_c d^2 x_c /
+    /// dxi_i dxi_j`, solved for the physical ones: exact on curved (isoparametric) cells too.
+    ///
+    /// # Panics
+    /// Unless the values were made [`CellValues::with_hessians`].
+    #[inline]
+    pub fn hessian_phi(&self, q: usize) -> &[[[f64; D]; D]] {
+        let n = self.fun.num_dofs;
+        let h = self.hessians.as_ref().expect("CellValues::with_hessians was not called");
+        &h.physical[q * n..(q + 1) * n]
     }
 
     /// Number of quadrature points.
@@ -193,8 +268,41 @@ impl<const D: usize> CellValues<D> {
             for i in 0..n {
                 self.dphi[q * n + i] = push_forward(&inv, &self.fun.grads[q * n + i]);
             }
+            if let Some(h) = &mut self.hessians {
+                physical_hessians(h, coords, &inv, &self.dphi[q * n..(q + 1) * n], q, self.geo.num_dofs);
+            }
         }
         Ok(())
+    }
+}
+
+/// The physical second derivatives at point `q` ([`CellValues::hessian_phi`]): `H = J^{-T} (H_ref
+/// - sum_c (dphi/dx_c) G_c) J^{-1}`, `G_c` the reference second derivatives of the map's
+/// component `c`; `inv = J^{-1}`, `dphi` the physical gradients there.
+fn physical_hessians<const D: usize>(h: &mut Hessians<D>, coords: &[[f64; D]], inv: &[[f64; D]; D], dphi: &[[f64; D]], q: usize, ng: usize) {
+    let mut g = [[[0.0; D]; D]; D];
+    for (k, xk) in coords.iter().enumerate() {
+        let nk = &h.geometry[q * ng + k];
+        for c in 0..D {
+            for i in 0..D {
+                for j in 0..D {
+                    g[c][i][j] += xk[c] * nk[i][j];
+                }
+            }
+        }
+    }
+    let n = dphi.len();
+    for (i, grad) in dphi.iter().enumerate() {
+        let mut m = h.function[q * n + i];
+        for c in 0..D {
+            for a in 0..D {
+                for b in 0..D {
+                    m[a][b] -= grad[c] * g[c][a][b];
+                }
+            }
+        }
+        h.physical[q * n + i] =
+            std::array::from_fn(|a| std::array::from_fn(|b| (0..D).map(|r| (0..D).map(|s| inv[r][a] * m[r][s] * inv[s][b]).sum::<f64>()).sum()));
     }
 }
 
@@ -339,6 +447,73 @@ impl<const D: usize> FacetValues<D> {
 mod tests {
     use super::*;
     use crate::quadrature;
+
+    /// The physical second derivatives of the basis: a quadratic interpolated on an affine P2+
+    /// triangle and tetrahedron has its own (constant) Hessian at every point; on a curved P2
+    /// triangle the coordinate functions, `x = sum_k x_k phi_k` in the isoparametric basis, have
+    /// none (the geometry's own second derivatives are taken out), to round-off.
+    #[test]
+    fn hessians_of_interpolated_quadratics_and_of_a_curved_cells_coordinates() {
+        // f = x^2 + 3 x y - 2 y^2 (+ z^2 - x z in 3D).
+        let fun = ReferenceElement::p2plus_triangle();
+        let geo = ReferenceElement::p1_triangle();
+        let mut cv = CellValues::new(quadrature::triangle(5), &fun, &geo).with_hessians(&fun, &geo);
+        let coords = [[1.0, 1.0], [3.0, 1.5], [1.5, 4.0]];
+        cv.reinit(&coords).unwrap();
+        let at = |xi: &[f64; 2]| -> [f64; 2] {
+            let l = [1.0 - xi[0] - xi[1], xi[0], xi[1]];
+            std::array::from_fn(|d| (0..3).map(|k| l[k] * coords[k][d]).sum())
+        };
+        let f: Vec<f64> = fun.nodes().iter().map(at).map(|[x, y]| x * x + 3.0 * x * y - 2.0 * y * y).collect();
+        for q in 0..cv.num_points() {
+            let h: [[f64; 2]; 2] = std::array::from_fn(|a| std::array::from_fn(|b| (0..7).map(|i| f[i] * cv.hessian_phi(q)[i][a][b]).sum()));
+            assert!(
+                (h[0][0] - 2.0).abs() < 1e-10 && (h[0][1] - 3.0).abs() < 1e-10 && (h[1][0] - 3.0).abs() < 1e-10 && (h[1][1] + 4.0).abs() < 1e-10,
+                "{h:?}"
+            );
+        }
+        let fun3 = ReferenceElement::p2plus_tetrahedron();
+        let geo3 = ReferenceElement::p1_tetrahedron();
+        let mut cv3 = CellValues::new(quadrature::tetrahedron(4), &fun3, &geo3).with_hessians(&fun3, &geo3);
+        let c3 = [[0.1, 0.0, 0.2], [1.2, 0.1, 0.0], [0.3, 0.9, 0.1], [0.2, 0.3, 1.1]];
+        cv3.reinit(&c3).unwrap();
+        let f3: Vec<f64> = fun3
+            .nodes()
+            .iter()
+            .map(|xi| {
+                let l = [1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]];
+                let p: [f64; 3] = std::array::from_fn(|d| (0..4).map(|k| l[k] * c3[k][d]).sum());
+                p[0] * p[0] + 3.0 * p[0] * p[1] - 2.0 * p[1] * p[1] + p[2] * p[2] - p[0] * p[2]
+            })
+            .collect();
+        let exact = [[2.0, 3.0, -1.0], [3.0, -4.0, 0.0], [-1.0, 0.0, 2.0]];
+        for q in 0..cv3.num_points() {
+            for a in 0..3 {
+                for b in 0..3 {
+                    let h: f64 = (0..15).map(|i| f3[i] * cv3.hessian_phi(q)[i][a][b]).sum();
+                    assert!((h - exact[a][b]).abs() < 1e-9, "3D H[{a}][{b}] = {h}");
+                }
+            }
+        }
+        // A curved P2 triangle, its third edge bowed out; the isoparametric P2 basis.
+        let p2 = ReferenceElement::p2_triangle();
+        let mut curved = CellValues::new(quadrature::triangle(5), &p2, &p2).with_hessians(&p2, &p2);
+        let nodes = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.62, 0.62], [0.0, 0.5]];
+        curved.reinit(&nodes).unwrap();
+        let mut bowed = 0.0f64;
+        for q in 0..curved.num_points() {
+            for c in 0..2 {
+                for a in 0..2 {
+                    for b in 0..2 {
+                        let h: f64 = (0..6).map(|k| nodes[k][c] * curved.hessian_phi(q)[k][a][b]).sum();
+                        assert!(h.abs() < 1e-10, "curved: d2 x_{c} / dx_{a} dx_{b} = {h}");
+                        bowed = bowed.max(curved.hessian_phi(q)[4][a][b].abs());
+                    }
+                }
+            }
+        }
+        assert!(bowed > 1.0, "the basis itself has second derivatives");
+    }
 
     #[test]
     fn affine_triangle_area_and_gradients() {
