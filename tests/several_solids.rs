@@ -34,8 +34,8 @@ fn difference(a: &RunSummary, b: &RunSummary, name: &str) -> f64 {
 
 /// Cook's membrane (nearly incompressible neo-Hookean) beside a fibre-reinforced incompressible
 /// bar under a dead and a follower load: together as two `[[solid]]` tables, each tip moves as
-/// in the run of its solid alone, to 1e-9 relative (the Newton tolerance: the two solve one
-/// system together).
+/// in the run of its solid alone, to 1e-12 relative (the two solve one system together: their
+/// Newton iterations stop together).
 #[test]
 fn two_quasi_static_solids_move_as_each_alone() {
     let cook = r#"[SOLID]
@@ -91,9 +91,9 @@ value = [0.01]
     let (both, out) = run("two", &case_of("two solids", "", &[cook, bar], &probes(&["cook", "bar"])));
     let (cook_alone, _) = run("cook", &case_of("cook alone", "", &[cook], &probes(&["cook"])));
     let (bar_alone, _) = run("bar", &case_of("bar alone", "", &[bar], &probes(&["bar"])));
-    // Measured: cook 1e-15, bar 1e-15.
-    assert!(difference(&both, &cook_alone, "cook_tip_y") < 1e-9);
-    assert!(difference(&both, &bar_alone, "bar_tip_y") < 1e-9);
+    // Measured: cook 0, bar 7e-14.
+    assert!(difference(&both, &cook_alone, "cook_tip_y") < 1e-12);
+    assert!(difference(&both, &bar_alone, "bar_tip_y") < 1e-12);
     assert!(both.quantities["cook_tip_y"] > 1.0 && both.quantities["bar_tip_y"] > 0.1, "both solids move");
     assert_eq!(both.dofs["solid"], cook_alone.dofs["solid"] + bar_alone.dofs["solid"]);
     // The solid output marks each cell's body, and `case.toml` keeps both tables.
@@ -108,7 +108,7 @@ value = [0.01]
 
 /// Two bars falling under gravity from rest (dynamic, BDF2), of other densities, gravities and
 /// stiffnesses: together as two `[[solid]]` tables, each tip moves as in the run of its bar
-/// alone at every step, to 1e-9 relative.
+/// alone at every step, to 1e-12 relative (measured: identical).
 #[test]
 fn two_dynamic_solids_move_as_each_alone() {
     let heavy = r#"[SOLID]
@@ -164,7 +164,7 @@ value = [0.0, 0.0]
         let worst = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale;
         println!("{name}: largest {scale:.6e}, together against alone {worst:.2e}");
         assert!(scale > 1e-4, "{name}: the bar falls");
-        assert!(worst < 1e-9, "{name}: {worst}");
+        assert!(worst < 1e-12, "{name}: {worst}");
     }
 }
 
@@ -172,9 +172,9 @@ value = [0.0, 0.0]
 /// (a full model of a symmetric valve), against the half model: one leaflet above a symmetry
 /// line. The fluid meshes are mirror images too (`rectangle`, alternating diagonals, rows of a
 /// multiple of 4), so the full model's solution is the half model's and its mirror image: each
-/// leaflet's tip moves as the half model's, the two forces on them are mirror images, and the
-/// full model's coupling force is twice the half model's along the channel and 0 across it; to
-/// 1e-8 of their size (the Newton tolerance). Navier-Stokes, 10 steps.
+/// leaflet's tip moves as the half model's (the lower's mirrored), and the full model's coupling
+/// force (on both leaflets) is twice the half model's along the channel and 0 across it; to
+/// 1e-10 of their size (measured: 1e-13). Navier-Stokes, 10 steps.
 #[test]
 fn two_mirrored_leaflets_move_as_the_half_model_of_one() {
     // The upper leaflet: hinged on the wall y = 2 ("top", t = 1), its tip ("bottom", t = 0) at
@@ -262,7 +262,7 @@ point = [2.5, 0.9]
         let (h, upper, lower) = (q(&one, &format!("upper_{name}")), q(&two, &format!("upper_{name}")), q(&two, &format!("lower_{name}")));
         println!("{name}: half model {h:.12e}, full model {upper:.12e} and mirrored {:.12e}", mirror * lower);
         // Measured: 1e-13 and less.
-        assert!((upper - h).abs() < 1e-8 * tip && (mirror * lower - h).abs() < 1e-8 * tip, "{name}");
+        assert!((upper - h).abs() < 1e-10 * tip && (mirror * lower - h).abs() < 1e-10 * tip, "{name}");
     }
     assert!(tip > 0.05, "the leaflet opens: {tip}");
     let (fx, fy) = (q(&one, "coupling_force_x"), q(&one, "coupling_force_y"));
@@ -272,8 +272,8 @@ point = [2.5, 0.9]
         q(&two, "coupling_force_x"),
         q(&two, "coupling_force_y")
     );
-    assert!((q(&two, "coupling_force_x") - 2.0 * fx).abs() < 1e-8 * force);
-    assert!(q(&two, "coupling_force_y").abs() < 1e-8 * force);
+    assert!((q(&two, "coupling_force_x") - 2.0 * fx).abs() < 1e-10 * force);
+    assert!(q(&two, "coupling_force_y").abs() < 1e-10 * force);
     assert_eq!(one.steps, 10);
     assert_eq!(two.dofs["solid"], 2 * one.dofs["solid"]);
 }
@@ -302,10 +302,131 @@ fn two_solids_in_contact_carry_a_uniform_contact_pressure() {
         "[4, 2]",
         "[[SOLID.boundary]]\nname = \"top\"\ntype = \"traction\"\nvalue = [0.0, -0.2]\n\n[[SOLID.contact]]\nboundary = \"bottom\"\nagainst = \"lower/top\"\n",
     );
-    let (s, _) = run("blocks", &case_of("two blocks", "", &[&lower, &upper], "[solver.newton]\nabs_tol = 1e-14\nrel_tol = 1e-14\n"));
+    let (s, out) = run("blocks", &case_of("two blocks", "", &[&lower, &upper], "[solver.newton]\nabs_tol = 1e-14\nrel_tol = 1e-14\n"));
     let q = |name: &str| s.quantities[name];
     println!("two blocks: {:?}", s.quantities);
     assert!((q("upper/bottom_contact_force") - 0.2).abs() < 1e-12);
     assert!((q("upper/bottom_contact_pressure_max") - 0.2).abs() < 1e-12);
     assert!(q("upper/bottom_gap_min").abs() < 1e-12);
+    // Solid output with contact against another solid: every node has a finite gap.
+    let entries = read_pvd(&out.join("solution.pvd")).unwrap();
+    let grid = read_vtu(&entries.last().unwrap().resolve(&out.join("solution.pvd"))).unwrap();
+    assert!(grid.point_array("contact_gap").unwrap().values.iter().all(|g| g.is_finite()));
+}
+
+/// Two leaflets closing on each other (the full model of a symmetric valve: the upper leaflet's
+/// tip `against` the lower's, mortar contact between two solids, the fluid between them cut off
+/// once they touch) beside the half model of one closing on a symmetry line (a contact plane),
+/// under a reversed pressure difference of 1.5, to t = 8. Both close at t = 1.6 and seal: the
+/// flux balance holds to round-off every step (the cut cells' walls hold the fluid), no tip
+/// penetrates, and the jump across the valve is the applied one (measured: 1.5e-5 and 1.9e-4
+/// relative). Not the same yet (measured, an open item): the full model still moves at t = 8
+/// (a flux of 1.7e-3 of its peak, steady since t = 5; the half model's 1e-4 and falling), and
+/// its leaflets carry 5.4 % less force along the channel than twice the half model's; its cut
+/// is not the mirror image of the half model's (13 cells against 2 x 7: the layers are projected
+/// onto the other tip, not onto the line).
+#[test]
+fn two_leaflets_close_on_each_other_and_seal() {
+    let leaflet = |name: &str, corners: &str, hinge: &str, contact: &str| {
+        format!(
+            "[SOLID]\nname = \"{name}\"\nmesh = {{ kind = \"quadrilateral\", corners = {corners}, n = [1, 11] }}\nsurface = \"left\"\n\
+             model = \"neo-hookean\"\nshear_modulus = 3000.0\n\n[[SOLID.boundary]]\nname = \"{hinge}\"\ntype = \"displacement\"\nvalue = [0.0, 0.0]\n\n{contact}"
+        )
+    };
+    let plane = "[[SOLID.contact]]\nboundary = \"bottom\"\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]\n";
+    let against = "[[SOLID.contact]]\nboundary = \"bottom\"\nagainst = \"lower/top\"\n";
+    let upper_corners = "[[2.6, 0.1], [2.7, 0.1], [2.05, 1.0], [1.95, 1.0]]";
+    let lower = leaflet("lower", "[[1.95, -1.0], [2.05, -1.0], [2.7, -0.1], [2.6, -0.1]]", "bottom", "");
+    let common = r#"
+[fluid]
+density = 1.0
+viscosity = 0.25
+
+[time]
+dt = 0.1
+end = 8.0
+output_every = 1000
+
+[solver.linear]
+method = "direct"
+
+[output]
+animation = false
+
+[[boundary]]
+name = "left"
+type = "pressure"
+value = [0.0]
+
+[[boundary]]
+name = "right"
+type = "pressure"
+value = ["1.5*min(t, 1)"]
+
+[[boundary]]
+name = "top"
+type = "no-slip"
+
+[[output.boundary_integral]]
+name = "inlet_flux"
+boundary = "left"
+kind = "flux"
+
+[[output.boundary_integral]]
+name = "outlet_flux"
+boundary = "right"
+kind = "flux"
+
+[[output.probe]]
+name = "p_up"
+field = "pressure"
+point = [1.0, 0.5]
+
+[[output.probe]]
+name = "p_down"
+field = "pressure"
+point = [4.5, 0.5]
+"#;
+    let half = format!(
+        "[mesh]\nkind = \"rectangle\"\nx = [0.0, 6.0]\ny = [0.0, 1.0]\nn = [24, 8]\n{common}\n[[boundary]]\nname = \"bottom\"\ntype = \"symmetry\"\nnormal_axis = 1\n"
+    );
+    let full = format!("[mesh]\nkind = \"rectangle\"\nx = [0.0, 6.0]\ny = [-1.0, 1.0]\nn = [24, 16]\n{common}\n[[boundary]]\nname = \"bottom\"\ntype = \"no-slip\"\n");
+    let navier_stokes = "model = \"navier-stokes\"\n";
+    let (one, half_out) = run("closing-half", &case_of("half valve", navier_stokes, &[&leaflet("upper", upper_corners, "top", plane)], &half));
+    let (two, full_out) =
+        run("closing-full", &case_of("full valve", navier_stokes, &[&leaflet("upper", upper_corners, "top", against), &lower], &full));
+    let columns = |out: &Path| -> std::collections::BTreeMap<String, Vec<f64>> {
+        let text = std::fs::read_to_string(out.join("history.csv")).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+        header.iter().enumerate().map(|(i, h)| (h.clone(), rows.iter().map(|r| r[i]).collect())).collect()
+    };
+    let (h, f) = (columns(&half_out), columns(&full_out));
+    for (name, c, contact) in [("half", &h, "bottom"), ("full", &f, "upper/bottom")] {
+        let (q_in, q_out) = (&c["inlet_flux"], &c["outlet_flux"]);
+        let peak = q_in.iter().fold(0.0f64, |m, q| m.max(q.abs()));
+        let balance = q_in.iter().zip(q_out).map(|(a, b)| (a + b).abs()).fold(0.0, f64::max) / peak;
+        let last = q_in.len() - 1;
+        let (settled, jump) = (q_in[last].abs() / peak, c["p_down"][last] - c["p_up"][last]);
+        let gap = c[&format!("{contact}_gap_min")].iter().fold(f64::INFINITY, |m, g| m.min(*g));
+        let closed_from = c["time"][c[&format!("{contact}_contact_force")].iter().position(|&v| v > 0.0).unwrap_or(last)];
+        println!(
+            "{name}: closed from t = {closed_from}, gap min {gap:.2e}, flux balance {balance:.2e} of the peak {peak:.4}; at t = 8: \
+             jump {jump:.8}, flux {settled:.2e} of the peak, {} cells cut off, coupling force x {:.6}",
+            c["closed_gap_cells"][last], c["coupling_force_x"][last]
+        );
+        assert!(closed_from < 2.0 && c[&format!("{contact}_contact_force")][last] > 0.0, "{name}: closed");
+        assert!(balance < 1e-12, "{name}: flux balance {balance}");
+        assert!(gap >= -1e-6, "{name}: penetration {gap}");
+        assert!(c["closed_gap_cells"][last] > 0.0, "{name}: the gap is cut off");
+        assert!((jump - 1.5).abs() < 1e-3 * 1.5, "{name}: jump {jump}");
+        let settled_limit = if name == "half" { 2e-4 } else { 3e-3 };
+        assert!(settled < settled_limit, "{name}: the flux through the closed valve {settled}");
+    }
+    // A quantity named by a solid's boundary is plotted in the plots folder (`/` as `.`).
+    assert!(full_out.join("plots/upper.bottom_contact_force.png").exists());
+    let (fx_half, fx_full) = (one.quantities["coupling_force_x"], two.quantities["coupling_force_x"]);
+    println!("force along the channel: full {fx_full:.6}, twice the half {:.6} ({:+.2} %)", 2.0 * fx_half, 100.0 * (fx_full / (2.0 * fx_half) - 1.0));
+    assert!((fx_full - 2.0 * fx_half).abs() < 0.1 * (2.0 * fx_half).abs(), "forces {fx_full} and twice {fx_half}");
 }

@@ -40,12 +40,13 @@ fn stokes_3d_converges_at_optimal_rates() {
 #[test]
 fn kovasznay_navier_stokes_converges_at_optimal_rates() {
     let galerkin = verify::kovasznay(Effort::Quick, Stabilization::None).unwrap();
-    // SUPG is consistent: the same rates (and, on these meshes, errors within a factor of 2).
+    // SUPG is consistent: the same rates, and on the finest mesh errors within 5 % of Galerkin's
+    // (measured: 0.98-1.02).
     let supg = verify::kovasznay(Effort::Quick, Stabilization::Supg).unwrap();
     for (s, g) in supg.iter().zip(&galerkin) {
         let ratio = s.errors.last().unwrap() / g.errors.last().unwrap();
         println!("{} {}: errors {:?} rate {:.3}, finest against Galerkin's {ratio:.3}", s.name, s.quantity, s.errors, s.observed_rate);
-        assert!(ratio < 2.0 && ratio > 0.5, "{} {}: {ratio}", s.name, s.quantity);
+        assert!((ratio - 1.0).abs() < 0.05, "{} {}: {ratio}", s.name, s.quantity);
     }
     for s in galerkin.iter().chain(&supg) {
         let min = if s.quantity == "velocity_l2" { 2.8 } else { 1.8 };

@@ -164,9 +164,10 @@ impl std::fmt::Display for BoundaryNames {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SolidSpec {
-    /// The solid's name; required with several `[[solid]]` tables (unique, without `/`). Their
-    /// boundaries are then `NAME/BOUNDARY` wherever they are seen from outside their own table
-    /// (the solid output, contact quantities, `against` another solid).
+    /// The solid's name; required with several `[[solid]]` tables (non-empty, unique, without `/`
+    /// or `+`). Their boundaries are then `NAME/BOUNDARY` wherever they are seen from outside
+    /// their own table (contact quantities, `against` another solid). A single solid's names
+    /// nothing.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// The solid mesh (9-node quadrilaterals / 27-node hexahedra).
@@ -264,11 +265,12 @@ pub struct ContactSpec {
     /// `boundary` carries the contact pressures. The two may lie on two bodies of one mesh.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub against: Option<String>,
-    /// FSI runs: once the solid touches the plane, the fluid between them is cut off where
-    /// their gap is at most this length, so that a closed contact seals (see
-    /// [`fdfsi_fem::adapt::gap`]). A length >= 0; 0 cuts nothing off. Default: the mean height
-    /// of the fluid cells at the plane where it bounds the fluid (a wall, a symmetry line); 0
-    /// where it lies inside the fluid (a stop).
+    /// FSI runs: once the solid touches the plane (or the other boundary), the fluid between
+    /// them is cut off where their gap is at most this length, so that a closed contact seals
+    /// (see [`fdfsi_fem::adapt::gap`]). A length >= 0; 0 cuts nothing off. Default: for a plane
+    /// the mean height of the fluid cells at the plane where it bounds the fluid (a wall, a
+    /// symmetry line), 0 where it lies inside the fluid (a stop); against another boundary the
+    /// mean size of the fluid cells at the contact boundary at rest.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fluid_cut_off: Option<f64>,
 }
@@ -1144,15 +1146,16 @@ impl Case {
 
     /// The quantities every run of this kind writes besides the case's own (they may appear in
     /// `[[output.combination]]`): in FSI runs `coupling_force_x`, `_y` (`_z`), the force of the
-    /// fluid on the solid, and `coupling_facets`; with contact planes also `closed_gap_cells`,
-    /// the fluid cells cut off where the solid has closed on them (in this order).
+    /// fluid on the solid, and `coupling_facets`; with contacts also `closed_gap_cells`, the
+    /// fluid cells cut off where the solid has closed on a plane or on another body (in this
+    /// order).
     pub fn builtin_quantities(&self) -> Vec<String> {
         if self.kind() != RunKind::Fsi {
             return Vec::new();
         }
         let mut names: Vec<String> = ["x", "y", "z"][..self.dim()].iter().map(|c| format!("coupling_force_{c}")).collect();
         names.push("coupling_facets".into());
-        if self.solid.iter().any(|s| s.contact.iter().any(|c| c.against.is_none())) {
+        if self.solid.iter().any(|s| !s.contact.is_empty()) {
             names.push("closed_gap_cells".into());
         }
         names

@@ -436,6 +436,21 @@ fn solids(c: &Case, p: &mut Problems) {
             p.push(solid_key(c, s, &problem));
         }
     }
+    // Contacts between boundaries, named in full: each pair once, over all tables, and no
+    // boundary against itself.
+    let mut pairs: Vec<(String, String)> = Vec::new();
+    for (k, s) in c.solid.iter().enumerate() {
+        for contact in &s.contact {
+            let Some(against) = &contact.against else { continue };
+            let (a, b) = (c.solid_boundary(k, &contact.boundary), c.solid_boundary(k, against));
+            if a == b {
+                p.push(solid_key(c, s, &format!("solid.contact '{}': '{against}' is the boundary itself", contact.boundary)));
+            } else if pairs.iter().any(|(x, y)| (x, y) == (&a, &b) || (x, y) == (&b, &a)) {
+                p.push(solid_key(c, s, &format!("solid.contact '{}': '{a}' and '{b}' are in contact already: give the pair once", contact.boundary)));
+            }
+            pairs.push((a, b));
+        }
+    }
 }
 
 /// `[solid]`: coupling surface, material, multiplier, `eps_hat`, mesh, placement and load steps.
@@ -497,9 +512,7 @@ fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
             if solid.contact[..i].iter().any(|o| o.against.as_deref() == Some(&k.boundary) && o.boundary == *against) {
                 p.push(format!("{what}: '{against}' is already against '{}': give the pair once", k.boundary));
             }
-            if k.fluid_cut_off.is_some() {
-                p.push(format!("{what}: fluid_cut_off applies to a plane, not to contact against '{against}'"));
-            }
+            fluid_cut_off(k, &what, p);
             continue;
         }
         for (key, v) in [("point", &k.point), ("normal", &k.normal)] {
@@ -513,10 +526,15 @@ fn contact(c: &Case, solid: &SolidSpec, p: &mut Problems) {
         if k.normal.iter().all(|&x| x == 0.0) {
             p.push(format!("{what}: the normal is the zero vector"));
         }
-        if let Some(cut_off) = k.fluid_cut_off {
-            if !(cut_off.is_finite() && cut_off >= 0.0) {
-                p.push(format!("{what}: fluid_cut_off must be a finite length >= 0, got {cut_off}"));
-            }
+        fluid_cut_off(k, &what, p);
+    }
+}
+
+/// `fluid_cut_off`, if given: a finite length >= 0.
+fn fluid_cut_off(k: &super::ContactSpec, what: &str, p: &mut Problems) {
+    if let Some(cut_off) = k.fluid_cut_off {
+        if !(cut_off.is_finite() && cut_off >= 0.0) {
+            p.push(format!("{what}: fluid_cut_off must be a finite length >= 0, got {cut_off}"));
         }
     }
 }

@@ -49,7 +49,7 @@
 use super::layout::{Block, SystemLayout};
 pub use crate::adapt::CoveredFluid;
 use crate::discretize::flow::{AssemblyError, DirichletBc, Entries, FlowDiscretization, FlowError, FlowProblem};
-use crate::discretize::solid::{SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
+use crate::discretize::solid::{ContactTarget, SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
 use crate::discretize::time_scheme::{step_history, step_ratio, TimeScheme};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
@@ -57,7 +57,7 @@ use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit}
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
-use fdfsi_fem::adapt::gap::cell_height_at;
+use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards};
 use fdfsi_fem::adapt::{
     adapt_with, remove_closed_gaps, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, GapPlane, Surface,
     CLOSED_GAP, GAMMA_F_REL_TOL,
@@ -174,11 +174,35 @@ pub struct FsiModel<const D: usize> {
     pub multiplier: MultiplierSpace,
     /// The fluid cells under the solid (default: kept, the paper's).
     pub covered_fluid: CoveredFluid,
-    /// The rigid contact planes of the solid, each with the gap below which the fluid between
-    /// it and the solid is cut off ([`remove_closed_gaps`]; `None` for contact between two
-    /// boundaries of the solid), in the order of the solid
-    /// problem's contacts.
-    pub closed_gaps: Vec<Option<GapPlane<D>>>,
+    /// Where the fluid is cut off once each contact of the solid closes ([`remove_closed_gaps`]),
+    /// in the order of the solid problem's contacts.
+    pub closed_gaps: Vec<ClosedGap<D>>,
+    /// The connected part (body) of each solid cell: which side of a contact between two
+    /// boundaries a piece of gamma_s is on.
+    solid_part: Vec<usize>,
+}
+
+/// The fluid cut off where a contact of the solid has closed ([`fdfsi_fem::adapt::gap`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ClosedGap<const D: usize> {
+    /// Against a rigid plane: once the contact boundary touches it, the fluid between the solid
+    /// and the plane where their gap is at most `cut_off` ([`GapPlane::layer`]).
+    Plane(GapPlane<D>),
+    /// Against another boundary, of another body: once a contact pressure of the boundary is
+    /// positive, the fluid between the two bodies where their gap is at most `cut_off` (the
+    /// pieces of each body's gamma_s and contact boundary within `cut_off` of the other's
+    /// contact boundary, [`layer_towards`]). 0 cuts nothing off.
+    Between { cut_off: f64 },
+}
+
+impl<const D: usize> ClosedGap<D> {
+    /// The largest gap cut off.
+    pub fn cut_off(&self) -> f64 {
+        match self {
+            ClosedGap::Plane(plane) => plane.cut_off,
+            ClosedGap::Between { cut_off } => *cut_off,
+        }
+    }
 }
 
 impl<const D: usize> FsiModel<D> {
@@ -194,12 +218,14 @@ impl<const D: usize> FsiModel<D> {
         self
     }
 
-    /// The model with the fluid cut-off gaps of its contact planes set (`None` keeps the
-    /// default, one cell of the fluid mesh at the plane; see [`FsiModel::new`]).
+    /// The model with the fluid cut-off gaps of its contacts set (`None` keeps the default, one
+    /// cell of the fluid mesh where they close; see [`FsiModel::new`]).
     pub fn with_cut_offs(mut self, cut_offs: &[Option<f64>]) -> Self {
         for (gap, cut_off) in self.closed_gaps.iter_mut().zip(cut_offs) {
-            if let (Some(gap), Some(c)) = (gap, cut_off) {
-                gap.cut_off = *c;
+            match (gap, cut_off) {
+                (ClosedGap::Plane(plane), Some(c)) => plane.cut_off = *c,
+                (ClosedGap::Between { cut_off }, Some(c)) => *cut_off = *c,
+                (_, None) => {}
             }
         }
         self
@@ -209,50 +235,100 @@ impl<const D: usize> FsiModel<D> {
     /// Where the solid has rigid contact planes that bound the fluid (walls, symmetry lines),
     /// once it touches one the fluid between them is cut off where their gap is below the mean
     /// height of the fluid cells at the plane ([`cell_height_at`]; a plane inside the fluid cuts
-    /// nothing off; [`FsiModel::with_cut_offs`] sets other lengths), and the fluid is held at
-    /// rest on the boundary [`CLOSED_GAP`] this leaves.
+    /// nothing off); where a boundary of the solid is in contact with another body's, once the
+    /// contact closes the fluid between the two bodies is cut off where their gap is below the
+    /// mean size of the fluid cells at the contact boundary at rest ([`cell_size_at`]).
+    /// [`FsiModel::with_cut_offs`] sets other lengths. The fluid is held at rest on the boundary
+    /// [`CLOSED_GAP`] this leaves.
     pub fn new(mut problem: FsiProblem<D>, fluid_mesh: &Mesh<D>, solid_mesh: Mesh<D>) -> Result<Self, FsiError> {
         let background = Background::new(fluid_mesh)?;
         let solid = SolidDiscretization::build_for(solid_mesh, &problem.solid)?;
         solid.check_problem(&problem.solid)?;
         solid.mesh.boundary_tag(&problem.surface)?;
-        let closed_gaps: Vec<Option<GapPlane<D>>> = problem
+        let closed_gaps = problem
             .solid
             .contact
             .iter()
-            .map(|c| {
-                c.plane().map(|p| {
+            .map(|c| match c.plane() {
+                Some(p) => {
                     let plane = GapPlane { point: p.point, normal: p.normal, cut_off: 0.0 };
-                    GapPlane { cut_off: cell_height_at(&background.mesh, &plane), ..plane }
-                })
+                    Ok(ClosedGap::Plane(GapPlane { cut_off: cell_height_at(&background.mesh, &plane), ..plane }))
+                }
+                None => {
+                    let boundary = Surface::from_mesh_boundary(&solid.mesh, &c.boundary)?;
+                    Ok(ClosedGap::Between { cut_off: cell_size_at(&background.mesh, &boundary.points) })
+                }
             })
-            .collect();
-        if closed_gaps.iter().any(Option::is_some) {
+            .collect::<Result<Vec<_>, FsiError>>()?;
+        if !closed_gaps.is_empty() {
             let at_rest: crate::discretize::flow::VectorFn<D> = Arc::new(|_: &[f64; D], _: f64| [0.0; D]);
             problem.fluid.dirichlet.push(DirichletBc { boundary: CLOSED_GAP.into(), components: (0..D).collect(), value: at_rest });
         }
-        Ok(FsiModel { problem, background, solid, multiplier: MultiplierSpace::default(), covered_fluid: CoveredFluid::default(), closed_gaps })
+        let solid_part = connected_parts(&solid.mesh);
+        Ok(FsiModel {
+            problem,
+            background,
+            solid,
+            multiplier: MultiplierSpace::default(),
+            covered_fluid: CoveredFluid::default(),
+            closed_gaps,
+            solid_part,
+        })
     }
 
     /// `adapted` (to gamma_s `surface` at the solid displacement `solid_x`) with the fluid cut
-    /// off where the solid has closed on a contact plane ([`GapPlane::is_closed`]): the gap
-    /// layer below gamma_s and the contact boundary ([`GapPlane::layer`]). Unchanged without
-    /// contact planes or while no contact is closed.
+    /// off where a contact of the solid has closed ([`ClosedGap`]): on a plane
+    /// ([`GapPlane::is_closed`]) the gap layer below gamma_s and the contact boundary
+    /// ([`GapPlane::layer`]); against another body (a contact pressure in `solid_x` positive)
+    /// the layers between the two bodies ([`FsiModel::layers_between`]). Unchanged without
+    /// contacts or while none is closed.
     pub(crate) fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
-        if self.closed_gaps.iter().all(Option::is_none) {
+        // With contacts the boundary `closed_gap` is always named (the fluid's condition on it
+        // must find it), even when nothing is cut off.
+        if self.closed_gaps.is_empty() {
             return Ok(adapted);
         }
         let mesh = self.current_solid_mesh(solid_x);
         let mut layers = Vec::new();
-        for (gap, contact) in self.closed_gaps.iter().zip(&self.problem.solid.contact) {
-            let Some(gap) = gap else { continue };
+        for (k, (gap, contact)) in self.closed_gaps.iter().zip(&self.problem.solid.contact).enumerate() {
+            if gap.cut_off() <= 0.0 {
+                continue;
+            }
             let boundary = Surface::from_mesh_boundary(&mesh, &contact.boundary)?;
-            if gap.cut_off > 0.0 && gap.is_closed(&boundary) {
-                layers.extend(gap.layer(surface));
-                layers.extend(gap.layer(&boundary));
+            match (gap, &contact.target) {
+                (ClosedGap::Plane(plane), _) if plane.is_closed(&boundary) => {
+                    layers.extend(plane.layer(surface));
+                    layers.extend(plane.layer(&boundary));
+                }
+                (ClosedGap::Between { cut_off }, ContactTarget::Boundary(master)) if self.contact_pressed(k, solid_x) => {
+                    let master = Surface::from_mesh_boundary(&mesh, master)?;
+                    layers.extend(self.layers_between(surface, &boundary, &master, *cut_off));
+                }
+                _ => {}
             }
         }
         Ok(remove_closed_gaps(adapted, &layers))
+    }
+
+    /// Whether a contact pressure of the `k`-th contact boundary is positive in `solid_x`.
+    fn contact_pressed(&self, k: usize, solid_x: &[f64]) -> bool {
+        let s = &self.solid.contact_surfaces()[k];
+        solid_x.get(s.first..s.first + s.nodes.len()).is_some_and(|p| p.iter().any(|&v| v > 0.0))
+    }
+
+    /// The gap layers between two bodies in contact, the `slave` boundary's and the `master`'s
+    /// ([`layer_towards`]): each contact boundary towards the other, and the pieces of gamma_s
+    /// (`surface`) of each body towards the other's contact boundary.
+    fn layers_between(&self, surface: &Surface<D>, slave: &Surface<D>, master: &Surface<D>, cut_off: f64) -> Vec<Vec<[f64; D]>> {
+        let part = |s: &Surface<D>| s.origin.first().map(|&(c, _)| self.solid_part[c]);
+        let corners = |s: &Surface<D>, i: usize| s.pieces[i].map(|p| s.points[p]);
+        let (slave_part, master_part) = (part(slave), part(master));
+        let mut layers = layer_towards((0..slave.pieces.len()).map(|i| corners(slave, i)), master, cut_off);
+        layers.extend(layer_towards((0..master.pieces.len()).map(|i| corners(master, i)), slave, cut_off));
+        let of = |which: Option<usize>| (0..surface.pieces.len()).filter(move |&i| Some(self.solid_part[surface.origin[i].0]) == which);
+        layers.extend(layer_towards(of(slave_part).map(|i| corners(surface, i)), master, cut_off));
+        layers.extend(layer_towards(of(master_part).map(|i| corners(surface, i)), slave, cut_off));
+        layers
     }
 
     /// The solid mesh at the total displacement in `solid_x` (solid numbering): every geometry
@@ -514,8 +590,13 @@ impl<const D: usize> FluidSnapshot<D> {
         let mut hole: Option<Surface<D>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
-            // In a gap the solid closed on a rigid plane: the fluid was at rest there.
-            if gap_hole && model.closed_gaps.iter().flatten().any(|g| (0.0..=g.cut_off).contains(&g.distance(x))) {
+            // In a gap the solid closed on a rigid plane, or between two bodies: the fluid was at
+            // rest there.
+            let in_gap = |g: &ClosedGap<D>| match g {
+                ClosedGap::Plane(plane) => (0.0..=plane.cut_off).contains(&plane.distance(x)),
+                ClosedGap::Between { cut_off } => *cut_off > 0.0,
+            };
+            if gap_hole && model.closed_gaps.iter().any(in_gap) {
                 return Ok([0.0; D]);
             }
             if !covered_hole {
@@ -543,6 +624,35 @@ impl<const D: usize> FluidSnapshot<D> {
         u[disc.layout.range(Block::Windkessel)].copy_from_slice(&self.lumped);
         Ok(u)
     }
+}
+
+/// The connected part of each cell of `mesh` (cells sharing a vertex are connected), numbered
+/// from 0 in the order of their first cells: the bodies of a solid of several.
+fn connected_parts<const D: usize>(mesh: &Mesh<D>) -> Vec<usize> {
+    // Union-find over the vertices, then each cell takes its first vertex's root.
+    let mut parent: Vec<usize> = (0..mesh.points.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for c in 0..mesh.num_cells() {
+        let v = mesh.cell_vertices(c);
+        for &w in &v[1..] {
+            let (a, b) = (root(&mut parent, v[0]), root(&mut parent, w));
+            parent[a] = b;
+        }
+    }
+    let mut number = std::collections::HashMap::new();
+    (0..mesh.num_cells())
+        .map(|c| {
+            let r = root(&mut parent, mesh.cell_vertices(c)[0]);
+            let next = number.len();
+            *number.entry(r).or_insert(next)
+        })
+        .collect()
 }
 
 /// The coupling elements (one per gamma_f facet) and their quadrature points, point-major flat

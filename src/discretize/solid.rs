@@ -207,7 +207,8 @@ impl<const D: usize> SolidProblem<D> {
         self.contact.push(ContactBc { boundary: boundary.into(), target: ContactTarget::Plane(plane) });
         self
     }
-    /// Adds contact of `boundary` (the slave) with the boundary `master` of the same solid
+    /// Adds contact of `boundary` (the slave) with the boundary `master` of the solid (of the
+    /// same body or another)
     /// (2D; [`super::mortar`]).
     pub fn with_contact_against(mut self, boundary: &str, master: &str) -> Self {
         self.contact.push(ContactBc { boundary: boundary.into(), target: ContactTarget::Boundary(master.into()) });

@@ -84,7 +84,8 @@ pub fn gamma_f_grid<const D: usize>(disc: &crate::discretize::fsi::FsiDiscretiza
 /// `displacement` and cell data `pressure` (the mixed laws' pressure at the cell centre) and
 /// `cauchy_stress` (the cell mean of `sigma = P F^T / J - p I` over its quadrature points, 9
 /// components); with contact surfaces, point data `contact_pressure` and `contact_gap` (their
-/// nodes' multiplier and gap to the plane; 0 elsewhere); for a fibre-reinforced law
+/// nodes' multiplier and gap to the plane or the other boundary, where none of it lies under a
+/// node the distance to its nearest node; 0 elsewhere); for a fibre-reinforced law
 /// `fibre_stretch` (the mean of `|F a_0| = sqrt(I4)` over the cell's quadrature points with a
 /// fibre; 0 where it has none); with several bodies, cell data `body` (each cell's body, from 0).
 pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &SolidProblem<D>, x: &[f64]) -> Result<UnstructuredGrid, OutputError> {
@@ -111,12 +112,23 @@ pub fn solid_grid<const D: usize>(disc: &SolidDiscretization<D>, problem: &Solid
     grid.add_point_data("displacement", 3, disp)?;
     if !disc.contact_surfaces().is_empty() {
         let (mut pressure, mut gap) = (vec![0.0; n], vec![0.0; n]);
+        let position = |k: usize| -> [f64; D] {
+            let u = disc.displacement(x, k);
+            std::array::from_fn(|d| disc.nodes_x0[k][d] + u[d])
+        };
         for (surface, nodes) in disc.contact_surfaces().iter().zip(disc.contact_gaps_and_weights(problem, x)) {
             for (j, &node) in surface.nodes.iter().enumerate() {
                 pressure[node] = x[surface.first + j];
-                // NaN where no master boundary lies under the node.
+                // Where no master boundary lies under the node, the distance to the nearest
+                // master node (a node far from the other boundary).
                 let g = nodes[j].0;
-                gap[node] = if g.is_finite() { g } else { f64::NAN };
+                gap[node] = if g.is_finite() {
+                    g
+                } else {
+                    let p = position(node);
+                    let masters = surface.mortar.iter().flat_map(|m| &m.master_nodes);
+                    masters.map(|&k| position(k)).map(|q| (0..D).map(|d| (q[d] - p[d]).powi(2)).sum::<f64>().sqrt()).fold(f64::INFINITY, f64::min)
+                };
             }
         }
         grid.add_point_data("contact_pressure", 1, pressure)?;

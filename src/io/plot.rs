@@ -250,7 +250,9 @@ pub fn plot_compared(dir: &Path, others: &[PathBuf]) -> Result<Vec<PathBuf>, Plo
     let all = || std::iter::once(&main).chain(&others);
     let mut written = Vec::new();
     let mut draw = |file: String, title: &str, x_label: &str, y_label: &str, series: Vec<Series>| -> Result<(), PlotError> {
-        let path = plots.join(file);
+        // A quantity of one of several solids, `upper/bottom_contact_force`, is drawn to
+        // `upper.bottom_contact_force.png`, in the folder.
+        let path = plots.join(file.replace('/', "."));
         let mut series = series;
         if series.len() == 1 {
             series[0].name = y_label.to_string();

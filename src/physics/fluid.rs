@@ -565,9 +565,12 @@ mod tests {
         // p = 2 + x - 3 y: f = rho (du/dt + u . grad u) + grad p - div(eta (grad u + grad u^T)) - eta / r-terms.
         let u_at = |x: &[f64; 2]| [x[0] * x[0] + x[1], x[0] * x[1] - 1.0];
         let (p0, px, py) = (2.0, 1.0, -3.0);
-        for (form, form_v) in
-            [(Formulation::Plane, ViscousForm::Stress), (Formulation::Plane, ViscousForm::Laplace), (Formulation::Axisymmetric, ViscousForm::Stress)]
-        {
+        for (form, form_v) in [
+            (Formulation::Plane, ViscousForm::Stress),
+            (Formulation::Plane, ViscousForm::Laplace),
+            (Formulation::Axisymmetric, ViscousForm::Stress),
+            (Formulation::Axisymmetric, ViscousForm::Laplace),
+        ] {
             let axi = form == Formulation::Axisymmetric;
             let sym = if form_v == ViscousForm::Stress { 1.0 } else { 0.0 };
             let force = |x: &[f64; 2]| -> [f64; 2] {

@@ -71,7 +71,10 @@ fn cell_centroid<const D: usize>(disc: &FlowDiscretization<D>, c: usize) -> [f64
 /// differentiation of the velocity on the wall) and converges at the rate of the energy norm
 /// squared. Axisymmetric: multiplied by `2 pi` (the weight `r` is in `R`).
 /// For unsteady runs `state` gives the step's `inv_dt`, history `u*` and time (see
-/// [`crate::time`]), so the inertia of the fluid next to the wall is included.
+/// [`crate::time`]), so the inertia of the fluid next to the wall is included. With SUPG
+/// (`[fluid] stabilization`) `R` holds its term `sum tau (u . grad v_a) . r` too, in the cells
+/// at the wall: the force balancing the stabilised discrete equations (the term vanishes as the
+/// strong residual `r` does).
 pub fn boundary_force<const D: usize>(
     disc: &FlowDiscretization<D>,
     problem: &FlowProblem<D>,

@@ -196,6 +196,7 @@ impl<const D: usize> CellValues<D> {
     /// [`CellValues::new`].
     pub fn with_hessians(mut self, function: &ReferenceElement<D>, geometry: &ReferenceElement<D>) -> Self {
         let (points, n) = (&self.qr.points, self.fun.num_dofs);
+        debug_assert_eq!((function.num_dofs(), geometry.num_dofs()), (n, self.geo.num_dofs), "the elements given to CellValues::new");
         self.hessians = Some(Hessians {
             function: reference_hessians(function, points),
             geometry: reference_hessians(geometry, points),
@@ -513,6 +514,56 @@ mod tests {
             }
         }
         assert!(bowed > 1.0, "the basis itself has second derivatives");
+        // P2+ on the curved P2 cell (the fluid's pairing): the second derivatives against a
+        // central difference of the physical gradients at points shifted in physical space. A
+        // shifted point's reference coordinates are found by Newton on the map; its gradients
+        // by reinitialising a one-point rule there.
+        let p2plus = ReferenceElement::p2plus_triangle();
+        let mut cv = CellValues::new(quadrature::triangle(3), &p2plus, &p2).with_hessians(&p2plus, &p2);
+        cv.reinit(&nodes).unwrap();
+        let gradients_at = |xi: [f64; 2]| {
+            let rule = QuadratureRule { cell: ReferenceCell::Triangle, degree: 0, points: vec![xi], weights: vec![1.0] };
+            let mut one = CellValues::new(rule, &p2plus, &p2);
+            one.reinit(&nodes).unwrap();
+            (one.x[0], one.grad_phi(0).to_vec())
+        };
+        let reference_of = |x: [f64; 2], mut xi: [f64; 2]| {
+            for _ in 0..30 {
+                let tab = p2.tabulate(&[xi]);
+                let (mut y, mut j) = ([0.0; 2], [[0.0; 2]; 2]);
+                for k in 0..6 {
+                    for a in 0..2 {
+                        y[a] += tab.values[k] * nodes[k][a];
+                        for b in 0..2 {
+                            j[a][b] += nodes[k][a] * tab.grads[k][b];
+                        }
+                    }
+                }
+                let (_, inv) = det_inv(&j);
+                let r = [x[0] - y[0], x[1] - y[1]];
+                xi = std::array::from_fn(|a| xi[a] + inv[a][0] * r[0] + inv[a][1] * r[1]);
+            }
+            xi
+        };
+        let h = 1e-5;
+        for q in 0..cv.num_points() {
+            let xi0 = cv.rule().points[q];
+            let x0 = cv.x[q];
+            for b in 0..2 {
+                let shifted = |sign: f64| {
+                    let x: [f64; 2] = std::array::from_fn(|d| x0[d] + if d == b { sign * h } else { 0.0 });
+                    gradients_at(reference_of(x, xi0)).1
+                };
+                let (plus, minus) = (shifted(1.0), shifted(-1.0));
+                for i in 0..7 {
+                    for a in 0..2 {
+                        let fd = (plus[i][a] - minus[i][a]) / (2.0 * h);
+                        let exact = cv.hessian_phi(q)[i][a][b];
+                        assert!((fd - exact).abs() < 1e-5 * (1.0 + exact.abs()), "P2+ on curved P2: d2 phi_{i} / dx_{a} dx_{b} = {exact} vs FD {fd}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

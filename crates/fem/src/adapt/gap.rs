@@ -74,6 +74,36 @@ impl<const D: usize> GapPlane<D> {
     }
 }
 
+/// The gap layer between two bodies in contact (a contact boundary against another solid's): one
+/// convex polytope per piece of `pieces` (segments in 2D, triangles in 3D, of one body) whose
+/// corners all lie within `cut_off` of `other` (a surface of the other body): the piece's corners
+/// and their nearest points on `other`. As for a plane ([`GapPlane::layer`]), the cells the layer
+/// meets leave the fluid while the bodies touch.
+pub fn layer_towards<const D: usize>(pieces: impl IntoIterator<Item = [[f64; D]; D]>, other: &Surface<D>, cut_off: f64) -> Vec<Vec<[f64; D]>> {
+    pieces
+        .into_iter()
+        .filter_map(|corners| {
+            let feet: Vec<_> = corners.iter().map(|x| other.project(x)).collect::<Option<Vec<_>>>()?;
+            feet.iter().all(|f| f.distance <= cut_off).then(|| corners.into_iter().chain(feet.iter().map(|f| f.x)).collect())
+        })
+        .collect()
+}
+
+/// The mean size `(D! |K|)^(1/D)` of the cells of `mesh` that contain one of `points` (0 for
+/// none): the natural `cut_off` of a contact between two bodies, one cell of the fluid mesh
+/// where they touch.
+pub fn cell_size_at<const D: usize>(mesh: &Mesh<D>, points: &[[f64; D]]) -> f64 {
+    let mut cells: Vec<usize> = points.iter().flat_map(|x| crate::locate::cells_containing(mesh, x)).map(|(c, _)| c).collect();
+    cells.sort_unstable();
+    cells.dedup();
+    if cells.is_empty() {
+        return 0.0;
+    }
+    let factorial = if D == 3 { 6.0 } else { 2.0 };
+    let sizes: f64 = cells.iter().map(|&c| (factorial * mesh.signed_vertex_measure(c).abs()).powf(1.0 / D as f64)).sum();
+    sizes / cells.len() as f64
+}
+
 /// The natural `cut_off` of a plane that bounds the fluid (a wall, a symmetry line): the mean
 /// extent along its normal of the cells of `mesh` with a vertex on it (within `1e-9` of the
 /// mesh's size), one cell. 0 where no cell touches it or cells lie on both of its sides: a plane
