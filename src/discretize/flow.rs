@@ -562,17 +562,16 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 
     /// A fresh scratch of [`FlowDiscretization::cell_kernel`], per thread.
-    /// With SUPG the cell values carry the basis' second derivatives.
+    /// With SUPG the cell values carry the basis' second derivatives. The values are tabulated
+    /// once here and copied into each scratch (the assembly may make many).
     fn cell_scratch(&self, stabilization: Stabilization) -> impl Fn() -> CellScratch<D> + Sync + Send + '_ {
         let n = self.layout.dofs_per_cell();
-        move || {
-            let cv = self.cell_values(self.cell_rule.clone());
-            let cv = match stabilization {
-                Stabilization::None => cv,
-                Stabilization::Supg => cv.with_hessians(&self.velocity_element, &self.geometry_element),
-            };
-            (cv, Vec::new(), Vec::new(), vec![0.0; n])
-        }
+        let cv = self.cell_values(self.cell_rule.clone());
+        let cv = match stabilization {
+            Stabilization::None => cv,
+            Stabilization::Supg => cv.with_hessians(&self.velocity_element, &self.geometry_element),
+        };
+        move || (cv.clone(), Vec::new(), Vec::new(), vec![0.0; n])
     }
 
     /// The flow's cell kernel at `x` (history `x_old`, time `t`): the cell's unknowns, its
