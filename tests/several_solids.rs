@@ -320,11 +320,12 @@ fn two_solids_in_contact_carry_a_uniform_contact_pressure() {
 /// under a reversed pressure difference of 1.5, to t = 8. Both close at t = 1.6 and seal: the
 /// flux balance holds to round-off every step (the cut cells' walls hold the fluid), no tip
 /// penetrates, and the jump across the valve is the applied one (measured: 1.5e-5 and 1.9e-4
-/// relative). Not the same yet (measured, an open item): the full model still moves at t = 8
-/// (a flux of 1.7e-3 of its peak, steady since t = 5; the half model's 1e-4 and falling), and
-/// its leaflets carry 5.4 % less force along the channel than twice the half model's; its cut
-/// is not the mirror image of the half model's (13 cells against 2 x 7: the layers are projected
-/// onto the other tip, not onto the line).
+/// relative; no penetration beyond 1e-12). Not the same yet (measured, an open item): the full
+/// model's tips still slide at t = 8 (the upper tip moved 7.5e-3 from t = 5, the half model's
+/// 2.6e-4), with a flux of 1.7e-3 of its peak, steady since t = 5 (the half model's 1e-4 and
+/// falling), and its leaflets carry 5.4 % less force along the channel than twice the half
+/// model's; its cut is not the mirror image of the half model's (13 cells against 2 x 7: the
+/// layers are projected onto the other tip, not onto the line).
 #[test]
 fn two_leaflets_close_on_each_other_and_seal() {
     let leaflet = |name: &str, corners: &str, hinge: &str, contact: &str| {
@@ -386,6 +387,12 @@ point = [1.0, 0.5]
 name = "p_down"
 field = "pressure"
 point = [4.5, 0.5]
+
+[[output.probe]]
+name = "tip_x"
+field = "displacement"
+component = 0
+point = [2.6, 0.1]
 "#;
     let half = format!(
         "[mesh]\nkind = \"rectangle\"\nx = [0.0, 6.0]\ny = [0.0, 1.0]\nn = [24, 8]\n{common}\n[[boundary]]\nname = \"bottom\"\ntype = \"symmetry\"\nnormal_axis = 1\n"
@@ -411,16 +418,18 @@ point = [4.5, 0.5]
         let (settled, jump) = (q_in[last].abs() / peak, c["p_down"][last] - c["p_up"][last]);
         let gap = c[&format!("{contact}_gap_min")].iter().fold(f64::INFINITY, |m, g| m.min(*g));
         let closed_from = c["time"][c[&format!("{contact}_contact_force")].iter().position(|&v| v > 0.0).unwrap_or(last)];
+        // How far the upper tip moves from t = 5 to t = 8 (steps 50 to 80).
+        let creep = (c["tip_x"][last] - c["tip_x"][last - 30]).abs();
         println!(
             "{name}: closed from t = {closed_from}, gap min {gap:.2e}, flux balance {balance:.2e} of the peak {peak:.4}; at t = 8: \
-             jump {jump:.8}, flux {settled:.2e} of the peak, {} cells cut off, coupling force x {:.6}",
+             jump {jump:.8}, flux {settled:.2e} of the peak, {} cells cut off, coupling force x {:.6}; tip moved {creep:.3e} from t = 5",
             c["closed_gap_cells"][last], c["coupling_force_x"][last]
         );
         assert!(closed_from < 2.0 && c[&format!("{contact}_contact_force")][last] > 0.0, "{name}: closed");
         assert!(balance < 1e-12, "{name}: flux balance {balance}");
         assert!(gap >= -1e-6, "{name}: penetration {gap}");
         assert!(c["closed_gap_cells"][last] > 0.0, "{name}: the gap is cut off");
-        assert!((jump - 1.5).abs() < 1e-3 * 1.5, "{name}: jump {jump}");
+        assert!((jump - 1.5).abs() < 5e-4 * 1.5, "{name}: jump {jump}");
         let settled_limit = if name == "half" { 2e-4 } else { 3e-3 };
         assert!(settled < settled_limit, "{name}: the flux through the closed valve {settled}");
     }
@@ -428,5 +437,5 @@ point = [4.5, 0.5]
     assert!(full_out.join("plots/upper.bottom_contact_force.png").exists());
     let (fx_half, fx_full) = (one.quantities["coupling_force_x"], two.quantities["coupling_force_x"]);
     println!("force along the channel: full {fx_full:.6}, twice the half {:.6} ({:+.2} %)", 2.0 * fx_half, 100.0 * (fx_full / (2.0 * fx_half) - 1.0));
-    assert!((fx_full - 2.0 * fx_half).abs() < 0.1 * (2.0 * fx_half).abs(), "forces {fx_full} and twice {fx_half}");
+    assert!((fx_full - 2.0 * fx_half).abs() < 0.07 * (2.0 * fx_half).abs(), "forces {fx_full} and twice {fx_half}");
 }

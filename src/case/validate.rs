@@ -438,17 +438,19 @@ fn solids(c: &Case, p: &mut Problems) {
     }
     // Contacts between boundaries, named in full: each pair once, over all tables, and no
     // boundary against itself.
-    let mut pairs: Vec<(String, String)> = Vec::new();
+    // (What one table's own check reports, `against` itself or a pair twice in the table, is not
+    // reported again.)
+    let mut pairs: Vec<(String, String, usize)> = Vec::new();
     for (k, s) in c.solid.iter().enumerate() {
         for contact in &s.contact {
             let Some(against) = &contact.against else { continue };
             let (a, b) = (c.solid_boundary(k, &contact.boundary), c.solid_boundary(k, against));
-            if a == b {
+            if a == b && against != &contact.boundary {
                 p.push(solid_key(c, s, &format!("solid.contact '{}': '{against}' is the boundary itself", contact.boundary)));
-            } else if pairs.iter().any(|(x, y)| (x, y) == (&a, &b) || (x, y) == (&b, &a)) {
+            } else if pairs.iter().any(|(x, y, table)| *table != k && ((x, y) == (&a, &b) || (x, y) == (&b, &a))) {
                 p.push(solid_key(c, s, &format!("solid.contact '{}': '{a}' and '{b}' are in contact already: give the pair once", contact.boundary)));
             }
-            pairs.push((a, b));
+            pairs.push((a, b, k));
         }
     }
 }

@@ -300,9 +300,11 @@ impl<const D: usize> FsiModel<D> {
                     layers.extend(plane.layer(surface));
                     layers.extend(plane.layer(&boundary));
                 }
-                (ClosedGap::Between { cut_off }, ContactTarget::Boundary(master)) if self.contact_pressed(k, solid_x) => {
+                (ClosedGap::Between { cut_off }, ContactTarget::Boundary(master)) => {
                     let master = Surface::from_mesh_boundary(&mesh, master)?;
-                    layers.extend(self.layers_between(surface, &boundary, &master, *cut_off));
+                    if self.contact_closed(k, solid_x, &boundary, &master, *cut_off) {
+                        layers.extend(self.layers_between(surface, &boundary, &master, *cut_off));
+                    }
                 }
                 _ => {}
             }
@@ -310,21 +312,46 @@ impl<const D: usize> FsiModel<D> {
         Ok(remove_closed_gaps(adapted, &layers))
     }
 
-    /// Whether a contact pressure of the `k`-th contact boundary is positive in `solid_x`.
-    fn contact_pressed(&self, k: usize, solid_x: &[f64]) -> bool {
+    /// Whether the `k`-th contact (against another boundary `master`) is closed at `solid_x`: a
+    /// contact pressure of its boundary positive, or a corner of the boundary `slave` within
+    /// `1e-3 cut_off` of `master` (under BDF2 `solid_x` is extrapolated, contact pressures
+    /// included, and a pressure falling to zero may extrapolate below it while the bodies still
+    /// touch).
+    fn contact_closed(&self, k: usize, solid_x: &[f64], slave: &Surface<D>, master: &Surface<D>, cut_off: f64) -> bool {
         let s = &self.solid.contact_surfaces()[k];
-        solid_x.get(s.first..s.first + s.nodes.len()).is_some_and(|p| p.iter().any(|&v| v > 0.0))
+        debug_assert!(solid_x.len() >= s.first + s.nodes.len(), "solid_x holds the contact pressures");
+        let pressed = solid_x.get(s.first..s.first + s.nodes.len()).is_some_and(|p| p.iter().any(|&v| v > 0.0));
+        pressed || slave.points.iter().any(|x| master.project(x).is_some_and(|p| p.distance <= 1e-3 * cut_off))
+    }
+
+    /// The slave and master boundaries, at `solid_x`, of each contact between two boundaries, in
+    /// the order of the problem's contacts (two surfaces a contact).
+    fn between_boundaries(&self, solid_x: &[f64]) -> Result<Vec<Surface<D>>, FsiError> {
+        let mesh = self.current_solid_mesh(solid_x);
+        let mut out = Vec::new();
+        for contact in &self.problem.solid.contact {
+            if let ContactTarget::Boundary(master) = &contact.target {
+                out.push(Surface::from_mesh_boundary(&mesh, &contact.boundary)?);
+                out.push(Surface::from_mesh_boundary(&mesh, master)?);
+            }
+        }
+        Ok(out)
     }
 
     /// The gap layers between two bodies in contact, the `slave` boundary's and the `master`'s
     /// ([`layer_towards`]): each contact boundary towards the other, and the pieces of gamma_s
-    /// (`surface`) of each body towards the other's contact boundary.
+    /// (`surface`) of each body towards the other's contact boundary (the body of a boundary:
+    /// that of its first piece; none when the two boundaries are of one body, whose gamma_s
+    /// pieces next to its own boundaries would all be near them).
     fn layers_between(&self, surface: &Surface<D>, slave: &Surface<D>, master: &Surface<D>, cut_off: f64) -> Vec<Vec<[f64; D]>> {
         let part = |s: &Surface<D>| s.origin.first().map(|&(c, _)| self.solid_part[c]);
         let corners = |s: &Surface<D>, i: usize| s.pieces[i].map(|p| s.points[p]);
         let (slave_part, master_part) = (part(slave), part(master));
         let mut layers = layer_towards((0..slave.pieces.len()).map(|i| corners(slave, i)), master, cut_off);
         layers.extend(layer_towards((0..master.pieces.len()).map(|i| corners(master, i)), slave, cut_off));
+        if slave_part == master_part {
+            return layers;
+        }
         let of = |which: Option<usize>| (0..surface.pieces.len()).filter(move |&i| Some(self.solid_part[surface.origin[i].0]) == which);
         layers.extend(layer_towards(of(slave_part).map(|i| corners(surface, i)), master, cut_off));
         layers.extend(layer_towards(of(master_part).map(|i| corners(surface, i)), slave, cut_off));
@@ -588,16 +615,37 @@ impl<const D: usize> FluidSnapshot<D> {
         let has_hole = covered_hole || gap_hole;
         // gamma_s at `solid_base`, built for the first node that needs it (most steps have none).
         let mut hole: Option<Surface<D>> = None;
+        // The contact boundaries at `solid_base` of the contacts between two bodies, likewise.
+        let mut contact_boundaries: Option<Vec<Surface<D>>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
-            // In a gap the solid closed on a rigid plane, or between two bodies: the fluid was at
-            // rest there.
-            let in_gap = |g: &ClosedGap<D>| match g {
-                ClosedGap::Plane(plane) => (0.0..=plane.cut_off).contains(&plane.distance(x)),
-                ClosedGap::Between { cut_off } => *cut_off > 0.0,
-            };
-            if gap_hole && model.closed_gaps.iter().any(in_gap) {
-                return Ok([0.0; D]);
+            // In a gap the solid closed on a rigid plane, or between two bodies (within the cut-off
+            // of both contact boundaries): the fluid was at rest there.
+            if gap_hole {
+                let on_plane = model.closed_gaps.iter().any(|g| matches!(g, ClosedGap::Plane(p) if (0.0..=p.cut_off).contains(&p.distance(x))));
+                let between = model.closed_gaps.iter().any(|g| matches!(g, ClosedGap::Between { cut_off } if *cut_off > 0.0));
+                if on_plane {
+                    return Ok([0.0; D]);
+                }
+                if between {
+                    if contact_boundaries.is_none() {
+                        contact_boundaries = Some(
+                            model
+                                .between_boundaries(&self.solid_base)
+                                .map_err(|e| AdaptError::Transfer(format!("the contact boundaries of the old mesh's gap: {e}")))?,
+                        );
+                    }
+                    let near = |s: &Surface<D>, cut_off: f64| s.project(x).is_some_and(|p| p.distance <= cut_off);
+                    let boundaries = contact_boundaries.as_ref().expect("built above");
+                    let mut pairs = boundaries.chunks(2);
+                    let in_between = model.closed_gaps.iter().filter_map(|g| match g {
+                        ClosedGap::Between { cut_off } => Some(*cut_off),
+                        ClosedGap::Plane(_) => None,
+                    });
+                    if in_between.zip(&mut pairs).any(|(cut_off, pair)| pair.iter().all(|s| near(s, cut_off))) {
+                        return Ok([0.0; D]);
+                    }
+                }
             }
             if !covered_hole {
                 return Err(outside());

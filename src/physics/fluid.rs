@@ -352,7 +352,7 @@ impl Supg {
         // d tau / d u_b = -tau^3 (4 / h^2) u_b (times phi_j).
         let dtau: [f64; D] = std::array::from_fn(|b| -tau.powi(3) * 4.0 / (h * h) * u[b]);
         let mut streamline = [0.0; 32];
-        debug_assert!(nv <= streamline.len(), "velocity elements of at most 32 nodes");
+        assert!(nv <= streamline.len(), "velocity elements of at most 32 nodes");
         for (s_i, g) in streamline.iter_mut().zip(dphi) {
             *s_i = (0..D).map(|b| u[b] * g[b]).sum();
         }

@@ -10,7 +10,7 @@
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
 //!   integral of the multiplier over gamma_f, plus `coupling_facets` (and `closed_gap_cells`
-//!   with contact planes);
+//!   with contacts);
 //! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
 //!   gamma_f);
 //! - `summary.json` as for every run.

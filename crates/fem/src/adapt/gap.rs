@@ -1,4 +1,5 @@
-//! The fluid cut off where a solid closes on a rigid plane (valve closure).
+//! The fluid cut off where a solid closes on a rigid plane, or two bodies close on each other
+//! (valve closure).
 //!
 //! Where a solid presses on a rigid plane (a wall or a symmetry plane) the fluid layer between
 //! them is thinner than any cell: the adapted mesh cannot follow it, and its cells would leave a
@@ -18,6 +19,11 @@
 //!   (its Dirichlet condition is the caller's);
 //! * each step adapts the original mesh again, so the cells come back in the first step after
 //!   the contact boundary has left the plane.
+//!
+//! Between two bodies (a contact boundary against another body's) the layers are built the same
+//! way with the nearest points on the other body's contact boundary in place of the plane's
+//! projection ([`layer_towards`]); the caller decides when the contact is closed and which
+//! pieces face which boundary.
 //!
 //! The kept cells keep their P1-discontinuous pressure and their zero divergence; with the fluid
 //! at rest on the new walls the global flux balance holds exactly. What is lost is the fluid in
@@ -281,6 +287,23 @@ pub(super) fn without_cells<const D: usize>(adapted: Adapted<D>, removed: &HashS
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Between two bodies: a piece within `cut_off` of the other surface gives the polytope of its
+    /// corners and their nearest points; one farther off gives none. The size of the cells at a
+    /// point: `(2 |K|)^(1/2)` of the triangles holding it.
+    #[test]
+    fn layers_between_two_surfaces_and_the_cell_size_at_them() {
+        let other = Surface::from_pieces(vec![[0.0, 0.0], [1.0, 0.0]], vec![[0, 1]]).unwrap();
+        let near = [[0.2, 0.05], [0.4, 0.05]];
+        let layers = layer_towards([near], &other, 0.1);
+        assert_eq!(layers.len(), 1);
+        let expected = [[0.2, 0.05], [0.4, 0.05], [0.2, 0.0], [0.4, 0.0]];
+        assert!(layers[0].iter().zip(&expected).all(|(a, b)| (a[0] - b[0]).abs() < 1e-15 && (a[1] - b[1]).abs() < 1e-15), "{layers:?}");
+        assert!(layer_towards([[[0.2, 0.05], [0.4, 0.2]]], &other, 0.1).is_empty(), "a corner beyond the cut-off");
+        let square = crate::generate::rectangle_triangles(0.0, 2.0, 0.0, 2.0, 1, 1, crate::generate::DiagonalPattern::Right);
+        assert!((cell_size_at(&square, &[[0.5, 1.5]]) - 2.0).abs() < 1e-12);
+        assert_eq!(cell_size_at(&square, &[[3.0, 3.0]]), 0.0, "no cell: nothing cut off");
+    }
 
     #[test]
     fn separating_axes_tell_meeting_hulls() {

@@ -248,7 +248,8 @@ pub struct AdaptStats {
     pub unplaced_corners: usize,
     /// Cells enclosed by gamma_f and removed ([`remove_enclosed`]).
     pub removed_cells: usize,
-    /// Cells cut off where the solid closes on a rigid plane ([`remove_closed_gaps`]).
+    /// Cells cut off where the solid closes on a rigid plane or on another body
+    /// ([`remove_closed_gaps`]).
     pub closed_gap_cells: usize,
     /// Cells told inside or outside the solid by the side of gamma_s they lie on, where the
     /// facet rules left gamma_f open and [`remove_enclosed`] rebuilt it between the two sides
