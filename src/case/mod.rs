@@ -1200,12 +1200,18 @@ impl Case {
         format!("{}/{local}", self.solid[k].name.as_deref().unwrap_or_default())
     }
 
-    /// The name of gamma_s in the joined solid mesh: the union of every solid's `surface` (its
-    /// names joined by `+`); `None` if a solid has none.
+    /// The name of gamma_s in the joined solid mesh: the union of every solid's `surface`
+    /// ([`Case::solid_surfaces`], joined by `+`); `None` if a solid has none.
     pub fn solid_surface(&self) -> Option<String> {
+        self.solid_surfaces().map(|n| n.join("+"))
+    }
+
+    /// Every solid's `surface`, by its name in the joined solid mesh; `None` without solids or if
+    /// one has none.
+    pub fn solid_surfaces(&self) -> Option<Vec<String>> {
         let names: Option<Vec<String>> =
             self.solid.iter().enumerate().map(|(k, s)| s.surface.as_ref().map(|b| self.solid_boundary(k, &b.joined()))).collect();
-        names.filter(|n| !n.is_empty()).map(|n| n.join("+"))
+        names.filter(|n| !n.is_empty())
     }
 
     /// Spatial dimension implied by the formulation.

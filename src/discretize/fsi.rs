@@ -65,7 +65,7 @@ use fdfsi_fem::adapt::{
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
 use fdfsi_fem::locate::simplex_reference_coords;
-use fdfsi_fem::mesh::{Mesh, MeshError, NO_CELL};
+use fdfsi_fem::mesh::{connected_components, Mesh, MeshError, NO_CELL};
 use fdfsi_fem::quadrature;
 use fdfsi_fem::sparse::{Colouring, CscMatrix, HeldRows, Pattern, ResidualOnly, RowMatrix, RowPattern, SystemTarget, WholeSystem};
 use fdfsi_fem::values::det_inv;
@@ -324,15 +324,16 @@ impl<const D: usize> FsiModel<D> {
         pressed || slave.points.iter().any(|x| master.project(x).is_some_and(|p| p.distance <= 1e-3 * cut_off))
     }
 
-    /// The slave and master boundaries, at `solid_x`, of each contact between two boundaries, in
-    /// the order of the problem's contacts (two surfaces a contact).
-    fn between_boundaries(&self, solid_x: &[f64]) -> Result<Vec<Surface<D>>, FsiError> {
+    /// The cut-off and the slave and master boundaries at `solid_x` of each contact between two
+    /// boundaries that cuts fluid off (a cut-off > 0).
+    fn between_boundaries(&self, solid_x: &[f64]) -> Result<Vec<(f64, Surface<D>, Surface<D>)>, FsiError> {
         let mesh = self.current_solid_mesh(solid_x);
         let mut out = Vec::new();
-        for contact in &self.problem.solid.contact {
-            if let ContactTarget::Boundary(master) = &contact.target {
-                out.push(Surface::from_mesh_boundary(&mesh, &contact.boundary)?);
-                out.push(Surface::from_mesh_boundary(&mesh, master)?);
+        for (gap, contact) in self.closed_gaps.iter().zip(&self.problem.solid.contact) {
+            if let (ClosedGap::Between { cut_off }, ContactTarget::Boundary(master)) = (gap, &contact.target) {
+                if *cut_off > 0.0 {
+                    out.push((*cut_off, Surface::from_mesh_boundary(&mesh, &contact.boundary)?, Surface::from_mesh_boundary(&mesh, master)?));
+                }
             }
         }
         Ok(out)
@@ -616,35 +617,24 @@ impl<const D: usize> FluidSnapshot<D> {
         // gamma_s at `solid_base`, built for the first node that needs it (most steps have none).
         let mut hole: Option<Surface<D>> = None;
         // The contact boundaries at `solid_base` of the contacts between two bodies, likewise.
-        let mut contact_boundaries: Option<Vec<Surface<D>>> = None;
+        let mut contact_boundaries: Option<Vec<(f64, Surface<D>, Surface<D>)>> = None;
         let solid_velocity = |i: usize, x: &[f64; D]| {
             let outside = || AdaptError::Transfer(format!("new node {i} at {x:?} lies outside the old mesh, and not in the solid's place"));
             // In a gap the solid closed on a rigid plane, or between two bodies (within the cut-off
             // of both contact boundaries): the fluid was at rest there.
             if gap_hole {
-                let on_plane = model.closed_gaps.iter().any(|g| matches!(g, ClosedGap::Plane(p) if (0.0..=p.cut_off).contains(&p.distance(x))));
-                let between = model.closed_gaps.iter().any(|g| matches!(g, ClosedGap::Between { cut_off } if *cut_off > 0.0));
-                if on_plane {
+                if model.closed_gaps.iter().any(|g| matches!(g, ClosedGap::Plane(p) if (0.0..=p.cut_off).contains(&p.distance(x)))) {
                     return Ok([0.0; D]);
                 }
-                if between {
-                    if contact_boundaries.is_none() {
-                        contact_boundaries = Some(
-                            model
-                                .between_boundaries(&self.solid_base)
-                                .map_err(|e| AdaptError::Transfer(format!("the contact boundaries of the old mesh's gap: {e}")))?,
-                        );
-                    }
-                    let near = |s: &Surface<D>, cut_off: f64| s.project(x).is_some_and(|p| p.distance <= cut_off);
-                    let boundaries = contact_boundaries.as_ref().expect("built above");
-                    let mut pairs = boundaries.chunks(2);
-                    let in_between = model.closed_gaps.iter().filter_map(|g| match g {
-                        ClosedGap::Between { cut_off } => Some(*cut_off),
-                        ClosedGap::Plane(_) => None,
-                    });
-                    if in_between.zip(&mut pairs).any(|(cut_off, pair)| pair.iter().all(|s| near(s, cut_off))) {
-                        return Ok([0.0; D]);
-                    }
+                if contact_boundaries.is_none() {
+                    let boundaries = model.between_boundaries(&self.solid_base);
+                    contact_boundaries =
+                        Some(boundaries.map_err(|e| AdaptError::Transfer(format!("the contact boundaries of the old mesh's gap: {e}")))?);
+                }
+                let near = |s: &Surface<D>, cut_off: f64| s.project(x).is_some_and(|p| p.distance <= cut_off);
+                let boundaries = contact_boundaries.as_ref().expect("built above");
+                if boundaries.iter().any(|(cut_off, slave, master)| near(slave, *cut_off) && near(master, *cut_off)) {
+                    return Ok([0.0; D]);
                 }
             }
             if !covered_hole {
@@ -674,33 +664,15 @@ impl<const D: usize> FluidSnapshot<D> {
     }
 }
 
-/// The connected part of each cell of `mesh` (cells sharing a vertex are connected), numbered
-/// from 0 in the order of their first cells: the bodies of a solid of several.
+/// The connected part of each cell of `mesh` (cells sharing a vertex are connected): the bodies
+/// of a solid of several. The parts are numbers to compare, not counted from the first cell.
 fn connected_parts<const D: usize>(mesh: &Mesh<D>) -> Vec<usize> {
-    // Union-find over the vertices, then each cell takes its first vertex's root.
-    let mut parent: Vec<usize> = (0..mesh.points.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    for c in 0..mesh.num_cells() {
+    let joined = (0..mesh.num_cells()).flat_map(|c| {
         let v = mesh.cell_vertices(c);
-        for &w in &v[1..] {
-            let (a, b) = (root(&mut parent, v[0]), root(&mut parent, w));
-            parent[a] = b;
-        }
-    }
-    let mut number = std::collections::HashMap::new();
-    (0..mesh.num_cells())
-        .map(|c| {
-            let r = root(&mut parent, mesh.cell_vertices(c)[0]);
-            let next = number.len();
-            *number.entry(r).or_insert(next)
-        })
-        .collect()
+        v[1..].iter().map(move |&w| (v[0], w))
+    });
+    let vertex_part = connected_components(mesh.points.len(), joined);
+    (0..mesh.num_cells()).map(|c| vertex_part[mesh.cell_vertices(c)[0]]).collect()
 }
 
 /// The coupling elements (one per gamma_f facet) and their quadrature points, point-major flat
@@ -1542,35 +1514,17 @@ impl<const D: usize> FsiDiscretization<D> {
 /// The connected pieces of gamma_f (facets sharing a vertex are connected): the piece of each
 /// facet, numbered in order of first appearance, and their number.
 fn connected_pieces<const D: usize>(gamma_f: &[GammaFacet<D>]) -> (Vec<usize>, usize) {
-    // Union-find over facets through their vertices.
-    let mut parent: Vec<usize> = (0..gamma_f.len()).collect();
-    fn root(p: &mut [usize], mut i: usize) -> usize {
-        while p[i] != i {
-            p[i] = p[p[i]];
-            i = p[i];
-        }
-        i
-    }
+    // Each facet joined to the first facet seen at each of its vertices.
     let mut owner: std::collections::HashMap<usize, usize> = Default::default();
+    let mut joined = Vec::new();
     for (e, g) in gamma_f.iter().enumerate() {
         for &v in &g.vertices {
-            if let Some(&f) = owner.get(&v) {
-                let (a, b) = (root(&mut parent, e), root(&mut parent, f));
-                parent[a] = b;
-            } else {
-                owner.insert(v, e);
-            }
+            joined.push((e, *owner.entry(v).or_insert(e)));
         }
     }
-    let mut index: std::collections::HashMap<usize, usize> = Default::default();
-    let piece = (0..gamma_f.len())
-        .map(|e| {
-            let r = root(&mut parent, e);
-            let n = index.len();
-            *index.entry(r).or_insert(n)
-        })
-        .collect();
-    (piece, index.len())
+    let piece = connected_components(gamma_f.len(), joined);
+    let count = piece.iter().max().map_or(0, |m| m + 1);
+    (piece, count)
 }
 
 /// The multipliers the fluid cannot see: the P1-discontinuous `mu` with `<mu, v> = 0` for every

@@ -254,17 +254,13 @@ impl Ctx<'_> {
         for p in &case.output.profile {
             self.known_boundary(&adapted_names, &p.boundary, &format!("[[output.profile]] '{}'", p.name))?;
         }
-        let solid = match case.first_solid() {
-            Some(spec) => {
-                let s = self.solid_mesh::<D>()?.mesh;
-                self.solid_inside(&mesh, &s)?;
-                Some((spec, s))
-            }
-            None => None,
-        };
+        if !case.solid.is_empty() {
+            let solid = self.solid_mesh::<D>()?.mesh;
+            self.solid_inside(&mesh, &solid)?;
+        }
         let cells = mesh.num_cells();
         let quantities = case.output.probe.len() + case.output.boundary_integral.len() + case.output.domain.len() + case.output.combination.len();
-        if let (true, Some(_)) = (fsi, solid) {
+        if fsi {
             let surface = case.solid_surface().ok_or_else(|| self.invalid("solid.surface is required with a fluid".into()))?;
             // The model `fdfsi run` builds, at t = 0: the same unknowns as its first step.
             let model = fsi_model(case, &mesh, self.dir)?;
@@ -299,22 +295,20 @@ impl Ctx<'_> {
                 history_bytes: history_bytes(steps, quantities + D + 1),
             });
         }
-        let adapted = match case.solid.is_empty() {
-            false => adapt_fluid(case, mesh, self.dir)?.adapted.mesh,
-            true => mesh,
-        };
+        let adapted = if case.solid.is_empty() { mesh } else { adapt_fluid(case, mesh, self.dir)?.adapted.mesh };
         self.probes_inside(&adapted)?;
         let problem = flow_problem(case, &adapted, self.dir)?;
         let adapted_cells = adapted.num_cells();
         // The entries counted, not stored: a run may hold only its rows of them.
         let disc = FlowDiscretization::build_for(adapted, &problem, Entries::Counted)?;
         let dofs = with_total(super::flow::flow_dofs(&disc));
-        let solid_text = match case.solid.is_empty() {
-            false => format!(
+        let solid_text = if case.solid.is_empty() {
+            String::new()
+        } else {
+            format!(
                 "; fixed solid, the mesh adapted to its surface '{}' has {adapted_cells} cells",
                 case.solid_surface().unwrap_or_else(|| "?".into())
-            ),
-            true => String::new(),
+            )
         };
         let description = format!(
             "{}: {} flow ({}), {D}D mesh of {cells} cells{solid_text}; nnz {}",

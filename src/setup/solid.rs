@@ -40,9 +40,7 @@ pub fn solid_mesh<const D: usize>(case: &Case, case_dir: &Path) -> Result<SolidM
     }
     let named: Vec<(&str, &Mesh<D>)> = case.solid.iter().map(|s| s.name.as_deref().unwrap_or_default()).zip(&parts).collect();
     let mut mesh = Mesh::disjoint_union(&named).map_err(|e| SetupError::SolidMesh(format!("the solids' meshes: {e}")))?;
-    let surfaces: Vec<String> =
-        case.solid.iter().enumerate().filter_map(|(k, s)| s.surface.as_ref().map(|b| case.solid_boundary(k, &b.joined()))).collect();
-    if let Some(gamma_s) = case.solid_surface() {
+    if let (Some(surfaces), Some(gamma_s)) = (case.solid_surfaces(), case.solid_surface()) {
         mesh.merge_boundaries(&surfaces, &gamma_s).map_err(|e| SetupError::SolidMesh(format!("gamma_s, the union of the solids' surfaces: {e}")))?;
     }
     let cell_body = parts.iter().enumerate().flat_map(|(k, m)| std::iter::repeat_n(k, m.num_cells())).collect();
@@ -143,8 +141,7 @@ fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, SetupError> {
 /// (time-dependent solid-only and FSI runs, whose solvers pass the time in the load argument)
 /// they are evaluated at `t` = that time.
 pub fn solid_problem<const D: usize>(case: &Case, cell_body: Vec<usize>, ramp: bool) -> Result<SolidProblem<D>, SetupError> {
-    // (scale, t) of a load argument.
-    let at = move |load: f64| if ramp { (load, 0.0) } else { (1.0, load) };
+    let at = move |load: f64| scale_and_time(ramp, load);
     let bodies = case.solid.iter().map(|spec| body(spec, ramp)).collect::<Result<Vec<SolidBody<D>>, SetupError>>()?;
     let mut p = SolidProblem::with_bodies(case.physics.formulation, bodies, cell_body);
     for (k, spec) in case.solid.iter().enumerate() {
@@ -186,7 +183,7 @@ pub fn solid_problem<const D: usize>(case: &Case, cell_body: Vec<usize>, ramp: b
 /// The body of a solid spec: its material, density and body force (see [`solid_problem`] for
 /// `ramp`).
 fn body<const D: usize>(spec: &SolidSpec, ramp: bool) -> Result<SolidBody<D>, SetupError> {
-    let at = move |load: f64| if ramp { (load, 0.0) } else { (1.0, load) };
+    let at = move |load: f64| scale_and_time(ramp, load);
     let mut body = SolidBody::new(material(spec)?);
     body.density = spec.density;
     if let Some(f) = &spec.body_force {
@@ -194,6 +191,16 @@ fn body<const D: usize>(spec: &SolidSpec, ramp: bool) -> Result<SolidBody<D>, Se
         body.body_force = Some(Arc::new(move |x, load| vector_at(&exprs, x, at(load))));
     }
     Ok(body)
+}
+
+/// The `(scale, t)` of a load argument: `(load, 0)` when the loads are ramped (`ramp`), else
+/// `(1, load)`, the load argument being the time.
+fn scale_and_time(ramp: bool, load: f64) -> (f64, f64) {
+    if ramp {
+        (load, 0.0)
+    } else {
+        (1.0, load)
+    }
 }
 
 /// `scale * e_a(x, t)` for each component `a`.

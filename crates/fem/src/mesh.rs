@@ -244,6 +244,31 @@ impl<const D: usize> Mesh<D> {
     }
 }
 
+/// The connected components of the items `0..n` joined by `pairs`: the component of each item,
+/// numbered from 0 in the order of the items' first appearance (union-find with path halving).
+pub fn connected_components(n: usize, pairs: impl IntoIterator<Item = (usize, usize)>) -> Vec<usize> {
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for (a, b) in pairs {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        parent[ra.max(rb)] = ra.min(rb);
+    }
+    let mut number = std::collections::HashMap::new();
+    (0..n)
+        .map(|i| {
+            let r = root(&mut parent, i);
+            let next = number.len();
+            *number.entry(r).or_insert(next)
+        })
+        .collect()
+}
+
 /// New tags, from `*next + 1` on, for the tags `used` and those of `names`, the names prefixed by
 /// `part/` and added to `union_names`: the map from old tags to new.
 fn retag(

@@ -142,29 +142,8 @@ pub fn smooth_parts<const D: usize>(surface: &Surface<D>) -> Vec<usize> {
     if D != 3 {
         return vec![0; n];
     }
-    // Union-find over the pieces.
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
-    for p in edge_pieces(surface).values() {
-        if p.len() == 2 && !is_feature(surface, p) {
-            let (a, b) = (root(&mut parent, p[0].0), root(&mut parent, p[1].0));
-            parent[a.max(b)] = a.min(b);
-        }
-    }
-    let mut number = HashMap::new();
-    (0..n)
-        .map(|i| {
-            let r = root(&mut parent, i);
-            let next = number.len();
-            *number.entry(r).or_insert(next)
-        })
-        .collect()
+    let joined = edge_pieces(surface).into_values().filter(|p| p.len() == 2 && !is_feature(surface, p)).map(|p| (p[0].0, p[1].0));
+    crate::mesh::connected_components(n, joined)
 }
 
 /// The smooth parts (numbers from [`smooth_parts`]) of the pieces within `tol` of `x`, sorted:
