@@ -49,6 +49,7 @@ fn main() {
         pin_pressure: true,
         windkessel: Vec::new(),
         backflow: Vec::new(),
+        symmetry: Vec::new(),
     };
     let (mut al, mut lu) = (AugmentedLagrangian::new(AlOptions { refactor_iterations, boundary, ..Default::default() }), FaerLu::default());
     let solver: &mut dyn LinearSolver = if method == "direct" { &mut lu } else { &mut al };

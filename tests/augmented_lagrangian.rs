@@ -55,6 +55,7 @@ fn cavity(viscosity: f64, inv_dt: f64) -> (FlowDiscretization<2>, FlowProblem<2>
         pin_pressure: true,
         windkessel: Vec::new(),
         backflow: Vec::new(),
+        symmetry: Vec::new(),
     };
     (disc, problem)
 }

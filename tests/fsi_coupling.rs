@@ -44,6 +44,7 @@ fn tiny_model() -> FsiModel<2> {
         traction: vec![],
         windkessel: vec![],
         backflow: Vec::new(),
+        symmetry: Vec::new(),
         pin_pressure: false,
     };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));

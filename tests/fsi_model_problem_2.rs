@@ -102,6 +102,7 @@ fn channel(t_ramp: f64) -> FlowProblem<2> {
         pin_pressure: false,
         windkessel: Vec::new(),
         backflow: Vec::new(),
+        symmetry: Vec::new(),
     }
 }
 
@@ -376,6 +377,7 @@ fn trace_mode_multiplier_sees_the_free_trace_function_and_has_a_consistent_jacob
         traction: vec![],
         windkessel: vec![],
         backflow: Vec::new(),
+        symmetry: Vec::new(),
         pin_pressure: false,
     };
     let mat: Arc<dyn SolidMaterial> = Arc::new(NeoHookeanMixed::incompressible(5.0));

@@ -68,6 +68,7 @@ fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
         pin_pressure: true,
         windkessel: Vec::new(),
         backflow: Vec::new(),
+        symmetry: Vec::new(),
     };
     let newton = NewtonOptions { max_iterations: 3, ..Default::default() };
     let mut cuts = Vec::new();

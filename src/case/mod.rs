@@ -394,6 +394,11 @@ pub struct SolidBoundarySpec {
     /// For `displacement`: the components prescribed (default: all).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub components: Option<Vec<usize>>,
+    /// For `symmetry` (required): the plane's normal, one entry per dimension (normalised; any
+    /// direction, e.g. `[-0.8660254037844386, 0.5, 0.0]` for the plane at 60 degrees about z
+    /// of a valve sector). The boundary's facets must all be normal to it (to 1e-6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<Vec<f64>>,
 }
 
 /// Kinds of solid boundary condition.
@@ -406,6 +411,11 @@ pub enum SolidBoundaryType {
     Traction,
     /// Follower pressure on the deformed surface.
     Pressure,
+    /// A roller on a plane: `u . n = 0` (the displacement normal to the plane `normal` held at
+    /// 0, the tangential free), held exactly at every node of the boundary (also where it meets
+    /// another plane: on their line only the motion along it is free). A normal along a
+    /// coordinate axis is `displacement` with that one component 0.
+    Symmetry,
 }
 
 /// Load stepping of a quasi-static solid run.
@@ -624,8 +634,11 @@ pub enum BoundaryType {
     Pressure,
     /// Symmetry axis of an axisymmetric run (`r = 0`): radial velocity zero.
     Axis,
-    /// Symmetry plane / free slip: normal velocity zero. The plane must be normal to a
-    /// coordinate axis (`normal_axis`, 0-based).
+    /// Symmetry plane / free slip: normal velocity zero, `u . n = 0`. The plane is normal to a
+    /// coordinate axis (`normal_axis`, 0-based: a Dirichlet condition on that component) or to
+    /// any direction (`normal`: the constraint held exactly at every velocity node of the
+    /// boundary by row operations on the system, [`crate::discretize::symmetry`]; two planes
+    /// that meet leave only the velocity along their line free there).
     Symmetry,
     /// Traction-free ("do nothing").
     Free,
@@ -674,6 +687,12 @@ pub struct BoundarySpec {
     /// another Dirichlet boundary the first one in the case file sets a component.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal_axis: Option<usize>,
+    /// For `symmetry`, instead of `normal_axis`: the plane's normal, one entry per dimension
+    /// (normalised; any direction, e.g. `[-0.8660254037844386, 0.5, 0.0]` for the plane at 60
+    /// degrees about z of a valve sector). The boundary's facets must all be normal to it (to
+    /// 1e-6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal: Option<Vec<f64>>,
     /// Multiplies `value` (unsteady runs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_function: Option<TimeFunction>,

@@ -147,9 +147,7 @@ fn boundaries(c: &Case, p: &mut Problems) {
         if b.kind == BoundaryType::Axis && c.physics.formulation != Formulation::Axisymmetric {
             p.push(format!("boundary '{}': type = \"axis\" only applies to axisymmetric runs", b.name));
         }
-        if b.kind == BoundaryType::Symmetry && !matches!(b.normal_axis, Some(a) if a < d) {
-            p.push(format!("boundary '{}': type = \"symmetry\" needs normal_axis in 0..{d}", b.name));
-        }
+        symmetry(b, d, p);
         if let Some(beta) = b.backflow_stabilization {
             if !matches!(b.kind, BoundaryType::Pressure | BoundaryType::Traction | BoundaryType::Free | BoundaryType::Windkessel) {
                 p.push(format!("boundary '{}': backflow_stabilization applies to traction boundaries, not type = {}", b.name, spelled(&b.kind)));
@@ -184,6 +182,40 @@ fn boundaries(c: &Case, p: &mut Problems) {
         if !names.insert(&b.name) {
             p.push(format!("boundary '{}' is given twice", b.name));
         }
+    }
+}
+
+/// A `symmetry` boundary: `normal_axis` in `0..d` or a `normal` of `d` entries, not both; and
+/// `normal` on no other type.
+fn symmetry(b: &BoundarySpec, d: usize, p: &mut Problems) {
+    let what = format!("boundary '{}'", b.name);
+    if b.kind != BoundaryType::Symmetry {
+        if b.normal.is_some() {
+            p.push(format!(
+                "{what}: normal applies to symmetry boundaries (normal_axis to pressure, free and windkessel ones), not type = {}",
+                spelled(&b.kind)
+            ));
+        }
+        return;
+    }
+    match (b.normal_axis, &b.normal) {
+        (Some(_), Some(_)) => p.push(format!("{what}: type = \"symmetry\" takes normal_axis or normal, not both")),
+        (None, None) => p.push(format!("{what}: type = \"symmetry\" needs normal_axis in 0..{d} or normal = [...] ({d} entries)")),
+        (Some(a), None) if a >= d => p.push(format!("{what}: type = \"symmetry\" needs normal_axis in 0..{d}, got {a}")),
+        (_, Some(n)) => plane_normal(&what, n, d, p),
+        _ => {}
+    }
+}
+
+/// The `normal` of a symmetry plane: `d` finite entries, not all zero.
+fn plane_normal(what: &str, n: &[f64], d: usize, p: &mut Problems) {
+    if n.len() != d {
+        p.push(format!("{what}: normal needs {d} entries (one per dimension), got {}", n.len()));
+    }
+    if n.iter().any(|x| !x.is_finite()) {
+        p.push(format!("{what}: normal must be finite numbers, got {n:?}"));
+    } else if n.iter().all(|&x| x == 0.0) {
+        p.push(format!("{what}: normal is the zero vector: give the plane's normal"));
     }
 }
 
@@ -609,12 +641,26 @@ fn solid_material(c: &Case, solid: &SolidSpec, p: &mut Problems) {
         p.push("solid.loading.steps must be >= 1");
     }
     for b in &solid.boundary {
-        let k = if b.kind == SolidBoundaryType::Pressure { 1 } else { d };
+        let k = match b.kind {
+            SolidBoundaryType::Pressure => 1,
+            SolidBoundaryType::Symmetry => 0,
+            SolidBoundaryType::Displacement | SolidBoundaryType::Traction => d,
+        };
         if b.value.len() != k {
             p.push(format!("solid boundary '{}': `value` needs {k} entries, got {}", b.name, b.value.len()));
         }
         if b.components.as_ref().is_some_and(|c| c.iter().any(|&a| a >= d)) {
             p.push(format!("solid boundary '{}': components must be < {d}", b.name));
+        }
+        let what = format!("solid boundary '{}'", b.name);
+        match (&b.normal, b.kind) {
+            (None, SolidBoundaryType::Symmetry) => p.push(format!("{what}: type = \"symmetry\" needs normal = [...] ({d} entries)")),
+            (Some(n), SolidBoundaryType::Symmetry) => plane_normal(&what, n, d, p),
+            (Some(_), kind) => p.push(format!("{what}: normal applies to symmetry boundaries, not type = {}", spelled(&kind))),
+            (None, _) => {}
+        }
+        if b.kind == SolidBoundaryType::Symmetry && b.components.is_some() {
+            p.push(format!("{what}: type = \"symmetry\" takes no components (its normal says what is held)"));
         }
     }
 }

@@ -7,6 +7,7 @@
 //! runs Newton on it with the kernel of [`crate::physics::fluid`] and returns a
 //! [`FlowSolution`].
 
+use super::symmetry::{NormalConstraints, Planarity, SymmetryBc, SymmetryError};
 use super::system_cell_dofs;
 use crate::physics::fluid::{fluid_cell, traction_facet, CellState, FluidParams, Formulation, Stabilization};
 use crate::solve::augmented::{MultiplierBlock, SaddlePointSplit};
@@ -103,6 +104,10 @@ pub struct FlowProblem<const D: usize> {
     pub windkessel: Vec<WindkesselBc>,
     /// Backflow stabilisation on traction boundaries.
     pub backflow: Vec<BackflowBc>,
+    /// Symmetry planes (free slip, `u . n = 0`) whose normal is not along a coordinate axis
+    /// (those are Dirichlet conditions on one component), held by the discretisation's
+    /// [`NormalConstraints`] ([`FlowDiscretization::build_for`]).
+    pub symmetry: Vec<SymmetryBc<D>>,
     /// Fix the pressure constant (needed when the velocity is prescribed on the whole boundary):
     /// the mean-value dof of cell 0 is set to zero and the pressure shifted to zero mean after the
     /// solve.
@@ -131,6 +136,8 @@ pub enum FlowError {
     CellType(ReferenceCell),
     #[error("{0} unknowns exceed the 2^32 column indices of a partitioned assembly")]
     TooManyUnknowns(usize),
+    #[error(transparent)]
+    Symmetry(#[from] SymmetryError),
     #[error(transparent)]
     Newton(#[from] NewtonError<AssemblyError>),
     /// `reached` is the smallest viscosity solved (infinite when none converged from rest).
@@ -171,6 +178,10 @@ pub struct FlowDiscretization<const D: usize> {
     outlet_cells: Vec<Vec<usize>>,
     /// Each outlet's [`FlowDiscretization::flux_weights`].
     outlet_weights: Vec<Vec<(usize, f64)>>,
+    /// The symmetry planes of any normal it was built for ([`FlowDiscretization::build_for`]).
+    symmetry: Vec<SymmetryBc<D>>,
+    /// Their constraints at the velocity nodes on them.
+    normal_constraints: NormalConstraints,
 }
 
 /// Which matrix entries a discretisation prepares ([`FlowDiscretization::build_with`],
@@ -242,11 +253,67 @@ impl<const D: usize> FlowDiscretization<D> {
         Self::build_with_outlets(mesh, formulation, &[], entries)
     }
 
-    /// The discretisation of `mesh` for `problem`: its formulation, and its Windkessel outlets
-    /// ([`FlowDiscretization::build_with_outlets`]), with the matrix `entries` it prepares.
+    /// The discretisation of `mesh` for `problem`: its formulation, its Windkessel outlets
+    /// ([`FlowDiscretization::build_with_outlets`]) and its symmetry planes of any normal
+    /// ([`FlowDiscretization::normal_constraints`]), with the matrix `entries` it prepares.
+    ///
+    /// Fails where a symmetry boundary's facets are not all normal to its plane's normal
+    /// ([`super::symmetry::PLANAR_TOLERANCE`]).
     pub fn build_for(mesh: Mesh<D>, problem: &FlowProblem<D>, entries: Entries) -> Result<Self, FlowError> {
         let outlets: Vec<String> = problem.windkessel.iter().map(|w| w.boundary.clone()).collect();
-        Self::build_with_outlets(mesh, problem.formulation, &outlets, entries)
+        let mut disc = Self::build_with_outlets(mesh, problem.formulation, &outlets, entries)?;
+        disc.normal_constraints = disc.symmetry_constraints(problem)?;
+        disc.symmetry = problem.symmetry.clone();
+        Ok(disc)
+    }
+
+    /// The constraints of the symmetry planes of `problem` at the velocity nodes on them (each
+    /// with the normals of its planes), the components its Dirichlet conditions hold left out;
+    /// fails on a boundary whose facet normals (at the facet quadrature points) are not all
+    /// its plane's.
+    fn symmetry_constraints(&self, problem: &FlowProblem<D>) -> Result<NormalConstraints, FlowError> {
+        if problem.symmetry.is_empty() {
+            return Ok(NormalConstraints::default());
+        }
+        let held: std::collections::HashSet<usize> = self.dirichlet_dofs(problem, 0.0)?.into_iter().map(|(d, _)| d).collect();
+        let vel = self.velocity_field();
+        let mut normals: std::collections::BTreeMap<usize, Vec<[f64; D]>> = Default::default();
+        let (mut fv, mut coords) = (self.facet_values(), Vec::new());
+        for plane in &problem.symmetry {
+            let mut planarity = Planarity::new(plane);
+            for bf in self.mesh.boundary_facets(&plane.boundary)? {
+                self.mesh.cell_coords_into(bf.cell, &mut coords);
+                fv.reinit(&coords, bf.facet).map_err(|source| FlowError::Map { cell: bf.cell, source })?;
+                for q in 0..fv.num_points() {
+                    planarity.facet_normal(bf.cell, fv.normal[q]);
+                }
+                let nodes = vel.nodes.cell(bf.cell);
+                for k in self.velocity_element.facet_nodes(bf.facet) {
+                    let list = normals.entry(nodes[k]).or_default();
+                    if !list.contains(&plane.normal) {
+                        list.push(plane.normal);
+                    }
+                }
+            }
+            planarity.finish()?;
+        }
+        let nodes = normals.into_iter().map(|(node, n)| (std::array::from_fn(|a| vel.dof(node, a)), n));
+        Ok(NormalConstraints::new(nodes, |d| held.contains(&d)))
+    }
+
+    /// The constraints `u . n = 0` of the symmetry planes of any normal at the velocity nodes
+    /// on them ([`FlowDiscretization::build_for`]): the row operations every assembly of the
+    /// system ends with, and the projection of the state.
+    pub fn normal_constraints(&self) -> &NormalConstraints {
+        &self.normal_constraints
+    }
+
+    /// Checks that `problem`'s symmetry planes are those this discretisation was built for.
+    ///
+    /// # Panics
+    /// If they are not.
+    fn check_symmetry(&self, problem: &FlowProblem<D>) {
+        assert_eq!(problem.symmetry, self.symmetry, "the problem's symmetry planes are the discretisation's (FlowDiscretization::build_for)");
     }
 
     /// [`FlowDiscretization::build_with`] with Windkessel outlets on the boundaries `outlets`
@@ -317,6 +384,8 @@ impl<const D: usize> FlowDiscretization<D> {
             outlets: outlets.to_vec(),
             outlet_cells,
             outlet_weights: Vec::new(),
+            symmetry: Vec::new(),
+            normal_constraints: NormalConstraints::default(),
         };
         for name in outlets {
             let weights = disc.flux_weights(formulation, name).map_err(|e| FlowError::Map { cell: e.cell, source: e.source })?;
@@ -437,17 +506,21 @@ impl<const D: usize> FlowDiscretization<D> {
         // The Windkessel unknowns after the pressure are primal too: then the primal unknowns
         // are not one vector field.
         let primal_components = if self.outlets.is_empty() { D } else { 1 };
-        Ok(SaddlePointSplit { multipliers: vec![block], primal_components })
+        let constraint_rows = self.normal_constraints.constraint_rows().collect();
+        Ok(SaddlePointSplit { multipliers: vec![block], primal_components, constraint_rows })
     }
 
-    /// Sets the Dirichlet values at time `t` in `x` and returns which dofs they constrain (the
-    /// mask the assembly takes).
+    /// Sets the Dirichlet values at time `t` in `x`, projects the velocity onto the symmetry
+    /// planes' constraints ([`NormalConstraints::project`]) and returns which dofs the Dirichlet
+    /// values constrain (the mask the assembly takes).
     pub fn impose_dirichlet(&self, problem: &FlowProblem<D>, t: f64, x: &mut [f64]) -> Result<Vec<bool>, FlowError> {
+        self.check_symmetry(problem);
         let mut constrained = vec![false; self.num_dofs()];
         for (d, v) in self.dirichlet_dofs(problem, t)? {
             constrained[d] = true;
             x[d] = v;
         }
+        self.normal_constraints.project(x);
         Ok(constrained)
     }
 
@@ -479,9 +552,10 @@ impl<const D: usize> FlowDiscretization<D> {
         Ok(out)
     }
 
-    /// The residual `R(x)` with no rows constrained (Dirichlet rows included), for reaction
-    /// forces: all of it, from all cells, on every process (no matrix), equal to
-    /// [`FlowDiscretization::assemble_system`]'s `-rhs` with nothing constrained.
+    /// The residual `R(x)` with no rows constrained (Dirichlet rows included) and none combined
+    /// (the symmetry planes' nodes' rows as assembled), for reaction forces: all of it, from all
+    /// cells, on every process (no matrix), equal to [`FlowDiscretization::assemble_system`]'s
+    /// `-rhs` with nothing constrained and no symmetry plane of any normal.
     pub fn raw_residual(&self, problem: &FlowProblem<D>, x: &[f64], x_old: &[f64], t: f64) -> Result<Vec<f64>, FlowError> {
         let mut rhs = vec![0.0; self.num_dofs()];
         let free = vec![false; self.num_dofs()];
@@ -492,7 +566,9 @@ impl<const D: usize> FlowDiscretization<D> {
     }
 
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the flow problem at time `t`; rows of the
-    /// constrained dofs become identity rows with zero right-hand side.
+    /// constrained dofs become identity rows with zero right-hand side, and the rows of the
+    /// nodes on symmetry planes of any normal the tangential equations and constraint rows of
+    /// [`NormalConstraints`].
     #[allow(clippy::too_many_arguments, reason = "the state, the history, the time and the constraints of one system")]
     pub fn assemble_system(
         &self,
@@ -504,7 +580,12 @@ impl<const D: usize> FlowDiscretization<D> {
         k: &mut CscMatrix<'_>,
         rhs: &mut [f64],
     ) -> Result<(), AssemblyError> {
-        self.assemble_into(problem, x, x_old, t, constrained, &self.colouring, &mut WholeSystem { k, rhs })
+        self.check_symmetry(problem);
+        self.normal_constraints.check_free(constrained);
+        let target = &mut WholeSystem { k, rhs };
+        self.assemble_into(problem, x, x_old, t, constrained, &self.colouring, target)?;
+        self.normal_constraints.apply(target);
+        Ok(())
     }
 
     /// [`FlowDiscretization::assemble_system`] into this rank's rows of a partitioned assembly
@@ -525,17 +606,24 @@ impl<const D: usize> FlowDiscretization<D> {
         rhs: &mut [f64],
     ) -> Result<(), AssemblyError> {
         let part = self.rows().expect("assemble_rows of a partitioned discretisation");
+        self.check_symmetry(problem);
+        self.normal_constraints.check_free(constrained);
         let numbering = part.partition.numbering();
         let to_global = |d: usize| numbering.to_petsc(d);
         // SAFETY: the partition's numbering is a permutation of the unknowns.
         let target = &mut unsafe { HeldRows::new(k, rhs, &to_global) };
-        self.assemble_into(problem, x, x_old, t, constrained, &part.colouring, target)
+        self.assemble_into(problem, x, x_old, t, constrained, &part.colouring, target)?;
+        // The partition keeps the velocity's nodes whole: a node's rows are held together.
+        self.normal_constraints.apply(target);
+        Ok(())
     }
 
     /// The flow system at `x` (history `x_old`, time `t`) assembled into `target` from the cells
     /// of `colouring` (all of them, or those with an unknown in the target's rows), the traction
     /// boundaries, and identity rows with a zero right-hand side for the `constrained` unknowns
-    /// (whose rows the cells and tractions leave out): `K = dR/dx` and `rhs = -R(x)`.
+    /// (whose rows the cells and tractions leave out): `K = dR/dx` and `rhs = -R(x)`. The rows of
+    /// the symmetry planes' nodes are left as assembled: the system that holds them ends its
+    /// assembly with [`NormalConstraints::apply`], after every contribution to them.
     #[allow(clippy::too_many_arguments, reason = "the state, the history, the time, the constraints and where they go")]
     pub fn assemble_into(
         &self,
@@ -1042,6 +1130,7 @@ mod tests {
                 traction: vec![],
                 windkessel: vec![],
                 backflow,
+                symmetry: vec![],
                 pin_pressure: false,
             };
             let n = disc.num_dofs();

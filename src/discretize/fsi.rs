@@ -50,6 +50,7 @@ use super::layout::{Block, SystemLayout};
 pub use crate::adapt::CoveredFluid;
 use crate::discretize::flow::{AssemblyError, DirichletBc, Entries, FlowDiscretization, FlowError, FlowProblem};
 use crate::discretize::solid::{ContactTarget, SolidAssemblyError, SolidDiscretization, SolidError, SolidProblem};
+use crate::discretize::symmetry::NormalConstraints;
 use crate::discretize::time_scheme::{step_history, step_ratio, TimeScheme};
 use crate::physics::coupling::{coupling_point, CouplingPoint, CouplingState};
 use crate::physics::solid::{Mat3, IDENTITY};
@@ -777,6 +778,10 @@ pub struct FsiDiscretization<const D: usize> {
     pub kernel: Vec<Vec<(usize, f64)>>,
     /// The coupling elements' solid cells in the system's pattern.
     pub coupling_pattern: CouplingPattern,
+    /// The constraints of the symmetry planes of any normal, the fluid's and the solid's, by the
+    /// system's unknowns: every assembly of the system ends with them (after the coupling, which
+    /// adds to the velocity and displacement rows).
+    pub normal_constraints: NormalConstraints,
     /// The system's sparsity: the whole pattern, this rank's rows, or the number of entries
     /// ([`FsiDiscretization::build_with`]).
     sparsity: Sparsity,
@@ -903,6 +908,7 @@ impl<const D: usize> FsiDiscretization<D> {
         // Fluid velocity dofs held by Dirichlet conditions: the trace they leave free decides the
         // trace-mode multipliers and the multiplier kernel.
         let fixed: std::collections::HashSet<usize> = flow.dirichlet_dofs(&model.problem.fluid, 0.0)?.into_iter().map(|(d, _)| d).collect();
+        let tangents = flow.normal_constraints().tangents::<D>();
         if model.multiplier == MultiplierSpace::P1DiscontinuousTraceMode {
             if D != 2 {
                 return Err(FsiError::Multiplier("the trace-mode multiplier is implemented in 2D only".into()));
@@ -916,6 +922,11 @@ impl<const D: usize> FsiDiscretization<D> {
                 let pts = coupling.point_start[e]..coupling.point_start[e + 1];
                 for (i, &node) in vel.nodes.cell(coupling.fluid_cell[e]).iter().enumerate() {
                     let on_trace = pts.clone().any(|q| coupling.phi_f[q * nf + i].abs() > 1e-10);
+                    if on_trace && (0..D).any(|a| tangents.contains_key(&vel.dof(node, a))) {
+                        return Err(FsiError::Multiplier(
+                            "the trace-mode multiplier where gamma_f meets a symmetry line of inclined normal is not implemented: use p1-discontinuous".into(),
+                        ));
+                    }
                     for a in 0..D {
                         if on_trace && fixed.contains(&vel.dof(node, a)) {
                             inactive[coupling.chain[e] * D + a] = true;
@@ -925,7 +936,7 @@ impl<const D: usize> FsiDiscretization<D> {
             }
             inactive_multiplier_dofs = (0..inactive.len()).filter(|&k| inactive[k]).map(|k| first + k).collect();
         }
-        let kernel = multiplier_kernel(&coupling, &adapted.gamma_f, vel, &fixed);
+        let kernel = multiplier_kernel(&coupling, &adapted.gamma_f, vel, &fixed, &tangents);
         let layout = SystemLayout::new(&[
             (Block::FluidVelocity, vel.num_dofs()),
             (Block::FluidPressure, flow.pressure_field().num_dofs()),
@@ -938,6 +949,7 @@ impl<const D: usize> FsiDiscretization<D> {
             (Block::KernelUnknowns, kernel.len()),
         ]);
         let (os, ol, n) = (layout.offset(Block::SolidDisplacement), layout.offset(Block::Multiplier), layout.num_dofs());
+        let normal_constraints = flow.normal_constraints().clone().joined(model.solid.normal_constraints().shifted(os));
         let kernel_first = layout.offset(Block::KernelUnknowns) - ol;
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
         // displacement of every solid cell its points land in (and of the carried ones).
@@ -1015,6 +1027,7 @@ impl<const D: usize> FsiDiscretization<D> {
             inactive_multiplier_dofs,
             kernel,
             coupling_pattern,
+            normal_constraints,
             sparsity,
             adapt_seconds,
         })
@@ -1128,6 +1141,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let mut split = self.flow.saddle_point_split(model.problem.fluid.formulation)?;
         // The primal unknowns: velocity, displacement and the unknowns of no block.
         split.primal_components = 1;
+        split.constraint_rows = self.normal_constraints.constraint_rows().collect();
         split.multipliers.extend(model.solid.pressure_block(self.solid_offset())?);
         let c = &self.coupling;
         let mut block = MultiplierBlock { role: MultiplierRole::Coupling, ..MultiplierBlock::new("coupling multiplier") };
@@ -1195,7 +1209,9 @@ impl<const D: usize> FsiDiscretization<D> {
     }
 
     /// Assembles the Jacobian `k` and `rhs = -R(x)` of the coupled problem; rows of constrained
-    /// dofs become identity rows with zero right-hand side. The fluid and the solid are
+    /// dofs become identity rows with zero right-hand side, and the rows of the nodes on
+    /// symmetry planes of any normal the tangential equations and constraint rows of
+    /// [`NormalConstraints`] (after the coupling terms). The fluid and the solid are
     /// assembled as blocks on their own patterns and added into `k`.
     ///
     /// # Panics
@@ -1213,13 +1229,16 @@ impl<const D: usize> FsiDiscretization<D> {
             panic!("FsiDiscretization::assemble of a discretisation not built whole");
         };
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
+        self.normal_constraints.check_free(constrained);
         add_block(&block_values[0], self.flow.whole_pattern(), flow_map, k, |kb| {
             self.add_fluid(input, x, constrained, &self.flow.colouring, &mut WholeSystem { k: kb, rhs: &mut rhs[..os] })
         })?;
         add_block(&block_values[1], &model.solid.pattern, solid_map, k, |kb| {
             self.add_solid(model, input, x, constrained, &model.solid.colouring, &mut WholeSystem { k: kb, rhs: &mut rhs[os..ol] })
         })?;
-        self.add_coupling(model, input, x, constrained, &mut WholeSystem { k, rhs });
+        let target = &mut WholeSystem { k, rhs };
+        self.add_coupling(model, input, x, constrained, target);
+        self.normal_constraints.apply(target);
         Ok(())
     }
 
@@ -1246,11 +1265,17 @@ impl<const D: usize> FsiDiscretization<D> {
         // and the solid's unknowns are those after `os`.
         self.add_fluid(input, x, constrained, &part.fluid_colouring, &mut unsafe { HeldRows::new(k, rhs, &of_system) })?;
         self.add_solid(model, input, x, constrained, &part.solid_colouring, &mut unsafe { HeldRows::new(k, rhs, &of_solid) })?;
-        self.add_coupling(model, input, x, constrained, &mut unsafe { HeldRows::new(k, rhs, &of_system) });
+        self.normal_constraints.check_free(constrained);
+        let target = &mut unsafe { HeldRows::new(k, rhs, &of_system) };
+        self.add_coupling(model, input, x, constrained, target);
+        // The rows of a node are held together: the partition keeps the fluid velocity's nodes
+        // whole, and `HeldRows` checks the solid's.
+        self.normal_constraints.apply(target);
         Ok(())
     }
 
-    /// The residual `R(x)` with no row constrained: all of it, on every process (no matrix).
+    /// The residual `R(x)` with no row constrained and none combined (the symmetry planes'
+    /// nodes' rows as assembled): all of it, on every process (no matrix).
     pub fn residual(&self, model: &FsiModel<D>, input: &StepInput<'_, D>, x: &[f64]) -> Result<Vec<f64>, FsiAssemblyError> {
         let (os, ol) = (self.solid_offset(), self.multiplier_offset());
         let mut rhs = vec![0.0; self.num_dofs()];
@@ -1545,13 +1570,21 @@ fn connected_pieces<const D: usize>(gamma_f: &[GammaFacet<D>]) -> (Vec<usize>, u
 ///
 /// Found numerically: per component, the null space of the pairing restricted to the facets of a
 /// vertex star (3D) or of a chain (2D); the union is kept linearly independent.
+///
+/// On a symmetry plane of any normal (`tangents`: the directions a node there may move in,
+/// [`NormalConstraints::tangents`]) a node's free velocity is not a set of components, and the
+/// components of the multiplier are coupled: a group with such a node is searched for modes of
+/// all components at once (the pairing with the node's tangents, the other nodes' free
+/// components), after the groups of plain nodes, against the union of every mode found. The
+/// null space is then covariant with a rotation of the problem, as the modes of a plane normal
+/// to an axis (a Dirichlet component) are.
 pub fn multiplier_kernel<const D: usize>(
     c: &CouplingElements<D>,
     gamma_f: &[GammaFacet<D>],
     vel: &fdfsi_fem::dofs::Field,
     fixed: &std::collections::HashSet<usize>,
+    tangents: &std::collections::HashMap<usize, Vec<[f64; D]>>,
 ) -> Vec<Vec<(usize, f64)>> {
-    use faer::{Mat, Side};
     let ne = c.num_elements();
     let nf = c.nf;
     let area: Vec<f64> = (0..ne).map(|e| (c.point_start[e]..c.point_start[e + 1]).map(|q| c.weight[q]).sum()).collect();
@@ -1573,81 +1606,205 @@ pub fn multiplier_kernel<const D: usize>(
         }
         groups.extend(by_piece);
     }
-    let mut out = Vec::new();
-    for a in 0..D {
-        // Accepted modes of this component, orthonormalised densely (for the independence test).
-        let mut basis: Vec<Vec<f64>> = Vec::new();
-        for group in &groups {
-            let ncol = group.len() * D;
-            let mut rows: std::collections::BTreeMap<usize, Vec<f64>> = Default::default();
-            for (gi, &e) in group.iter().enumerate() {
+    // The tangents of velocity node `node`, if it is on a symmetry plane of any normal.
+    let node_tangents = |node: usize| (0..D).find_map(|a| tangents.get(&vel.dof(node, a)));
+    // The directions node `node` may move in: its tangents, or its free components.
+    let unit = |a: usize| std::array::from_fn::<f64, D, _>(|b| if a == b { 1.0 } else { 0.0 });
+    let directions =
+        |node: usize| node_tangents(node).cloned().unwrap_or_else(|| (0..D).filter(|&a| !fixed.contains(&vel.dof(node, a))).map(unit).collect());
+    // The groups whose points see a node on such a plane.
+    let coupled: Vec<bool> = groups
+        .iter()
+        .map(|group| {
+            group.iter().any(|&e| {
                 let cell = vel.nodes.cell(c.fluid_cell[e]);
-                for q in c.point_start[e]..c.point_start[e + 1] {
-                    for (i, &node) in cell.iter().enumerate() {
-                        let phi = c.phi_f[q * nf + i];
-                        let dof = vel.dof(node, a);
-                        if phi.abs() < 1e-14 || fixed.contains(&dof) {
-                            continue;
-                        }
-                        let row = rows.entry(dof).or_insert_with(|| vec![0.0; ncol]);
-                        for k in 0..D {
-                            // Columns scaled by 1/|F|: the Gram matrix is independent of the facet sizes.
-                            row[gi * D + k] += c.weight[q] * c.mu[q * D + k] * phi / area[e];
-                        }
-                    }
-                }
-            }
-            let mut g = Mat::<f64>::zeros(ncol, ncol);
-            for r in rows.values() {
-                for i in 0..ncol {
-                    for j in 0..ncol {
-                        g[(i, j)] += r[i] * r[j];
-                    }
-                }
-            }
-            let Ok(eig) = g.self_adjoint_eigen(Side::Lower) else { continue };
-            let s = eig.S();
-            let max = (0..ncol).map(|i| s[i]).fold(0.0f64, f64::max);
-            for m in 0..ncol {
-                if s[m] > 1e-10 * max {
+                let seen = |q: usize| cell.iter().enumerate().any(|(i, &node)| c.phi_f[q * nf + i].abs() >= 1e-14 && node_tangents(node).is_some());
+                (c.point_start[e]..c.point_start[e + 1]).any(seen)
+            })
+        })
+        .collect();
+    let mut out = Vec::new();
+    // Every accepted mode, dense over all multiplier dofs ((e * D + k) * D + a), for the
+    // coupled groups' independence test.
+    let mut all: Vec<Vec<f64>> = Vec::new();
+    for a in 0..D {
+        let plain = groups.iter().zip(&coupled).filter(|(_, &k)| !k).map(|(g, _)| g.as_slice());
+        let basis = component_modes(c, vel, fixed, &area, a, plain, &mut out);
+        if coupled.contains(&true) {
+            all.extend(basis.iter().map(|b| (0..ne * D * D).map(|i| if i % D == a { b[i / D] } else { 0.0 }).collect()));
+        }
+    }
+    for group in groups.iter().zip(&coupled).filter(|(_, &k)| k).map(|(g, _)| g) {
+        coupled_modes(c, vel, &area, group, &directions, &mut all, &mut out);
+    }
+    out
+}
+
+/// The modes of all components of [`multiplier_kernel`] on a `group` of facets that sees a node
+/// on a symmetry plane of any normal (`directions(node)`: the orthonormal directions the node
+/// may move in), independent of `all` (the modes found before, dense over all multipliers,
+/// orthonormalised; the new ones join it), pushed to `out` as `M z`.
+fn coupled_modes<const D: usize>(
+    c: &CouplingElements<D>,
+    vel: &fdfsi_fem::dofs::Field,
+    area: &[f64],
+    group: &[usize],
+    directions: &dyn Fn(usize) -> Vec<[f64; D]>,
+    all: &mut Vec<Vec<f64>>,
+    out: &mut Vec<Vec<(usize, f64)>>,
+) {
+    let (ne, nf) = (c.num_elements(), c.nf);
+    // A free direction's row of the pairing, by (node, direction); columns (gi * D + k) * D + a.
+    let mut rows: std::collections::BTreeMap<(usize, usize), Vec<f64>> = Default::default();
+    let ncol = group.len() * D * D;
+    for (gi, &e) in group.iter().enumerate() {
+        let cell = vel.nodes.cell(c.fluid_cell[e]);
+        for q in c.point_start[e]..c.point_start[e + 1] {
+            for (i, &node) in cell.iter().enumerate() {
+                let phi = c.phi_f[q * nf + i];
+                if phi.abs() < 1e-14 {
                     continue;
                 }
-                // Nodal values of the mode, dense over the multiplier dofs of component a.
-                let mut z = vec![0.0; ne * D];
-                for (gi, &e) in group.iter().enumerate() {
+                for (j, t) in directions(node).iter().enumerate() {
+                    let row = rows.entry((node, j)).or_insert_with(|| vec![0.0; ncol]);
                     for k in 0..D {
-                        z[e * D + k] = eig.U()[(gi * D + k, m)] / area[e];
-                    }
-                }
-                let mut r = z.clone();
-                for b in &basis {
-                    let d: f64 = b.iter().zip(&r).map(|(x, y)| x * y).sum();
-                    r.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
-                }
-                let (nz, nr) = (z.iter().map(|v| v * v).sum::<f64>().sqrt(), r.iter().map(|v| v * v).sum::<f64>().sqrt());
-                if nr < 1e-6 * nz {
-                    continue; // already spanned (a mode found from another star)
-                }
-                r.iter_mut().for_each(|v| *v /= nr);
-                basis.push(r);
-                // M z on the support, with z scaled to unit largest value.
-                let zmax = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                let mut y = Vec::new();
-                for &e in group {
-                    for k in 0..D {
-                        let v: f64 = (c.point_start[e]..c.point_start[e + 1])
-                            .map(|q| c.weight[q] * c.mu[q * D + k] * (0..D).map(|l| c.mu[q * D + l] * z[e * D + l]).sum::<f64>())
-                            .sum();
-                        if v != 0.0 {
-                            y.push(((e * D + k) * D + a, v / zmax));
+                        // Columns scaled by 1/|F|, as in `component_modes`.
+                        let w = c.weight[q] * c.mu[q * D + k] * phi / area[e];
+                        for a in 0..D {
+                            row[(gi * D + k) * D + a] += w * t[a];
                         }
                     }
                 }
-                out.push(y);
             }
         }
     }
-    out
+    for mode in null_modes(rows.values(), ncol) {
+        let mut z = vec![0.0; ne * D * D];
+        for (gi, &e) in group.iter().enumerate() {
+            for k in 0..D * D {
+                z[e * D * D + k] = mode[gi * D * D + k] / area[e];
+            }
+        }
+        if !independent(&z, all) {
+            continue;
+        }
+        // M z on the support, with z scaled to unit largest value.
+        let zmax = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut y = Vec::new();
+        for &e in group {
+            for k in 0..D {
+                for a in 0..D {
+                    let v: f64 = (c.point_start[e]..c.point_start[e + 1])
+                        .map(|q| c.weight[q] * c.mu[q * D + k] * (0..D).map(|l| c.mu[q * D + l] * z[(e * D + l) * D + a]).sum::<f64>())
+                        .sum();
+                    if v != 0.0 {
+                        y.push(((e * D + k) * D + a, v / zmax));
+                    }
+                }
+            }
+        }
+        out.push(y);
+    }
+}
+
+/// The modes of component `a` of [`multiplier_kernel`] on the `groups` of facets (their nodes
+/// each free or fixed per component), pushed to `out` as `M z`; returns the accepted modes,
+/// orthonormalised, dense over the multipliers of component `a` (`e * D + k`).
+fn component_modes<'g, const D: usize>(
+    c: &CouplingElements<D>,
+    vel: &fdfsi_fem::dofs::Field,
+    fixed: &std::collections::HashSet<usize>,
+    area: &[f64],
+    a: usize,
+    groups: impl Iterator<Item = &'g [usize]>,
+    out: &mut Vec<Vec<(usize, f64)>>,
+) -> Vec<Vec<f64>> {
+    let (ne, nf) = (c.num_elements(), c.nf);
+    // Accepted modes of this component, orthonormalised densely (for the independence test).
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    for group in groups {
+        let ncol = group.len() * D;
+        let mut rows: std::collections::BTreeMap<usize, Vec<f64>> = Default::default();
+        for (gi, &e) in group.iter().enumerate() {
+            let cell = vel.nodes.cell(c.fluid_cell[e]);
+            for q in c.point_start[e]..c.point_start[e + 1] {
+                for (i, &node) in cell.iter().enumerate() {
+                    let phi = c.phi_f[q * nf + i];
+                    let dof = vel.dof(node, a);
+                    if phi.abs() < 1e-14 || fixed.contains(&dof) {
+                        continue;
+                    }
+                    let row = rows.entry(dof).or_insert_with(|| vec![0.0; ncol]);
+                    for k in 0..D {
+                        // Columns scaled by 1/|F|: the Gram matrix is independent of the facet sizes.
+                        row[gi * D + k] += c.weight[q] * c.mu[q * D + k] * phi / area[e];
+                    }
+                }
+            }
+        }
+        for mode in null_modes(rows.values(), ncol) {
+            // Nodal values of the mode, dense over the multiplier dofs of component a.
+            let mut z = vec![0.0; ne * D];
+            for (gi, &e) in group.iter().enumerate() {
+                for k in 0..D {
+                    z[e * D + k] = mode[gi * D + k] / area[e];
+                }
+            }
+            if !independent(&z, &mut basis) {
+                continue; // already spanned (a mode found from another star)
+            }
+            // M z on the support, with z scaled to unit largest value.
+            let zmax = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let mut y = Vec::new();
+            for &e in group {
+                for k in 0..D {
+                    let v: f64 = (c.point_start[e]..c.point_start[e + 1])
+                        .map(|q| c.weight[q] * c.mu[q * D + k] * (0..D).map(|l| c.mu[q * D + l] * z[e * D + l]).sum::<f64>())
+                        .sum();
+                    if v != 0.0 {
+                        y.push(((e * D + k) * D + a, v / zmax));
+                    }
+                }
+            }
+            out.push(y);
+        }
+    }
+    basis
+}
+
+/// The null space of the Gram matrix `sum r r^T` of the `ncol`-long `rows`: its eigenvectors of
+/// eigenvalue at most `1e-10` of the largest.
+fn null_modes<'r>(rows: impl Iterator<Item = &'r Vec<f64>>, ncol: usize) -> Vec<Vec<f64>> {
+    use faer::{Mat, Side};
+    let mut g = Mat::<f64>::zeros(ncol, ncol);
+    for r in rows {
+        for i in 0..ncol {
+            for j in 0..ncol {
+                g[(i, j)] += r[i] * r[j];
+            }
+        }
+    }
+    let Ok(eig) = g.self_adjoint_eigen(Side::Lower) else { return Vec::new() };
+    let s = eig.S();
+    let max = (0..ncol).map(|i| s[i]).fold(0.0f64, f64::max);
+    (0..ncol).filter(|&m| s[m] <= 1e-10 * max).map(|m| (0..ncol).map(|i| eig.U()[(i, m)]).collect()).collect()
+}
+
+/// Whether `z` is independent of the orthonormal `basis` (its part outside the span at least
+/// `1e-6 |z|`); if so, that part, normalised, joins the basis.
+fn independent(z: &[f64], basis: &mut Vec<Vec<f64>>) -> bool {
+    let mut r = z.to_vec();
+    for b in basis.iter() {
+        let d: f64 = b.iter().zip(&r).map(|(x, y)| x * y).sum();
+        r.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
+    }
+    let (nz, nr) = (z.iter().map(|v| v * v).sum::<f64>().sqrt(), r.iter().map(|v| v * v).sum::<f64>().sqrt());
+    if nr < 1e-6 * nz {
+        return false;
+    }
+    r.iter_mut().for_each(|v| *v /= nr);
+    basis.push(r);
+    true
 }
 
 /// Wall-clock seconds of the phases of a step.
@@ -1719,7 +1876,8 @@ pub struct StepStart<const D: usize> {
     /// The fluid history `u*` on the new velocity nodes (fluid numbering): the velocity of `t_n`
     /// (and `t_{n-1}`) transferred.
     pub u_old: Vec<f64>,
-    /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`.
+    /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`,
+    /// projected onto the symmetry planes of any normal ([`NormalConstraints::project`]).
     pub x: Vec<f64>,
     /// The constrained unknowns (identity rows of the Jacobian).
     pub constrained: Vec<bool>,
@@ -1813,6 +1971,8 @@ impl<const D: usize> StepStart<D> {
             x[os + d] = if d < nus { v - state.solid_x[d] } else { v };
             fixed.push((os + d, x[os + d]));
         }
+        // The transferred velocity (and the solid's increment) onto the symmetry planes.
+        disc.normal_constraints.project(&mut x);
         // The solid's history: u* = u_n + d, v*.
         let (_, u_star) = step_history(scheme, dt, omega, &state.solid_x, previous.map(|p| p.solid_x.as_slice()));
         let (_, v_star) = step_history(scheme, dt, omega, &state.solid_v, previous.map(|p| p.solid_v.as_slice()));
@@ -1880,6 +2040,8 @@ pub fn step_with<const D: usize>(
     for &(d, v) in &fixed {
         x[d] = v;
     }
+    // Likewise on the symmetry planes: the velocity and the solid's increment along them.
+    disc.normal_constraints.project(&mut x);
     seconds.newton = clock.elapsed().as_secs_f64();
     // Update the solid (updated Lagrangian) and keep the fluid for the next transfer.
     let clock = Instant::now();

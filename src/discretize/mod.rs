@@ -4,12 +4,14 @@
 //! - [`solid`]: the Q2/P1disc (or Q2) solid, total or updated Lagrangian;
 //! - [`fsi`]: the monolithic system of one FSI step and its coupling elements;
 //! - [`layout`]: the named blocks of the monolithic system's unknowns;
+//! - [`symmetry`]: symmetry planes of any normal (`u . n = 0`), for the fluid and the solid;
 //! - [`time_scheme`]: implicit Euler and BDF2 as one formula, for the steppers and the FSI step.
 pub mod flow;
 pub mod fsi;
 pub mod layout;
 pub mod mortar;
 pub mod solid;
+pub mod symmetry;
 pub mod time_scheme;
 
 use fdfsi_fem::dofs::BlockLayout;

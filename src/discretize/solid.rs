@@ -34,6 +34,7 @@
 //! `min_increment`.
 
 use super::mortar::{self, Edge, MortarRow};
+use super::symmetry::{NormalConstraints, Planarity, SymmetryBc, SymmetryError};
 use super::system_cell_dofs;
 use crate::physics::contact::{complementarity, complementarity_scale, RigidPlane};
 use crate::physics::solid::{
@@ -145,6 +146,10 @@ pub struct SolidProblem<const D: usize> {
     /// Contact with rigid planes and between boundaries, in the order of the discretisation's
     /// contact surfaces ([`SolidDiscretization::build_with_contact`]).
     pub contact: Vec<ContactBc<D>>,
+    /// Rollers on planes whose normal is not along a coordinate axis (`u . n = 0`; those along
+    /// one are displacement conditions on one component), held by the discretisation's
+    /// [`NormalConstraints`] ([`SolidDiscretization::build_for`]).
+    pub symmetry: Vec<SymmetryBc<D>>,
 }
 
 impl<const D: usize> SolidProblem<D> {
@@ -164,6 +169,7 @@ impl<const D: usize> SolidProblem<D> {
             pressure: Vec::new(),
             pin_pressure: None,
             contact: Vec::new(),
+            symmetry: Vec::new(),
         }
     }
 
@@ -214,6 +220,12 @@ impl<const D: usize> SolidProblem<D> {
         self.contact.push(ContactBc { boundary: boundary.into(), target: ContactTarget::Boundary(master.into()) });
         self
     }
+    /// Adds a roller on a plane ([`SymmetryBc`]: `u . n = 0` on its boundary; the discretisation
+    /// needs it, [`SolidDiscretization::build_for`]).
+    pub fn with_symmetry(mut self, plane: SymmetryBc<D>) -> Self {
+        self.symmetry.push(plane);
+        self
+    }
     /// Adds a follower pressure.
     pub fn with_pressure(mut self, boundary: &str, p: impl Fn(f64) -> f64 + Send + Sync + 'static) -> Self {
         self.pressure.push(FollowerPressureBc { boundary: boundary.into(), pressure: Arc::new(p) });
@@ -253,6 +265,8 @@ pub enum SolidError {
     Bodies(String),
     #[error("load step {step} to load factor {load:.6} failed with the smallest increment {increment:.3e}: {reason}; lower stepping.min_increment or refine the mesh")]
     StepFailed { step: usize, load: f64, increment: f64, reason: String },
+    #[error("solid: {0}")]
+    Symmetry(#[from] SymmetryError),
 }
 
 /// Per local facet of the reference cell: the cell basis and its tangential derivatives at the
@@ -288,6 +302,10 @@ pub struct SolidDiscretization<const D: usize> {
     contact: Vec<ContactSurface>,
     /// The contact couplings as cells after the mesh's ([`SolidDiscretization::system_cell_dofs`]).
     contact_cells: Vec<Vec<usize>>,
+    /// The rollers of any normal it was built for ([`SolidDiscretization::build_for`]).
+    symmetry: Vec<SymmetryBc<D>>,
+    /// Their constraints at the displacement nodes on them.
+    normal_constraints: NormalConstraints,
 }
 
 /// A boundary of the solid that may touch a rigid plane: its nodes, each with a contact
@@ -340,10 +358,14 @@ impl<const D: usize> SolidDiscretization<D> {
     /// contact surfaces.
     ///
     /// Fails when two contact boundaries against the same plane share a node (its two
-    /// conditions would be one: give their union as one boundary).
+    /// conditions would be one: give their union as one boundary), and when the facets of a
+    /// roller's boundary are not all normal to its plane ([`super::symmetry::PLANAR_TOLERANCE`],
+    /// in the reference configuration).
     pub fn build_for(mesh: Mesh<D>, problem: &SolidProblem<D>) -> Result<Self, SolidError> {
         Self::check_bodies(&mesh, problem)?;
-        let disc = Self::build_with_contact(mesh, problem.formulation, problem.material(), &problem.contact)?;
+        let mut disc = Self::build_with_contact(mesh, problem.formulation, problem.material(), &problem.contact)?;
+        disc.normal_constraints = disc.symmetry_constraints(problem)?;
+        disc.symmetry = problem.symmetry.clone();
         for (i, a) in problem.contact.iter().enumerate() {
             for (j, b) in problem.contact.iter().enumerate().skip(i + 1) {
                 let shared = disc.contact[i].nodes.iter().any(|n| disc.contact[j].nodes.binary_search(n).is_ok());
@@ -353,6 +375,59 @@ impl<const D: usize> SolidDiscretization<D> {
             }
         }
         Ok(disc)
+    }
+
+    /// The constraints of the rollers of `problem` at the displacement nodes on them (each with
+    /// the normals of its planes), the components its displacement conditions hold left out;
+    /// fails on a boundary whose facet normals (at the facet quadrature points, reference
+    /// configuration) are not all its plane's.
+    fn symmetry_constraints(&self, problem: &SolidProblem<D>) -> Result<NormalConstraints, SolidError> {
+        if problem.symmetry.is_empty() {
+            return Ok(NormalConstraints::default());
+        }
+        let held: std::collections::HashSet<usize> = self.dirichlet_values(problem, 0.0)?.into_iter().map(|(d, _)| d).collect();
+        let vf = self.displacement_field();
+        let nv = self.element.num_dofs();
+        let mut normals: std::collections::BTreeMap<usize, Vec<[f64; D]>> = Default::default();
+        let mut x_ref = Vec::new();
+        for plane in &problem.symmetry {
+            let mut planarity = Planarity::new(plane);
+            for bf in self.mesh.boundary_facets(&plane.boundary)? {
+                self.cell_positions(bf.cell, None, &mut x_ref);
+                let tab = &self.facet_tabs[bf.facet];
+                for q in 0..self.facet_weights.len() {
+                    let pt = FacetPoint { phi: &tab.values[q * nv..(q + 1) * nv], dphi_t: &tab.dphi_t[q * nv..(q + 1) * nv], weight: 1.0 };
+                    let area = area_vector(&x_ref, &pt, 1.0);
+                    planarity.facet_normal(bf.cell, std::array::from_fn(|a| area[a]));
+                }
+                let nodes = vf.nodes.cell(bf.cell);
+                for k in self.element.facet_nodes(bf.facet) {
+                    let list = normals.entry(nodes[k]).or_default();
+                    if !list.contains(&plane.normal) {
+                        list.push(plane.normal);
+                    }
+                }
+            }
+            planarity.finish()?;
+        }
+        let nodes = normals.into_iter().map(|(node, n)| (std::array::from_fn(|a| vf.dof(node, a)), n));
+        Ok(NormalConstraints::new(nodes, |d| held.contains(&d)))
+    }
+
+    /// The constraints `u . n = 0` of the rollers of any normal at the displacement nodes on
+    /// them ([`SolidDiscretization::build_for`]): the row operations every assembly of the
+    /// solid's system ends with (a coupled system: its own, [`NormalConstraints::shifted`]), and
+    /// the projection of the state.
+    pub fn normal_constraints(&self) -> &NormalConstraints {
+        &self.normal_constraints
+    }
+
+    /// Checks that `problem`'s rollers are those this discretisation was built for.
+    ///
+    /// # Panics
+    /// If they are not.
+    fn check_symmetry(&self, problem: &SolidProblem<D>) {
+        assert_eq!(problem.symmetry, self.symmetry, "the problem's symmetry planes are the discretisation's (SolidDiscretization::build_for)");
     }
 
     /// The bodies of `problem` on `mesh`: at least one, a body for each cell (or none given, with
@@ -446,6 +521,8 @@ impl<const D: usize> SolidDiscretization<D> {
             facet_weights,
             contact: Vec::new(),
             contact_cells: Vec::new(),
+            symmetry: Vec::new(),
+            normal_constraints: NormalConstraints::default(),
         };
         let mut cv = disc.cell_values();
         let mut coords = Vec::new();
@@ -642,7 +719,8 @@ impl<const D: usize> SolidDiscretization<D> {
             .map(|b| &b.boundary)
             .chain(problem.traction.iter().map(|b| &b.boundary))
             .chain(problem.pressure.iter().map(|b| &b.boundary))
-            .chain(problem.contact.iter().map(|b| &b.boundary));
+            .chain(problem.contact.iter().map(|b| &b.boundary))
+            .chain(problem.symmetry.iter().map(|b| &b.boundary));
         for name in names {
             self.mesh.boundary_tag(name)?;
         }
@@ -683,7 +761,8 @@ impl<const D: usize> SolidDiscretization<D> {
     /// deformation gradient of the integration configuration (`None`: identity). `inertia =
     /// (a^2, x*)` adds `rho_0 a^2 (x - x*)` per unit reference volume (the time scheme's
     /// acceleration; `rho_0` the density of each cell's body). Rows of constrained dofs become
-    /// identity rows with zero right-hand side.
+    /// identity rows with zero right-hand side, and the rows of the nodes on rollers of any
+    /// normal the tangential equations and constraint rows of [`NormalConstraints`].
     #[allow(clippy::too_many_arguments)]
     pub fn assemble_system(
         &self,
@@ -697,12 +776,18 @@ impl<const D: usize> SolidDiscretization<D> {
         k: &mut CscMatrix<'_>,
         rhs: &mut [f64],
     ) -> Result<(), SolidAssemblyError> {
-        self.assemble_into(problem, load, base, f_prev, inertia, x, constrained, &self.colouring, &mut WholeSystem { k, rhs })
+        self.check_symmetry(problem);
+        self.normal_constraints.check_free(constrained);
+        let target = &mut WholeSystem { k, rhs };
+        self.assemble_into(problem, load, base, f_prev, inertia, x, constrained, &self.colouring, target)?;
+        self.normal_constraints.apply(target);
+        Ok(())
     }
 
     /// [`SolidDiscretization::assemble_system`] into `target`, from the cells of `colouring` (all
     /// of them, or those with an unknown in the target's rows), the boundary terms and the
-    /// constrained unknowns' identity rows.
+    /// constrained unknowns' identity rows; the rows of the rollers' nodes are left as assembled
+    /// (the system that holds them ends its assembly with [`NormalConstraints::apply`]).
     #[allow(clippy::too_many_arguments, reason = "the problem, the integration configuration, the state, the constraints and where they go")]
     pub fn assemble_into(
         &self,
@@ -1245,6 +1330,8 @@ impl<const D: usize> SolidDiscretization<D> {
             // Pressure pins are absolute; displacements are increments in updated mode.
             trial[d] = if updated && d < nu { v - state.x[d] } else { v };
         }
+        // On the rollers: the total displacement, or the increment, along them.
+        self.normal_constraints.project(&mut trial);
         let base = if updated { Some(state.x.as_slice()) } else { None };
         let report = newton::solve(&mut trial, &self.pattern, solver, options, |x, k, rhs| {
             self.assemble_system(problem, target, base, state.f_qp.as_deref(), None, x, &constrained, k, rhs)
@@ -1307,6 +1394,7 @@ pub fn solve_dynamic_step<const D: usize>(
         constrained[d] = true;
         x[d] = v;
     }
+    disc.normal_constraints.project(&mut x);
     let a = history.a;
     let target: Vec<f64> = (0..n).map(|i| if i < nu_global { history.u_star[i] + history.v_star[i] / a } else { 0.0 }).collect();
     let inertia = problem.has_inertia().then_some((a * a, target.as_slice()));

@@ -6,6 +6,7 @@ use crate::case::{BoundaryType, Case, CaseError, Expr, FlowModel, MeshSpec, Time
 use crate::discretize::flow::{BackflowBc, DirichletBc, FlowError, FlowProblem, TractionBc, VectorFn, WindkesselBc};
 use crate::discretize::fsi::FsiError;
 use crate::discretize::solid::SolidError;
+use crate::discretize::symmetry::SymmetryBc;
 use crate::physics::fluid::FluidParams;
 use fdfsi_fem::adapt::{AdaptError, AdaptOptions, AdaptStats, Background, Surface};
 use fdfsi_fem::generate;
@@ -101,6 +102,13 @@ fn vector_fn<const D: usize>(exprs: Vec<Expr>, time: TimeFn) -> VectorFn<D> {
     })
 }
 
+/// The symmetry plane of the boundary `name` normal to `normal` (the case file's entries, one per
+/// dimension), normalised.
+fn symmetry_plane<const D: usize>(name: &str, normal: &[f64]) -> Result<SymmetryBc<D>, SetupError> {
+    let n: [f64; D] = std::array::from_fn(|a| normal.get(a).copied().unwrap_or(0.0));
+    SymmetryBc::new(name, n).ok_or_else(|| invalid(format!("boundary '{name}': the normal {normal:?} is not a direction")))
+}
+
 fn compile_all(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, CaseError> {
     values.iter().map(|v| Expr::compile(v).map_err(|message| CaseError::Invalid { file: "case".into(), message })).collect()
 }
@@ -112,6 +120,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
     let mut traction = Vec::new();
     let mut windkessel = Vec::new();
     let mut backflow = Vec::new();
+    let mut symmetry = Vec::new();
     let all: Vec<usize> = (0..D).collect();
     let zero: VectorFn<D> = Arc::new(|_: &[f64; D], _| [0.0; D]);
     // Exterior facets whose normal velocity is not prescribed fix the pressure level.
@@ -146,7 +155,12 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
                 covered += count;
             }
             BoundaryType::Symmetry => {
-                dirichlet.push(bc(vec![b.normal_axis.unwrap_or(0)], zero.clone()));
+                // A plane normal to an axis holds that component; any other, `u . n = 0`.
+                let plane = b.normal.as_deref().map(|n| symmetry_plane::<D>(&b.name, n)).transpose()?;
+                match plane.as_ref().map_or(b.normal_axis, SymmetryBc::axis) {
+                    Some(axis) => dirichlet.push(bc(vec![axis], zero.clone())),
+                    None => symmetry.extend(plane),
+                }
                 covered += count;
             }
             BoundaryType::Traction => {
@@ -208,6 +222,7 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
         traction,
         windkessel,
         backflow,
+        symmetry,
         pin_pressure: !pressure_fixed,
     })
 }

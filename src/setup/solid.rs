@@ -174,6 +174,14 @@ pub fn solid_problem<const D: usize>(case: &Case, cell_body: Vec<usize>, ramp: b
                         scale * exprs[0].eval(&[0.0; 3], t)
                     });
                 }
+                SolidBoundaryType::Symmetry => {
+                    // A roller normal to an axis holds that component; any other, `u . n = 0`.
+                    let plane = super::symmetry_plane::<D>(&boundary, b.normal.as_deref().unwrap_or_default())?;
+                    p = match plane.axis() {
+                        Some(axis) => p.with_displacement(&boundary, &[axis], |_, _| [0.0; D]),
+                        None => p.with_symmetry(plane),
+                    };
+                }
             }
         }
     }

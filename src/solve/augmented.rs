@@ -64,6 +64,12 @@
 //!   against 972 MiB; `examples/growth3d`). A local Schur complement `-B_g A_gg^-1 B'_g` of
 //!   these groups in `S^-1` was tried: no fewer iterations than `-(eta + gamma_g) M^-1`.
 //!
+//! A constraint row of a symmetry plane of any normal (`c . du = 0`,
+//! [`SaddlePointSplit::constraint_rows`]) holds its node's velocity as an identity row holds a
+//! Dirichlet component: it counts as one here, so a problem turned with its symmetry planes
+//! has the split of the original (the quarter pipe turned by 30 degrees: 6 and 6 Krylov
+//! iterations per Newton step, as with the planes x = 0 and y = 0).
+//!
 //! **The solid's blocks.** An FSI system has two more multiplier blocks
 //! ([`MultiplierRole`]): the solid pressure (P1disc per solid cell) and the coupling multiplier
 //! (P1disc per coupling facet and component), placed by [`AlOptions::solid_pressure`] and
@@ -196,6 +202,11 @@ pub struct SaddlePointSplit {
     /// gives its primal field this block size, and hypre's BoomerAMG then coarsens and
     /// interpolates each component apart (`crate::solve::petsc`).
     pub primal_components: usize,
+    /// Rows that hold a primal unknown as a Dirichlet condition's identity row does, but are
+    /// not identity rows: the constraint rows `c . du = 0` of nodes on symmetry planes of any
+    /// normal ([`crate::discretize::symmetry::NormalConstraints`]). The groups coupled to them
+    /// are at a Dirichlet boundary (see the module documentation).
+    pub constraint_rows: Vec<usize>,
 }
 
 /// Options of the AL solver (`[solver.linear]`).
@@ -570,12 +581,14 @@ impl AugmentedLagrangian {
 
     /// Multiplier dofs that stay primal, and the groups at Dirichlet boundaries in the Schur
     /// block (see the module documentation): multipliers with identity rows (a pinned pressure)
-    /// stay primal; the groups coupled to a Dirichlet-constrained unknown stay primal with
+    /// stay primal; the groups coupled to a Dirichlet-constrained unknown (an identity row, or
+    /// one of the split's [`SaddlePointSplit::constraint_rows`]) stay primal with
     /// [`Placement::Primal`] and are listed in `boundary` with
     /// [`Placement::Schur`].
     fn groups_at_dirichlet(&self, a: &CscMatrix<'_>) -> GroupsAtDirichlet {
-        let identity = identity_rows(a);
+        let mut identity = identity_rows(a);
         let p = a.pattern;
+        self.split.constraint_rows.iter().filter(|&&r| r < p.n).for_each(|&r| identity[r] = true);
         let mut multiplier = vec![false; p.n];
         self.split.multipliers.iter().flat_map(|b| &b.dofs).filter(|&&q| q < p.n).for_each(|&q| multiplier[q] = true);
         let (mut pinned, mut boundary) = (Vec::new(), Vec::new());

@@ -125,6 +125,7 @@ pub fn manufactured_problem<const D: usize>(
         pin_pressure: false,
         windkessel: Vec::new(),
         backflow: Vec::new(),
+        symmetry: Vec::new(),
     }
 }
 
@@ -319,6 +320,7 @@ pub fn kovasznay(effort: Effort, stabilization: Stabilization) -> Result<Vec<Stu
             pin_pressure: true,
             windkessel: Vec::new(),
             backflow: Vec::new(),
+            symmetry: Vec::new(),
         };
         let sol = solve_steady(&disc, &problem, &mut FaerLu::default(), &NewtonOptions::default())?;
         // The discrete pressure has zero mean; compare with the exact pressure shifted likewise.
@@ -382,6 +384,7 @@ pub fn time_error(scheme: crate::time::TimeScheme, dt: f64, t_end: f64) -> Resul
         pin_pressure: true,
         windkessel: Vec::new(),
         backflow: Vec::new(),
+        symmetry: Vec::new(),
     };
     let mut x = vec![0.0; disc.num_dofs()];
     let options = TimeOptions { dt, t_end, scheme, max_cuts: 0 };

@@ -519,6 +519,44 @@ pub trait SystemTarget {
         let _ = row;
         true
     }
+    /// Row operations on the rows `rows` of one node, whose columns are the same (the cells
+    /// that couple a node list all its unknowns). With `n = rows.len()` and `Q = q` (`n x n`,
+    /// row-major), row `rows[i]` becomes
+    ///
+    /// ```text
+    /// i <  m:  sum_l Q[i][l] (row rows[l])          matrix and right-hand side alike
+    /// i >= m:  sum_l Q[i][l] dx[rows[l]] = 0         its other entries 0, right-hand side 0
+    /// ```
+    ///
+    /// (`m = combined`): combinations of the rows, then constraints on the node's unknowns. A
+    /// target that holds none of the rows leaves them; one that holds some must hold all.
+    ///
+    /// # Panics
+    /// If the rows do not share their columns, `q` is not `n x n` or `combined > n`.
+    fn combine_rows(&mut self, rows: &[usize], q: &[f64], combined: usize);
+}
+
+/// The new values of the entries `v` (one per row of `rows`, in their order) of one column
+/// `col` under [`SystemTarget::combine_rows`], into `out`.
+fn combined_entries(rows: &[usize], q: &[f64], combined: usize, col: Option<usize>, v: &[f64], out: &mut [f64]) {
+    let n = rows.len();
+    for i in 0..n {
+        let qi = &q[i * n..(i + 1) * n];
+        out[i] = if i < combined {
+            qi.iter().zip(v).map(|(a, b)| a * b).sum()
+        } else {
+            col.and_then(|c| rows.iter().position(|&r| r == c)).map_or(0.0, |l| qi[l])
+        };
+    }
+}
+
+/// Checks the arguments of [`SystemTarget::combine_rows`].
+fn check_combination(rows: &[usize], q: &[f64], combined: usize) {
+    assert!(
+        !rows.is_empty() && q.len() == rows.len() * rows.len() && combined <= rows.len(),
+        "rows {rows:?}, {} coefficients, {combined} combined",
+        q.len()
+    );
 }
 
 /// The whole system: a matrix on a [`Pattern`] of the assembler's unknowns and its right-hand
@@ -545,6 +583,33 @@ impl SystemTarget for WholeSystem<'_, '_> {
     fn identity_row(&mut self, row: usize) {
         self.k.values[self.k.pattern.find(row, row).expect("the diagonal is in the pattern")] = 1.0;
         self.rhs[row] = 0.0;
+    }
+    /// The pattern is structurally symmetric: row `r`'s columns are column `r`'s rows.
+    fn combine_rows(&mut self, rows: &[usize], q: &[f64], combined: usize) {
+        check_combination(rows, q, combined);
+        let n = rows.len();
+        let p = self.k.pattern;
+        let column = |j: usize| &p.row_idx[p.col_ptr[j]..p.col_ptr[j + 1]];
+        let cols = column(rows[0]);
+        for &r in &rows[1..] {
+            assert_eq!(column(r), cols, "the rows {rows:?} of one node share their columns");
+        }
+        let (mut pos, mut v, mut out) = (vec![0; n], vec![0.0; n], vec![0.0; n]);
+        for &j in cols {
+            for (i, &r) in rows.iter().enumerate() {
+                pos[i] = p.col_ptr[j] + column(j).binary_search(&r).expect("a symmetric pattern");
+                v[i] = self.k.values[pos[i]];
+            }
+            combined_entries(rows, q, combined, Some(j), &v, &mut out);
+            for i in 0..n {
+                self.k.values[pos[i]] = out[i];
+            }
+        }
+        let v: Vec<f64> = rows.iter().map(|&r| self.rhs[r]).collect();
+        combined_entries(rows, q, combined, None, &v, &mut out);
+        for (i, &r) in rows.iter().enumerate() {
+            self.rhs[r] = out[i];
+        }
     }
 }
 
@@ -604,6 +669,43 @@ impl SystemTarget for HeldRows<'_, '_> {
     fn holds(&self, row: usize) -> bool {
         self.held(row).is_some()
     }
+    fn combine_rows(&mut self, rows: &[usize], q: &[f64], combined: usize) {
+        check_combination(rows, q, combined);
+        let held: Vec<Option<usize>> = rows.iter().map(|&r| self.held(r)).collect();
+        if held.iter().all(Option::is_none) {
+            return;
+        }
+        let global: Vec<usize> = held.iter().map(|p| p.expect("the rows of one node are held together (a partition keeps nodes whole)")).collect();
+        let n = rows.len();
+        let p = self.k.pattern;
+        let (cols, _) = p.row(global[0]);
+        let starts: Vec<usize> = global
+            .iter()
+            .map(|&g| {
+                let (other, start) = p.row(g);
+                assert_eq!(other, cols, "the rows {rows:?} of one node share their columns");
+                start
+            })
+            .collect();
+        // The constraints' columns in the held rows' numbering.
+        let rows_global: Vec<usize> = rows.iter().map(|&r| (self.to_global)(r)).collect();
+        let (mut v, mut out) = (vec![0.0; n], vec![0.0; n]);
+        for (k, &col) in cols.iter().enumerate() {
+            for i in 0..n {
+                v[i] = self.k.values[starts[i] + k];
+            }
+            combined_entries(&rows_global, q, combined, Some(col as usize), &v, &mut out);
+            for i in 0..n {
+                self.k.values[starts[i] + k] = out[i];
+            }
+        }
+        let lo = p.rows.start;
+        let v: Vec<f64> = global.iter().map(|&g| self.rhs[g - lo]).collect();
+        combined_entries(&rows_global, q, combined, None, &v, &mut out);
+        for (i, &g) in global.iter().enumerate() {
+            self.rhs[g - lo] = out[i];
+        }
+    }
 }
 
 /// The right-hand side alone ([`assemble_residual`]), of all the assembler's unknowns.
@@ -625,6 +727,15 @@ impl SystemTarget for ResidualOnly<'_> {
     fn add_matrix(&mut self, _: usize, _: usize, _: f64) {}
     fn identity_row(&mut self, row: usize) {
         self.rhs[row] = 0.0;
+    }
+    fn combine_rows(&mut self, rows: &[usize], q: &[f64], combined: usize) {
+        check_combination(rows, q, combined);
+        let v: Vec<f64> = rows.iter().map(|&r| self.rhs[r]).collect();
+        let mut out = vec![0.0; rows.len()];
+        combined_entries(rows, q, combined, None, &v, &mut out);
+        for (i, &r) in rows.iter().enumerate() {
+            self.rhs[r] = out[i];
+        }
     }
 }
 
@@ -870,6 +981,116 @@ mod tests {
                 }
             });
         }
+    }
+
+    /// [`SystemTarget::combine_rows`] on the rows of a node (two unknowns per vertex): the
+    /// whole system's rows become the combinations and constraints a dense computation gives,
+    /// and the held rows of two ranks in a permuted numbering equal them bit for bit; the
+    /// right-hand side alone likewise.
+    #[test]
+    fn combined_rows_are_the_combinations_of_the_rows() {
+        let mesh = crate::generate::rectangle_triangles(0.0, 1.0, 0.0, 1.0, 4, 3, crate::generate::DiagonalPattern::Alternating);
+        let nv = mesh.points.len();
+        let n = 2 * nv;
+        let cell_dofs = |c: usize, out: &mut Vec<usize>| {
+            out.clear();
+            out.extend(mesh.cell_vertices(c).iter().flat_map(|&v| [2 * v, 2 * v + 1]));
+        };
+        let colouring = Colouring::greedy(nv, mesh.num_cells(), |c| mesh.cell_vertices(c));
+        let kernel = |c: usize, _: &mut (), l: &mut LocalSystem| -> Result<(), ()> {
+            cell_dofs(c, &mut l.dofs);
+            let m = l.dofs.len();
+            l.reset(m);
+            for i in 0..m {
+                l.fe[i] = ((c * 13 + i) as f64 * 0.71).sin();
+                for j in 0..m {
+                    l.ke[i * m + j] = ((c * 31 + i * 7 + j * 3) as f64 * 0.37).sin();
+                }
+            }
+            Ok(())
+        };
+        let pattern = Pattern::from_cells(n, mesh.num_cells(), cell_dofs);
+        let skip = vec![false; n];
+        let (mut k, mut rhs) = (CscMatrix::zeros(&pattern), vec![0.0; n]);
+        assemble(&mut k, &mut rhs, &colouring, &skip, || (), kernel).unwrap();
+        let (k0, rhs0) = (k.clone(), rhs.clone());
+        // A tangential row and a constraint row at vertex 5 (rows in the order [y, x]), two
+        // constraint rows at vertex 7.
+        let (c, s) = (0.6, 0.8);
+        let ops: [(Vec<usize>, Vec<f64>, usize); 2] = [(vec![11, 10], vec![c, s, -s, c], 1), (vec![14, 15], vec![c, s, -s, c], 0)];
+        let mut whole = WholeSystem { k: &mut k, rhs: &mut rhs };
+        for (rows, q, m) in &ops {
+            whole.combine_rows(rows, q, *m);
+        }
+        let dense = |a: &CscMatrix<'_>, i: usize, j: usize| a.get(i, j);
+        for (rows, q, m) in &ops {
+            for (i, &r) in rows.iter().enumerate() {
+                for j in 0..n {
+                    let expected = if i < *m {
+                        (0..rows.len()).map(|l| q[i * rows.len() + l] * dense(&k0, rows[l], j)).sum()
+                    } else {
+                        rows.iter().position(|&x| x == j).map_or(0.0, |l| q[i * rows.len() + l])
+                    };
+                    assert!((k.get(r, j) - expected).abs() < 1e-15, "row {r}, column {j}");
+                }
+                let expected = if i < *m { (0..rows.len()).map(|l| q[i * rows.len() + l] * rhs0[rows[l]]).sum() } else { 0.0 };
+                assert!((rhs[r] - expected).abs() < 1e-15, "rhs {r}");
+            }
+        }
+        let untouched = (0..n).filter(|r| ![10, 11, 14, 15].contains(r));
+        for r in untouched {
+            assert!((0..n).all(|j| k.get(r, j) == k0.get(r, j)) && rhs[r] == rhs0[r], "row {r} unchanged");
+        }
+        // Two ranks of a numbering that keeps each vertex's unknowns together.
+        let perm: Vec<usize> = (0..nv).map(|v| (v * 7) % nv).collect();
+        assert!({
+            let mut p = perm.clone();
+            p.sort_unstable();
+            p.dedup();
+            p.len() == nv
+        });
+        let to_global = |d: usize| 2 * perm[d / 2] + d % 2;
+        for rank in 0..2 {
+            let held = n * rank / 2..n * (rank + 1) / 2;
+            let cells: Vec<usize> = (0..mesh.num_cells())
+                .filter(|&c| {
+                    let mut d = Vec::new();
+                    cell_dofs(c, &mut d);
+                    d.iter().any(|&x| held.contains(&to_global(x)))
+                })
+                .collect();
+            let global_dofs = |c: usize, out: &mut Vec<usize>| {
+                cell_dofs(c, out);
+                out.iter_mut().for_each(|d| *d = to_global(*d));
+            };
+            let rp = RowPattern::from_cells(n, held.clone(), &cells, global_dofs);
+            let (mut a, mut r) = (RowMatrix::zeros(&rp), vec![0.0; held.len()]);
+            let restricted = colouring.restricted(|c| cells.binary_search(&c).is_ok());
+            // SAFETY: `to_global` is a permutation.
+            unsafe { assemble_rows(&mut a, &mut r, &restricted, &skip, &to_global, || (), kernel) }.unwrap();
+            // SAFETY: as above.
+            let mut target = unsafe { HeldRows::new(&mut a, &mut r, &to_global) };
+            for (rows, q, m) in &ops {
+                target.combine_rows(rows, q, *m);
+            }
+            for d in 0..n {
+                let g = to_global(d);
+                if !held.contains(&g) {
+                    continue;
+                }
+                assert_eq!(r[g - held.start].to_bits(), rhs[d].to_bits(), "rhs of {d}");
+                for j in 0..n {
+                    let v = rp.find(g, to_global(j)).map_or(0.0, |pos| a.values[pos]);
+                    assert_eq!(v.to_bits(), k.get(d, j).to_bits(), "entry ({d}, {j})");
+                }
+            }
+        }
+        let mut alone = rhs0.clone();
+        let mut residual = ResidualOnly { rhs: &mut alone };
+        for (rows, q, m) in &ops {
+            residual.combine_rows(rows, q, *m);
+        }
+        assert_eq!(alone, rhs);
     }
 
     #[test]
