@@ -40,4 +40,5 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("turek-hron-fsi3", include_str!("../../cases/turek-hron-fsi3.toml")),
     ("fluid-film", include_str!("../../cases/fluid-film.toml")),
     ("valve-2d", include_str!("../../cases/valve-2d.toml")),
+    ("valve-3d-sector", include_str!("../../cases/valve-3d-sector.toml")),
 ];

@@ -939,12 +939,32 @@ pub struct OutputSpec {
     /// to `summary.json` at the end of a time-dependent run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cycles: Option<CyclesSpec>,
+    /// 3D FSI runs: the valve's geometric orifice area, the quantity `open_area`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub open_area: Option<OpenAreaSpec>,
+}
+
+/// `[output.open_area]` (3D FSI runs): the quantity `open_area`, the area of the fluid mesh's
+/// section by the plane `AXIS = at` that the solid's surface gamma_s, seen along `AXIS`, leaves
+/// open ([`crate::post::open_area`]: the geometric orifice area of a valve), times `scale`
+/// (e.g. 6 for a sixth of a valve).
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpenAreaSpec {
+    /// The axis of the flow through the valve.
+    pub axis: Axis,
+    /// Where the plane of the section cuts that axis (e.g. at the annulus).
+    pub at: f64,
+    /// A factor on the area (> 0, default 1).
+    #[serde(default = "one")]
+    pub scale: f64,
 }
 
 /// `[output.cycles]`: the statistics of every whole cycle `K` (1-based) of `period` from `start`
 /// ([`crate::post::cycles`]), written to `summary.json` as `cycle_K_forward_volume`,
 /// `cycle_K_backward_volume`, `cycle_K_leak_volume`, `cycle_K_closing_time`,
-/// `cycle_K_opening_time` (from the cycle's start) and `cycle_K_peak_QUANTITY`.
+/// `cycle_K_opening_time` (from the cycle's start), `cycle_K_peak_QUANTITY` and
+/// `cycle_K_forward_mean_QUANTITY`.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CyclesSpec {
@@ -965,6 +985,10 @@ pub struct CyclesSpec {
     /// Quantities whose largest value in each cycle is reported (e.g. `max_speed`: the peak jet).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub peak: Vec<String>,
+    /// Quantities whose mean over each cycle's forward flow (`flux > 0`) is reported (e.g. the
+    /// transvalvular pressure difference: the mean systolic gradient).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub forward_mean: Vec<String>,
 }
 
 /// The last period of a quantity of `history.csv` ([`crate::post::oscillation`]): its mean
@@ -1166,8 +1190,8 @@ impl Case {
     /// The quantities every run of this kind writes besides the case's own (they may appear in
     /// `[[output.combination]]`): in FSI runs `coupling_force_x`, `_y` (`_z`), the force of the
     /// fluid on the solid, and `coupling_facets`; with contacts also `closed_gap_cells`, the
-    /// fluid cells cut off where the solid has closed on a plane or on another body (in this
-    /// order).
+    /// fluid cells cut off where the solid has closed on a plane or on another body; with
+    /// `[output.open_area]` also `open_area` (in this order).
     pub fn builtin_quantities(&self) -> Vec<String> {
         if self.kind() != RunKind::Fsi {
             return Vec::new();
@@ -1176,6 +1200,9 @@ impl Case {
         names.push("coupling_facets".into());
         if self.solid.iter().any(|s| !s.contact.is_empty()) {
             names.push("closed_gap_cells".into());
+        }
+        if self.output.open_area.is_some() {
+            names.push("open_area".into());
         }
         names
     }

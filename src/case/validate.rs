@@ -299,6 +299,7 @@ fn output(c: &Case, p: &mut Problems) {
         }
     }
     combinations(c, p);
+    open_area(c, p);
     if let Some(slice) = &c.output.slice {
         if d != 3 || c.mesh.is_none() {
             p.push("[output.slice] is for 3D runs with a fluid mesh (a 2D run's speed.png shows the whole plane)");
@@ -396,12 +397,27 @@ fn combinations(c: &Case, p: &mut Problems) {
             p.push("output.cycles: needs a time-dependent run ([time])");
         }
         let named = std::iter::once(("flux", &cycles.flux)).chain(cycles.contact_force.iter().map(|f| ("contact_force", f)));
-        for (key, name) in named.chain(cycles.peak.iter().map(|q| ("peak", q))) {
+        let listed = cycles.peak.iter().map(|q| ("peak", q)).chain(cycles.forward_mean.iter().map(|q| ("forward_mean", q)));
+        for (key, name) in named.chain(listed) {
             if !known.contains(name.as_str()) {
                 p.push(format!("output.cycles.{key}: unknown quantity '{name}'"));
             }
         }
     }
+}
+
+/// `[output.open_area]`: 3D FSI runs; a finite plane and a positive factor.
+fn open_area(c: &Case, p: &mut Problems) {
+    let Some(spec) = &c.output.open_area else {
+        return;
+    };
+    if c.kind() != RunKind::Fsi || c.dim() != 3 {
+        p.push("output.open_area is for 3D FSI runs (a fluid mesh, a solid and formulation = \"3d\")");
+    }
+    if !spec.at.is_finite() {
+        p.push(format!("output.open_area.at must be finite, got {}", spec.at));
+    }
+    p.positive(spec.scale, "output.open_area.scale");
 }
 
 /// `key` of the solid `s`: as it is with one solid, `solid 'NAME': key` with several.

@@ -10,7 +10,10 @@
 //! - closing time: the first sample, from the cycle's start, at which the valve is closed after
 //!   a sample at which it was open; opening time: the first at which it is open after one at
 //!   which it was closed (`NaN` when the valve does not close or open in the cycle);
-//! - the largest value of each peak quantity.
+//! - the largest value of each peak quantity;
+//! - the mean of each forward-mean quantity over the forward flow, `int g [Q > 0] dt / int [Q >
+//!   0] dt` over the steps that start and end with `Q > 0` (trapezoidal rule): the mean systolic
+//!   transvalvular gradient of a valve, the clinical measure of its stenosis.
 
 /// The statistics of one whole cycle.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,17 +30,20 @@ pub struct Cycle {
     pub opening_time: f64,
     /// The largest value of each peak quantity, in their order.
     pub peaks: Vec<f64>,
+    /// The mean of each forward-mean quantity over the cycle's forward flow, in their order
+    /// (`NaN` when no step has forward flow throughout).
+    pub forward_means: Vec<f64>,
 }
 
 /// The whole cycles of period `period` (cycle `k` spans `[t_0 + (k - 1) T, t_0 + k T]`, `t_0` the
 /// `offset`: e.g. mid-diastole, so that each cycle holds one opening and one closing of a valve
 /// whatever their small shifts from beat to beat) in the samples `t`
 /// (increasing) of the flux `q`, the contact force `force` (if any) and the peak quantities
-/// `peaks`. A cycle is whole when the samples cover it to a step at its start (a run's history
+/// `peaks` and the forward-mean quantities `means`. A cycle is whole when the samples cover it to a step at its start (a run's history
 /// starts at its first step's end) and to half a step at its end; a history that starts later
 /// (a run started from another's state) has no whole cycles before that. A non-finite flux makes
 /// the cycle's volumes `NaN`.
-pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], period: f64, offset: f64) -> Vec<Cycle> {
+pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], means: &[&[f64]], period: f64, offset: f64) -> Vec<Cycle> {
     let (Some(&first), Some(&last)) = (t.first(), t.last()) else { return Vec::new() };
     let step = if t.len() > 1 { (last - first) / (t.len() - 1) as f64 } else { 0.0 };
     let whole = ((last - offset + 0.5 * step) / period).floor().max(0.0) as usize;
@@ -65,6 +71,9 @@ pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], per
             let change = |to_closed: bool| {
                 (range.start + 1..range.end).find(|&i| closed(i - 1) != to_closed && closed(i) == to_closed).map_or(f64::NAN, |i| t[i] - start)
             };
+            let forward_steps: Vec<usize> = (range.start + 1..range.end).filter(|&i| q[i - 1] > 0.0 && q[i] > 0.0).collect();
+            let duration: f64 = forward_steps.iter().map(|&i| t[i] - t[i - 1]).sum();
+            let forward_mean = |g: &[f64]| forward_steps.iter().map(|&i| 0.5 * (t[i] - t[i - 1]) * (g[i - 1] + g[i])).sum::<f64>() / duration;
             let finite = q[range.clone()].iter().all(|v| v.is_finite());
             let volume = |v: f64| if finite { v } else { f64::NAN };
             Cycle {
@@ -75,6 +84,7 @@ pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], per
                 closing_time: change(true),
                 opening_time: change(false),
                 peaks: peaks.iter().map(|p| inside().map(|i| p[i]).fold(f64::NEG_INFINITY, f64::max)).collect(),
+                forward_means: means.iter().map(|g| if duration > 0.0 { forward_mean(g) } else { f64::NAN }).collect(),
             }
         })
         .collect()
@@ -104,7 +114,7 @@ mod tests {
             .collect();
         let force: Vec<f64> = t.iter().map(|&t| if phase(t) >= 0.6 || phase(t) < 0.1 { 1.0 } else { 0.0 }).collect();
         let speed: Vec<f64> = t.iter().map(|&t| 2.0 + t).collect();
-        let c = cycles(&t, &q, Some(&force), &[&speed], 1.0, 0.0);
+        let c = cycles(&t, &q, Some(&force), &[&speed], &[&speed], 1.0, 0.0);
         assert_eq!(c.len(), 2, "2.5 cycles: two whole ones");
         for (k, cycle) in c.iter().enumerate() {
             assert_eq!(cycle.index, k + 1);
@@ -115,23 +125,27 @@ mod tests {
             assert!((cycle.closing_time - 0.6).abs() < 1e-9 && (cycle.opening_time - 0.1).abs() < 1e-9, "{cycle:?}");
             // The peak of 2 + t over (k - 1, k]: the sample at the cycle's end.
             assert!((cycle.peaks[0] - (2.0 + (k + 1) as f64)).abs() < 1e-9, "{cycle:?}");
+            // The mean of 2 + t over the forward flow: the steps with Q > 0 at both ends, from
+            // k + 0.11 to k + 0.49 (or from k + 0.1, where round-off makes Q(k + 0.1) > 0): the
+            // middle, k + 0.3, to half a step.
+            assert!((cycle.forward_means[0] - (2.0 + k as f64 + 0.3)).abs() < 0.0051, "{cycle:?}");
         }
         // Without a contact force: no leak, no times.
-        let open = cycles(&t, &q, None, &[], 1.0, 0.0);
+        let open = cycles(&t, &q, None, &[], &[], 1.0, 0.0);
         assert!(open[0].leak_volume.is_nan() && open[0].closing_time.is_nan() && open[0].opening_time.is_nan());
-        assert!(cycles(&t[..50], &q[..50], None, &[], 1.0, 0.0).is_empty());
+        assert!(cycles(&t[..50], &q[..50], None, &[], &[], 1.0, 0.0).is_empty());
         // A history from the first step's end (no t = 0 row) still has its first cycle; one
         // that starts at t = 0.6 has only the second.
-        assert_eq!(cycles(&t[1..], &q[1..], None, &[], 1.0, 0.0).len(), 2);
-        let later = cycles(&t[60..], &q[60..], None, &[], 1.0, 0.0);
+        assert_eq!(cycles(&t[1..], &q[1..], None, &[], &[], 1.0, 0.0).len(), 2);
+        let later = cycles(&t[60..], &q[60..], None, &[], &[], 1.0, 0.0);
         assert_eq!(later.iter().map(|c| c.index).collect::<Vec<_>>(), vec![2]);
         // A NaN in the flux: no volumes for its cycle.
         let mut broken = q.clone();
         broken[30] = f64::NAN;
-        let b = cycles(&t, &broken, None, &[], 1.0, 0.0);
+        let b = cycles(&t, &broken, None, &[], &[], 1.0, 0.0);
         assert!(b[0].forward_volume.is_nan() && b[1].forward_volume.is_finite());
         // Cycles from t = 0.8 (closed): [0.8, 1.8] whole, one opening and one closing in it.
-        let shifted = cycles(&t, &q, Some(&force), &[], 1.0, 0.8);
+        let shifted = cycles(&t, &q, Some(&force), &[], &[], 1.0, 0.8);
         assert_eq!(shifted.len(), 1);
         assert!((shifted[0].opening_time - 0.3).abs() < 1e-9 && (shifted[0].closing_time - 0.8).abs() < 1e-9, "{shifted:?}");
         assert!((shifted[0].forward_volume - c[1].forward_volume).abs() < 1e-12);

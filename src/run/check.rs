@@ -15,7 +15,7 @@
 //! [`CheckSummary`]: unknowns per field, the number of steps and an estimate of the output size.
 
 use super::RunError;
-use crate::case::{name_of, BoundaryNames, Case, CaseError, ProbeField, RunKind, SolidSpec, TimeFn, TimeFunction};
+use crate::case::{name_of, BoundaryNames, Case, CaseError, ProbeField, RunKind, SolidBoundaryType, SolidSpec, TimeFn, TimeFunction};
 use crate::discretize::flow::{Entries, FlowDiscretization};
 use crate::discretize::fsi::FsiDiscretization;
 use crate::discretize::solid::SolidDiscretization;
@@ -329,12 +329,16 @@ impl Ctx<'_> {
         })
     }
 
-    /// Every vertex of the (placed) solid mesh must lie in the fluid mesh.
+    /// Every vertex of the (placed) solid mesh must lie in the fluid mesh, except those of cells
+    /// held in place: cells with a facet on a boundary whose displacement is prescribed in every
+    /// component may reach into the fluid's wall (a leaflet embedded in a rigid root, so that its
+    /// surface crosses the wall and gamma_f closes along it).
     fn solid_inside<const D: usize>(&self, fluid: &Mesh<D>, solid: &Mesh<D>) -> Result<(), RunError> {
         let locator = CellLocator::new(fluid);
+        let held = self.held_cells(solid);
         let mut seen = vec![false; solid.points.len()];
         let (mut total, mut outside, mut first) = (0usize, 0usize, None);
-        for c in 0..solid.num_cells() {
+        for c in (0..solid.num_cells()).filter(|&c| !held[c]) {
             for &v in solid.cell_vertices(c) {
                 if std::mem::replace(&mut seen[v], true) {
                     continue;
@@ -361,6 +365,22 @@ impl Ctx<'_> {
             )));
         }
         Ok(())
+    }
+
+    /// The solid cells with a facet on a boundary whose displacement is prescribed in every
+    /// component.
+    fn held_cells<const D: usize>(&self, solid: &Mesh<D>) -> Vec<bool> {
+        let mut held = vec![false; solid.num_cells()];
+        for (k, spec) in self.case.solid.iter().enumerate() {
+            let clamped =
+                spec.boundary.iter().filter(|b| b.kind == SolidBoundaryType::Displacement && b.components.as_ref().is_none_or(|c| c.len() == D));
+            for b in clamped {
+                for f in solid.boundary_facets(&self.case.solid_boundary(k, &b.name)).unwrap_or_default() {
+                    held[f.cell] = true;
+                }
+            }
+        }
+        held
     }
 
     /// Every velocity or pressure probe must lie in the fluid mesh.

@@ -26,6 +26,7 @@ use crate::io::checkpoint::{Checkpoint, RestartState};
 use crate::io::fields::{fluid_grid, gamma_f_grid, solid_grid};
 use crate::io::picture::PictureError;
 use crate::io::OutputError;
+use crate::post::open_area::open_area;
 use crate::post::quantities::{evaluate_all, StepState};
 use crate::setup::{build_mesh, displacement_probes, fsi_model, SetupError};
 use crate::time::fsi::FsiStepper;
@@ -136,6 +137,19 @@ struct FsiOutputs<'a, const D: usize> {
     pictures_not_drawn: Vec<String>,
 }
 
+impl<const D: usize> FsiOutputs<'_, D> {
+    /// `[output.open_area]`: the part of the original fluid mesh's section that gamma_s at the
+    /// displacement `solid_x` leaves open ([`crate::post::open_area`]), scaled.
+    fn open_area(&self, solid_x: &[f64]) -> Result<Option<f64>, RunError> {
+        let Some(spec) = &self.case.output.open_area else {
+            return Ok(None);
+        };
+        let gamma_s = self.model.gamma_s(solid_x)?;
+        let pieces = (0..gamma_s.num_pieces()).map(|i| gamma_s.corners(i));
+        Ok(Some(spec.scale * open_area(&self.model.background.mesh, pieces, spec.axis.index(), spec.at)))
+    }
+}
+
 /// The last (sub)step of an FSI stepper: there is one once a step is done.
 fn last_step<'s, const D: usize>(s: &'s FsiStepper<'_, D>) -> &'s FsiStep<D> {
     s.last.as_ref().expect("outputs are read after a completed step")
@@ -147,7 +161,9 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let r = &st.report;
         let mut known: Vec<(String, f64)> =
             self.solid_probes.iter().map(|(name, node, a)| (name.clone(), self.model.solid.displacement(&s.state.solid_x, *node)[*a])).collect();
-        let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64, r.adapt.closed_gap_cells as f64]);
+        let open_area = self.open_area(&s.state.solid_x)?;
+        let closed_gap = self.case.solid.iter().any(|s| !s.contact.is_empty()).then_some(r.adapt.closed_gap_cells as f64);
+        let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]).chain(closed_gap).chain(open_area);
         known.extend(self.case.builtin_quantities().into_iter().zip(builtin));
         known.extend(super::solid::contact_quantities(&self.model.solid, &self.model.problem.solid, &s.state.solid_x));
         let fluid = st.disc.fluid_dofs();

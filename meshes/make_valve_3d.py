@@ -1,0 +1,321 @@
+"""The 3D aortic valve sector (cases/valve-3d-sector.toml): a parametric aortic root and leaflet,
+one sixth of the valve (half a leaflet between two symmetry planes).
+
+Lengths in mm (the case's units: mm, g, s). The root's axis is z, the flow along +z. The sector
+is 0 <= theta <= 60 degrees: the plane theta = 0 (y = 0) passes through a commissure and is the
+plane where the half leaflet meets its neighbour (coaptation: a contact plane for the leaflet);
+the plane theta = 60 degrees passes through the middle of the leaflet and of its sinus (a mirror
+plane for fluid and leaflet alike).
+
+Dimensions (the issue's; typical adult values: Swanson & Clark, Circ. Res. 35, 1974; Reul,
+Vahlbruch, Giersiepen, Schmitz-Rode, Hirtz & Effert, J. Biomech. 23, 1990; Thubrikar, The Aortic
+Valve, 1990, ch. 1):
+  - annulus (the left-ventricular outflow tract, LVOT) radius R_A = 12.5 (diameter 25);
+  - sinus of Valsalva: maximal radius R_S = 17.5 (diameter 35, 1.4 R_A; Reul et al.'s 1.46),
+    reached half way up the sinus, in the middle of each lobe;
+  - sino-tubular junction (STJ) radius R_STJ = 13.75 (1.1 R_A; Reul et al. 1.0-1.2), the
+    ascending aorta beyond it of the same radius;
+  - sinus height H_S = 20 from the annulus (z = 0) to the STJ (0.8 of the annulus diameter;
+    Reul et al.'s sinus height 0.71-0.87 D_A), the commissures at H_C = 18 (0.9 H_S, just below
+    the STJ: Thubrikar's commissure height);
+  - leaflet thickness 0.5 (Thubrikar: 0.2-0.6 for the belly, thicker at the free edge; one value
+    here).
+The sinus wall is a lobe behind each leaflet: the radius r(theta, z) = base(z) + bulge(z)
+sin^2(3 theta / 2), base the straight taper R_A -> R_STJ, bulge (R_S - (R_A + R_STJ) / 2)
+sin^2(pi z / H_S); so r = R_S at the lobe's middle (theta = 60) half way up, and the wall runs
+straight from annulus to STJ along the commissures (theta = 0), a simple stand-in for the
+three-lobed (epitrochoid-like) sections of Haj-Ali, Marom, Ben Zekry, Rosenfeld & Raanani,
+J. Biomech. 45, 2012. The LVOT (radius R_A) runs from the inlet z = -15 to the annulus, the
+aorta (radius R_STJ) from the STJ to the outlet z = 50 (1.1 diameters).
+
+The half leaflet (in its unloaded, half-open shape; see `leaflet_point`) is a ruled surface between
+  - the attachment curve on the wall, from the commissure (theta = 3 deg, z = H_C) down to the
+    nadir at the annulus (theta = 60, z = 0) along z = H_C (1 - sin(pi s / 2)), continued
+    E_WALL = 0.5 into the wall (that band is clamped at its outer face: the leaflet is
+    embedded in the rigid root, so that its ventricular face crosses the fluid's faceted wall
+    and gamma_f seals along the attachment);
+  - the free edge, from 3 mm inside the wall at the commissure (theta = 3, z = H_C) to the
+    middle of the leaflet at R_M = 4 from the axis (theta = 60, z = Z_M), bowed towards the
+    axis; the leaflet's middle line, nadir to free edge, is 16 long (the 2D valve's leaflet);
+    the 3 degrees leave the commissure 0.7 mm open at rest, so that the leaflet touches its
+    neighbour (the plane theta = 0) only when it closes;
+and is 0.5 thick, towards the aorta from its ventricular face (gamma_s, and the contact
+boundary). Q2 hexahedra (27 nodes): N_S = 12 along the attachment, N_XI = 11 from the wall to
+the free edge (the first, the band in the wall, E_WALL wide; the others graded towards the
+hinge, the first free one 0.6 mm, the last 2.1 mm), one through the thickness.
+
+Files:
+  valve-3d-sector-fluid.msh: linear tetrahedra, size H_VALVE (default 2) for z in [-4, 24]
+    where the leaflet moves and the jet forms, H_FAR (3.5) elsewhere. Physical groups: volume
+    "fluid"; surfaces "inlet" (z = -15), "outlet" (z = 50), "wall", "commissure_plane"
+    (theta = 0: y = 0), "leaflet_plane" (theta = 60).
+  valve-3d-sector-leaflet.msh: 27-node hexahedra; physical groups: volume "leaflet"; surfaces
+    "ventricular" (the face towards the ventricle: gamma_s and the contact boundary), "aortic",
+    "attachment" (the outer face of the band in the wall: clamped), "free_edge", "commissure"
+    (the leaflet's short side at the commissure) and "symmetry" (on the plane theta = 60).
+
+Run: python make_valve_3d.py [H_VALVE H_FAR]   (needs the `gmsh` package from PyPI)
+"""
+import math
+import sys
+
+import gmsh
+
+R_A, R_S, R_STJ = 12.5, 17.5, 13.75
+H_S, H_C = 20.0, 18.0
+Z_IN, Z_OUT = -15.0, 50.0
+THICKNESS = 0.5
+SECTOR = math.radians(60.0)
+THETA_C = math.radians(3.0)
+E_WALL = 1.0
+D_WALL = 0.5
+L_COMMISSURE = 3.0
+R_M = 4.0
+MIDLINE = 16.0
+N_S, N_XI = 12, 11
+XI_GRADING = 1.4
+
+
+def wall_radius(theta, z):
+    """The root's radius at angle theta (radians, 0 at the commissure) and height z."""
+    if z <= 0.0:
+        return R_A
+    if z >= H_S:
+        return R_STJ
+    s = z / H_S
+    base = R_A + (R_STJ - R_A) * s
+    bulge = (R_S - (R_A + R_STJ) / 2.0) * math.sin(math.pi * s) ** 2
+    return base + bulge * math.sin(1.5 * theta) ** 2
+
+
+def cylindrical(r, theta, z):
+    return (r * math.cos(theta), r * math.sin(theta), z)
+
+
+# ---------------------------------------------------------------------------------------------
+# The fluid
+
+
+def section_wire(occ, z, n_theta=13):
+    """The closed wire of the sector at height z: axis -> wall at theta = 0 -> along the wall ->
+    wall at theta = 60 -> axis."""
+    o = occ.addPoint(0.0, 0.0, z)
+    pts = [occ.addPoint(*cylindrical(wall_radius(t, z), t, z)) for t in (SECTOR * k / (n_theta - 1) for k in range(n_theta))]
+    first = occ.addLine(o, pts[0])
+    arc = occ.addBSpline(pts) if len(pts) > 2 else occ.addLine(pts[0], pts[1])
+    last = occ.addLine(pts[-1], o)
+    return occ.addWire([first, arc, last])
+
+
+def fluid(h_valve, h_far, name):
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("valve-3d-sector-fluid")
+    occ = gmsh.model.occ
+    # Three lofts: the LVOT and the aorta (two sections: cylinder sectors), the sinus (a section
+    # every mm, the lobe a B-spline through 13 points of the wall).
+    lvot = occ.addThruSections([section_wire(occ, Z_IN), section_wire(occ, 0.0)], makeSolid=True, makeRuled=True)
+    sinus_z = [H_S * k / 20 for k in range(21)]
+    sinus = occ.addThruSections([section_wire(occ, z) for z in sinus_z], makeSolid=True, makeRuled=False)
+    aorta = occ.addThruSections([section_wire(occ, H_S), section_wire(occ, Z_OUT)], makeSolid=True, makeRuled=True)
+    occ.fragment(lvot + sinus, aorta)
+    occ.removeAllDuplicates()
+    occ.synchronize()
+    volumes = [t for (_, t) in gmsh.model.getEntities(3)]
+    gmsh.model.addPhysicalGroup(3, volumes, 1, name="fluid")
+    groups = {"inlet": [], "outlet": [], "wall": [], "commissure_plane": [], "leaflet_plane": []}
+    n60 = (-math.sin(SECTOR), math.cos(SECTOR))
+    for (_, tag) in gmsh.model.getEntities(2):
+        if len(gmsh.model.getAdjacencies(2, tag)[0]) > 1:
+            continue  # an interface between two of the lofts
+        x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(2, tag)
+        cx, cy, cz = gmsh.model.occ.getCenterOfMass(2, tag)
+        if abs(z1 - z0) < 1e-6 and abs(z0 - Z_IN) < 1e-6:
+            groups["inlet"].append(tag)
+        elif abs(z1 - z0) < 1e-6 and abs(z0 - Z_OUT) < 1e-6:
+            groups["outlet"].append(tag)
+        elif abs(y1) < 1e-6 and abs(y0) < 1e-6:
+            groups["commissure_plane"].append(tag)
+        elif abs(n60[0] * cx + n60[1] * cy) < 1e-6:
+            groups["leaflet_plane"].append(tag)
+        else:
+            groups["wall"].append(tag)
+    for k, (group, tags) in enumerate(groups.items()):
+        assert tags, f"no surface for {group}"
+        gmsh.model.addPhysicalGroup(2, tags, 10 + k, name=group)
+    field = gmsh.model.mesh.field
+    box = field.add("Box")
+    for key, value in [("VIn", h_valve), ("VOut", h_far), ("XMin", -1.0), ("XMax", R_S + 1.0), ("YMin", -1.0), ("YMax", R_S + 1.0),
+                       ("ZMin", -4.0), ("ZMax", 24.0), ("Thickness", 6.0)]:
+        field.setNumber(box, key, value)
+    field.setAsBackgroundMesh(box)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.Algorithm3D", 10)  # HXT
+    gmsh.option.setNumber("Mesh.Optimize", 1)
+    gmsh.model.mesh.generate(3)
+    snap_to_planes(groups, n60)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.option.setNumber("Mesh.SaveAll", 0)
+    gmsh.write(name)
+    n_tets = sum(len(t) for t in gmsh.model.mesh.getElementsByType(4)[0:1])
+    gmsh.finalize()
+    return n_tets
+
+
+def snap_to_planes(groups, n60):
+    """Puts the nodes of the two symmetry planes exactly on them (the loft's faces are planar to
+    round-off; the solver checks planarity)."""
+    for group, project in [("commissure_plane", lambda x, y: (x, 0.0)),
+                           ("leaflet_plane", lambda x, y: (x - (n60[0] * x + n60[1] * y) * n60[0], y - (n60[0] * x + n60[1] * y) * n60[1]))]:
+        for tag in groups[group]:
+            nodes, coords, params = gmsh.model.mesh.getNodes(2, tag, includeBoundary=True)
+            for k, node in enumerate(nodes):
+                x, y, z = coords[3 * k:3 * k + 3]
+                px, py = project(x, y)
+                if (px, py) != (x, y):
+                    gmsh.model.mesh.setNode(node, [px, py, z], [])
+
+
+# ---------------------------------------------------------------------------------------------
+# The leaflet
+
+
+def attachment(s):
+    """The attachment curve on the wall, s = 0 at the commissure, 1 at the nadir."""
+    theta = THETA_C + (SECTOR - THETA_C) * s
+    z = H_C * (1.0 - math.sin(0.5 * math.pi * s))
+    return theta, z
+
+
+def attachment_point(s):
+    """The point of the attachment curve at s, D_WALL inside the wall (radially): the first
+    vertices off the clamped band lie in the fluid's faceted wall."""
+    theta, z = attachment(s)
+    return cylindrical(wall_radius(theta, z) - D_WALL, theta, z)
+
+
+def middle_tip_height():
+    """Z_M: the free edge's middle at R_M from the axis, MIDLINE from the nadir (at the wall)."""
+    return math.sqrt(MIDLINE**2 - (R_A - R_M) ** 2)
+
+
+def free_edge(s):
+    """The free edge: from L_COMMISSURE inside the wall at the commissure to R_M from the axis
+    on the plane theta = 60, its height from H_C down to Z_M, bowed towards the axis."""
+    theta = THETA_C + (SECTOR - THETA_C) * s
+    r0 = wall_radius(THETA_C, H_C) - L_COMMISSURE
+    r = r0 + (R_M - r0) * math.sin(0.5 * math.pi * s)
+    z = H_C + (middle_tip_height() - H_C) * math.sin(0.5 * math.pi * s)
+    return r, theta, z
+
+
+def mid_surface(s, xi):
+    """The leaflet's ventricular face at (s, xi): the ruled surface from the attachment (xi = 0,
+    on the wall) to the free edge (xi = 1); xi < 0 continues into the wall."""
+    a, f = attachment_point(s), cylindrical(*free_edge(s))
+    return tuple(a[d] + xi * (f[d] - a[d]) for d in range(3))
+
+
+def band_start(s):
+    """The xi of the band's outer face: E_WALL beyond the wall along the ruling."""
+    return -E_WALL / math.dist(attachment_point(s), cylindrical(*free_edge(s)))
+
+
+def unit_normal(s, xi, h=1e-6):
+    """The unit normal of the ventricular face, towards the aorta (+theta, +z side)."""
+    p = [mid_surface(s + h, xi), mid_surface(s - h, xi), mid_surface(s, xi + h), mid_surface(s, xi - h)]
+    ds = [(p[0][d] - p[1][d]) / (2 * h) for d in range(3)]
+    dxi = [(p[2][d] - p[3][d]) / (2 * h) for d in range(3)]
+    n = [ds[1] * dxi[2] - ds[2] * dxi[1], ds[2] * dxi[0] - ds[0] * dxi[2], ds[0] * dxi[1] - ds[1] * dxi[0]]
+    norm = math.sqrt(sum(c * c for c in n))
+    n = [c / norm for c in n]
+    # Orient towards the aorta: up the axis.
+    if n[2] < 0.0:
+        n = [-c for c in n]
+    return n
+
+
+def leaflet_point(i, j, k):
+    """Node (i, j, k) of the Q2 grid: i along s (0..2 N_S), j along xi (0..2 N_XI: j <= 2 the
+    band in the wall), k through the thickness (0..2)."""
+    s = i / (2 * N_S)
+    if j <= 2:
+        xi = band_start(s) * (1.0 - j / 2.0)
+    else:
+        # Cells graded towards the hinge, where the leaflet bends most as it opens: the cell
+        # boundaries at (k / (N_XI - 1))^XI_GRADING, the mid-nodes half way between.
+        cell, mid = divmod(j - 2, 2)
+        b = lambda c: (c / (N_XI - 1)) ** XI_GRADING
+        xi = b(cell) if mid == 0 else 0.5 * (b(cell) + b(cell + 1))
+    x = mid_surface(s, xi)
+    n = unit_normal(s, xi)
+    t = THICKNESS * k / 2.0
+    p = [x[d] + t * n[d] for d in range(3)]
+    if i == 2 * N_S:
+        # On the mirror plane theta = 60 (to round-off already; exactly).
+        m = (-math.sin(SECTOR), math.cos(SECTOR))
+        off = m[0] * p[0] + m[1] * p[1]
+        p[0], p[1] = p[0] - off * m[0], p[1] - off * m[1]
+    return tuple(p)
+
+
+# Gmsh's 27-node hexahedron: reference coordinates of its nodes in [-1, 1]^3 (the Gmsh manual,
+# "Node ordering"), and its 9-node quadrilateral.
+HEX27 = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1),
+         (0, -1, -1), (-1, 0, -1), (-1, -1, 0), (1, 0, -1), (1, -1, 0), (0, 1, -1), (1, 1, 0), (-1, 1, 0),
+         (0, -1, 1), (-1, 0, 1), (1, 0, 1), (0, 1, 1), (0, 0, -1), (0, -1, 0), (-1, 0, 0), (1, 0, 0), (0, 1, 0),
+         (0, 0, 1), (0, 0, 0)]
+QUAD9 = [(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)]
+
+
+def leaflet(name):
+    ni, nj, nk = 2 * N_S + 1, 2 * N_XI + 1, 3
+    tag = lambda i, j, k: 1 + i + ni * (j + nj * k)
+    coords = []
+    for k in range(nk):
+        for j in range(nj):
+            for i in range(ni):
+                coords.extend(leaflet_point(i, j, k))
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("valve-3d-sector-leaflet")
+    volume = gmsh.model.addDiscreteEntity(3)
+    gmsh.model.mesh.addNodes(3, volume, list(range(1, ni * nj * nk + 1)), coords)
+    hexes = []
+    for cj in range(N_XI):
+        for ci in range(N_S):
+            for (a, b, c) in HEX27:
+                hexes.append(tag(2 * ci + 1 + a, 2 * cj + 1 + b, 1 + c))
+    gmsh.model.mesh.addElementsByType(volume, 12, [], hexes)
+    gmsh.model.addPhysicalGroup(3, [volume], 1, name="leaflet")
+
+    def face(group, cells, node):
+        """A discrete surface of 9-node quadrilaterals: `node(cell, a, b)` is the grid node at
+        the cell's face coordinates (a, b) in [-1, 1]^2."""
+        surface = gmsh.model.addDiscreteEntity(2)
+        quads = [node(cell, a, b) for cell in cells for (a, b) in QUAD9]
+        gmsh.model.mesh.addElementsByType(surface, 10, [], quads)
+        return group, surface
+
+    faces = [
+        face("ventricular", [(ci, cj) for cj in range(N_XI) for ci in range(N_S)], lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 0)),
+        face("aortic", [(ci, cj) for cj in range(N_XI) for ci in range(N_S)], lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 2)),
+        face("attachment", range(N_S), lambda c, a, b: tag(2 * c + 1 + a, 0, 1 + b)),
+        face("free_edge", range(N_S), lambda c, a, b: tag(2 * c + 1 + a, nj - 1, 1 + b)),
+        face("commissure", range(N_XI), lambda c, a, b: tag(0, 2 * c + 1 + a, 1 + b)),
+        face("symmetry", range(N_XI), lambda c, a, b: tag(ni - 1, 2 * c + 1 + a, 1 + b)),
+    ]
+    for k, (group, surface) in enumerate(faces):
+        gmsh.model.addPhysicalGroup(2, [surface], 10 + k, name=group)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(name)
+    gmsh.finalize()
+
+
+if __name__ == "__main__":
+    h_valve, h_far = (float(sys.argv[1]), float(sys.argv[2])) if len(sys.argv) > 2 else (2.0, 3.5)
+    n = fluid(h_valve, h_far, "valve-3d-sector-fluid.msh")
+    leaflet("valve-3d-sector-leaflet.msh")
+    print(f"valve-3d-sector-fluid.msh ({n} tetrahedra), valve-3d-sector-leaflet.msh written")
