@@ -30,19 +30,22 @@ aorta (radius R_STJ) from the STJ to the outlet z = 50 (1.1 diameters).
 
 The half leaflet (in its unloaded, half-open shape; see `leaflet_point`) is a ruled surface between
   - the attachment curve on the wall, from the commissure (theta = 3 deg, z = H_C) down to the
-    nadir at the annulus (theta = 60, z = 0) along z = H_C (1 - sin(pi s / 2)), continued
-    E_WALL = 0.5 into the wall (that band is clamped at its outer face: the leaflet is
-    embedded in the rigid root, so that its ventricular face crosses the fluid's faceted wall
-    and gamma_f seals along the attachment);
+    nadir at the annulus (theta = 60, z = 0) along z = H_C (1 - sin(pi s / 2)), D_WALL = 0.5
+    inside the wall (radially), and continued along the leaflet's rulings to E_WALL = 0.5
+    beyond the wall (radially): a band, clamped at its outer face, that embeds the leaflet in
+    the rigid root, so that its ventricular face crosses the fluid's faceted wall and gamma_f
+    seals along the attachment;
   - the free edge, from 3 mm inside the wall at the commissure (theta = 3, z = H_C) to the
     middle of the leaflet at R_M = 4 from the axis (theta = 60, z = Z_M), bowed towards the
     axis; the leaflet's middle line, nadir to free edge, is 16 long (the 2D valve's leaflet);
-    the 3 degrees leave the commissure 0.7 mm open at rest, so that the leaflet touches its
-    neighbour (the plane theta = 0) only when it closes;
+    the 3 degrees leave the commissure open at rest (the ventricular face 0.56 mm from the
+    plane theta = 0 at the free edge's corner, 0.69 at the wall), so that the leaflet touches
+    its neighbour (that plane) only when it closes;
 and is 0.5 thick, towards the aorta from its ventricular face (gamma_s, and the contact
 boundary). Q2 hexahedra (27 nodes): N_S = 12 along the attachment, N_XI = 11 from the wall to
-the free edge (the first, the band in the wall, E_WALL wide; the others graded towards the
-hinge, the first free one 0.6 mm, the last 2.1 mm), one through the thickness.
+the free edge (the first the band in the wall; the others graded towards the hinge: in the
+leaflet's middle the first free one 0.6 mm, the last 2.1 mm; a tenth of that at the
+commissure), one through the thickness.
 
 Files:
   valve-3d-sector-fluid.msh: linear tetrahedra, size H_VALVE (default 2) for z in [-4, 24]
@@ -67,7 +70,7 @@ Z_IN, Z_OUT = -15.0, 50.0
 THICKNESS = 0.5
 SECTOR = math.radians(60.0)
 THETA_C = math.radians(3.0)
-E_WALL = 1.0
+E_WALL = 0.5
 D_WALL = 0.5
 L_COMMISSURE = 3.0
 R_M = 4.0
@@ -102,7 +105,7 @@ def section_wire(occ, z, n_theta=13):
     o = occ.addPoint(0.0, 0.0, z)
     pts = [occ.addPoint(*cylindrical(wall_radius(t, z), t, z)) for t in (SECTOR * k / (n_theta - 1) for k in range(n_theta))]
     first = occ.addLine(o, pts[0])
-    arc = occ.addBSpline(pts) if len(pts) > 2 else occ.addLine(pts[0], pts[1])
+    arc = occ.addSpline(pts)  # through the points (a B-spline would take them as its control points)
     last = occ.addLine(pts[-1], o)
     return occ.addWire([first, arc, last])
 
@@ -113,7 +116,7 @@ def fluid(h_valve, h_far, name):
     gmsh.model.add("valve-3d-sector-fluid")
     occ = gmsh.model.occ
     # Three lofts: the LVOT and the aorta (two sections: cylinder sectors), the sinus (a section
-    # every mm, the lobe a B-spline through 13 points of the wall).
+    # every mm, the lobe a spline through 13 points of the wall).
     lvot = occ.addThruSections([section_wire(occ, Z_IN), section_wire(occ, 0.0)], makeSolid=True, makeRuled=True)
     sinus_z = [H_S * k / 20 for k in range(21)]
     sinus = occ.addThruSections([section_wire(occ, z) for z in sinus_z], makeSolid=True, makeRuled=False)
@@ -219,8 +222,13 @@ def mid_surface(s, xi):
 
 
 def band_start(s):
-    """The xi of the band's outer face: E_WALL beyond the wall along the ruling."""
-    return -E_WALL / math.dist(attachment_point(s), cylindrical(*free_edge(s)))
+    """The xi of the band's outer face: along the ruling from the attachment point (D_WALL inside
+    the wall) until it lies E_WALL beyond the wall radially, wherever the ruling meets the wall
+    at a slant (about 59 degrees from radial at the nadir)."""
+    a, f = attachment_point(s), cylindrical(*free_edge(s))
+    r_a, r_f = math.hypot(a[0], a[1]), math.hypot(f[0], f[1])
+    # The radius falls by r_a - r_f from xi = 0 to 1; xi < 0 continues outwards.
+    return -(D_WALL + E_WALL) / (r_a - r_f)
 
 
 def unit_normal(s, xi, h=1e-6):

@@ -1132,8 +1132,9 @@ fn valve_2d_opens_at_the_start_of_ejection() {
 /// held on its mirror plane (the roller of the inclined symmetry plane, exactly), and the
 /// geometric orifice area at rest against an independent computation: shapely's union of the
 /// projected analytic leaflet surface (meshes/make_valve_3d.py's map, 400 x 400 quadrilaterals)
-/// subtracted from the exact annulus sector, 159.524 mm^2 for the whole valve (fdfsi: the
-/// faceted fluid section and the Q2 leaflet's facets, rasterised; 159.38 at step 1).
+/// subtracted from the exact annulus sector, 159.524 mm^2 for the whole valve
+/// (meshes/valve_3d_open_area.py; fdfsi: the faceted fluid section and the Q2 leaflet's facets,
+/// rasterised).
 #[test]
 fn valve_3d_sector_opens_on_its_symmetry_planes() {
     let (_, out) = run_with("valve-3d-sector", |c| {
@@ -1191,7 +1192,7 @@ fn valve_3d_sector_opens_and_closes_over_three_cardiac_cycles() {
             assert!((60e3..=75e3).contains(&forward), "stroke volume {forward} mm^3 outside 60-75 ml");
             assert!((1.0e3..=1.7e3).contains(&jet), "peak jet {jet} mm/s outside 1.0-1.7 m/s");
             assert!((250.0..=400.0).contains(&area), "open area {area} mm^2 outside 2.5-4 cm^2");
-            assert!(gradient < 10.0 * mmhg, "mean systolic gradient {gradient} Pa above 10 mmHg");
+            assert!(gradient > 0.0 && gradient < 10.0 * mmhg, "mean systolic gradient {gradient} Pa outside (0, 10) mmHg");
         }
     }
     let (second, third) = (cycle(2, "forward_volume"), cycle(3, "forward_volume"));

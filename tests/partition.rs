@@ -6,13 +6,15 @@
 //! and of an FSI run on one rank is its whole path. No MPI: the numbering is plain data, and one
 //! rank needs no messages.
 
+mod common;
+use common::same_rows;
 use fdfsi::case::Case;
 use fdfsi::discretize::flow::{solve_steady, Entries, FlowDiscretization, FlowProblem, TractionBc};
 use fdfsi::discretize::fsi::{step_with, FsiDiscretization, FsiModel, FsiState, StepStart};
 use fdfsi::physics::fluid::Formulation;
 use fdfsi::solve::linear::{FaerLu, LinearSolver};
 use fdfsi::solve::newton::NewtonOptions;
-use fdfsi::solve::partition::{Nodes, Numbering, Partition, SerialRows, World};
+use fdfsi::solve::partition::{Nodes, Numbering, SerialRows, World};
 use fdfsi::time::flow::{solve_unsteady, TimeOptions};
 use fdfsi::time::TimeScheme;
 use fdfsi_fem::generate::{box_tetrahedra, rectangle_triangles, DiagonalPattern};
@@ -107,22 +109,6 @@ fn a_partitioned_flow_on_one_rank_is_the_whole_one() {
     assert!(norms_whole.len() >= 4, "{norms_whole:?}");
     assert_eq!(norms_rows, norms_whole);
     assert_eq!(bits(&x_rows), bits(&x_whole));
-}
-
-/// Checks that the held rows `a` and `rhs_rows` of `partition` (in its numbering) are those
-/// rows of the whole system `k`, `rhs` bit for bit; returns the number of entries held.
-fn same_rows(partition: &Partition, a: &RowMatrix<'_>, rhs_rows: &[f64], k: &CscMatrix<'_>, rhs: &[f64], label: &str) -> usize {
-    let (numbering, rows) = (partition.numbering(), partition.rows());
-    for p in rows.clone() {
-        let i = numbering.to_fdfsi(p);
-        assert_eq!(rhs_rows[p - rows.start].to_bits(), rhs[i].to_bits(), "{label}: rhs of unknown {i}");
-        let (cols, start) = a.pattern.row(p);
-        for (e, &q) in cols.iter().enumerate() {
-            let j = numbering.to_fdfsi(q as usize);
-            assert_eq!(a.values[start + e].to_bits(), k.get(i, j).to_bits(), "{label}: entry ({i}, {j})");
-        }
-    }
-    a.pattern.nnz()
 }
 
 /// Each rank's rows of a flow's partitioned assembly (`FlowDiscretization::assemble_rows` with

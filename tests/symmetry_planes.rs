@@ -7,6 +7,8 @@
 //! solid (a membrane and a box on rollers, one node on three planes) and an FSI run (the first
 //! steps of model problem 4, coarse).
 
+mod common;
+use common::same_rows;
 use fdfsi::case::{Case, LinearMethod, MeshSpec, SolidMeshSpec};
 use fdfsi::discretize::flow::{solve_steady, Entries, FlowDiscretization, FlowSolution};
 use fdfsi::discretize::fsi::{step_with, FsiDiscretization, FsiModel, FsiProblem, FsiState, StepStart};
@@ -21,7 +23,7 @@ use fdfsi::physics::solid::{Formulation as SolidFormulation, NeoHookeanCompressi
 use fdfsi::setup::{build_mesh, flow_problem, solid_mesh, solid_problem};
 use fdfsi::solve::linear::LinearSolver;
 use fdfsi::solve::newton::NewtonOptions;
-use fdfsi::solve::partition::{Partition, World};
+use fdfsi::solve::partition::World;
 use fdfsi_fem::sparse::{CscMatrix, RowMatrix};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -184,7 +186,7 @@ fn inclined_planes_cost_the_al_solver_no_krylov_iterations() {
 /// 60 degrees (the quarter's angles scaled by 2/3: planes y = 0 and at 60 degrees) against
 /// itself turned by -30 degrees (both planes inclined) and by -60 degrees (its plane at 60
 /// degrees then y = 0, given as `normal_axis`, the other inclined). Direct and AL solvers:
-/// velocity and pressure equal to 1e-9 relative.
+/// velocity and pressure equal to 1e-11 relative (measured: 1.1e-14 and 9.2e-13 at worst).
 #[test]
 fn a_turned_quarter_pipe_flows_as_the_quarter_pipe() {
     for method in [LinearMethod::Direct, LinearMethod::AugmentedLagrangian] {
@@ -201,7 +203,7 @@ fn a_turned_quarter_pipe_flows_as_the_quarter_pipe() {
             krylov(&plain.1),
             krylov(&rotated.1)
         );
-        assert!(du < 1e-9 && dp < 1e-9, "{method:?}: {du:e} {dp:e}");
+        assert!(du < 1e-11 && dp < 1e-11, "{method:?}: {du:e} {dp:e}");
         // The sector of 60 degrees: its plane at 60 degrees the quarter's x = 0.
         let sector = |p: &[f64; 3]| {
             let (radius, angle) = (p[0].hypot(p[1]), p[1].atan2(p[0]) * 2.0 / 3.0);
@@ -228,14 +230,14 @@ fn a_turned_quarter_pipe_flows_as_the_quarter_pipe() {
                 krylov(&base.1),
                 krylov(&rotated.1)
             );
-            assert!(du < 1e-9 && dp < 1e-9, "{method:?}, {degrees}: {du:e} {dp:e}");
+            assert!(du < 1e-11 && dp < 1e-11, "{method:?}, {degrees}: {du:e} {dp:e}");
         }
     }
 }
 
 /// A 2D half channel (Navier-Stokes, Re = 20; symmetry line y = 0, wall y = 1, parabolic inflow,
 /// free outlet) turned by 25 degrees, its symmetry line and inflow turned with it: the same flow
-/// to 1e-9, with the direct and the AL solvers.
+/// to 1e-11, with the direct and the AL solvers.
 #[test]
 fn a_turned_half_channel_flows_as_the_half_channel() {
     let text = |inflow: [&str; 2], bottom: &str| {
@@ -272,7 +274,7 @@ fn a_turned_half_channel_flows_as_the_half_channel() {
             krylov(&plain.1),
             krylov(&rotated.1)
         );
-        assert!(du < 1e-9 && dp < 1e-9, "{method:?}: {du:e} {dp:e}");
+        assert!(du < 1e-11 && dp < 1e-11, "{method:?}: {du:e} {dp:e}");
         assert_eq!(plain.1.newton.iterations, rotated.1.newton.iterations);
     }
 }
@@ -322,7 +324,7 @@ fn solid_difference(a: &(SolidDiscretization<3>, SolidSolution), b: &(SolidDiscr
 /// turned by 30 degrees about z on inclined rollers; and a box on rollers on three faces (a
 /// corner on all three: held by three constraint rows) under a dead traction, compressible,
 /// against itself turned about the axis (1, 2, 3) by 40 degrees, its traction turned with it:
-/// the displacements (and the membrane's pressure) equal to 1e-9.
+/// the displacements (and the membrane's pressure) equal to 1e-11.
 #[test]
 fn a_turned_solid_on_rollers_deforms_as_the_solid() {
     let material = Arc::new(NeoHookeanMixed::incompressible(1000.0));
@@ -345,7 +347,7 @@ fn a_turned_solid_on_rollers_deforms_as_the_solid() {
     let turned = membrane(&r, true);
     let (diff, umax) = solid_difference(&plain, &turned, &r);
     println!("membrane turned by 30 degrees: displacement and pressure {diff:.2e} (largest displacement {umax:.4})");
-    assert!(diff < 1e-9 && umax > 0.05, "{diff:e}, {umax}");
+    assert!(diff < 1e-11 && umax > 0.05, "{diff:e}, {umax}");
     let compressible = Arc::new(NeoHookeanCompressible::from_shear_bulk(1.0, 5.0));
     let traction = [0.1, 0.05, -0.1];
     let block = |r: &Rotation, rollers: bool| {
@@ -366,7 +368,7 @@ fn a_turned_solid_on_rollers_deforms_as_the_solid() {
     let turned = block(&r, true);
     let (diff, umax) = solid_difference(&plain, &turned, &r);
     println!("box turned by 40 degrees about (1, 2, 3): displacement {diff:.2e} (largest displacement {umax:.4})");
-    assert!(diff < 1e-9 && umax > 0.01, "{diff:e}, {umax}");
+    assert!(diff < 1e-11 && umax > 0.01, "{diff:e}, {umax}");
 }
 
 /// What the FSI comparison reads of each step: the centre's displacement along z, the fluid
@@ -467,8 +469,9 @@ fn relative(a: &[f64], b: &[f64]) -> f64 {
 
 /// Model problem 4 (coarse, 3 steps) against itself turned by 30 degrees about z, fluid and
 /// solid, the symmetry planes of both inclined: the adapted meshes alike, the centre's
-/// displacement, the solid's displacement, the fluid's velocity and pressure equal to 1e-8
-/// relative at every step, in the same Newton iterations; direct and AL solvers.
+/// displacement, the solid's displacement, the fluid's velocity and pressure equal to 1e-11
+/// relative at every step with the direct solver (1e-10 with the AL solver), in the same Newton
+/// iterations.
 #[test]
 fn a_turned_model_problem_4_moves_as_model_problem_4() {
     for method in [LinearMethod::Direct, LinearMethod::AugmentedLagrangian] {
@@ -500,27 +503,14 @@ fn a_turned_model_problem_4_moves_as_model_problem_4() {
                 ("fluid pressure", relative(&plain.pressure[k], &turned.pressure[k])),
             ];
             println!("{method:?}, step {}: {differences:?}", k + 1);
+            // The AL solver's Krylov solves stop at their tolerance, so its iterates differ by
+            // more than round-off (measured 2.4e-11; the direct solver 1e-13).
+            let tol = if method == LinearMethod::Direct { 1e-11 } else { 1e-10 };
             for (what, d) in differences {
-                assert!(d < 1e-8, "{method:?}, step {}: {what} {d:e}", k + 1);
+                assert!(d < tol, "{method:?}, step {}: {what} {d:e}", k + 1);
             }
         }
     }
-}
-
-/// Checks that the held rows `a`, `rhs_rows` of `partition` are those rows of the whole system
-/// `k`, `rhs` bit for bit; returns the number of entries held.
-fn same_rows(partition: &Partition, a: &RowMatrix<'_>, rhs_rows: &[f64], k: &CscMatrix<'_>, rhs: &[f64], label: &str) -> usize {
-    let (numbering, rows) = (partition.numbering(), partition.rows());
-    for p in rows.clone() {
-        let i = numbering.to_fdfsi(p);
-        assert_eq!(rhs_rows[p - rows.start].to_bits(), rhs[i].to_bits(), "{label}: rhs of unknown {i}");
-        let (cols, start) = a.pattern.row(p);
-        for (e, &q) in cols.iter().enumerate() {
-            let j = numbering.to_fdfsi(q as usize);
-            assert_eq!(a.values[start + e].to_bits(), k.get(i, j).to_bits(), "{label}: entry ({i}, {j})");
-        }
-    }
-    a.pattern.nnz()
 }
 
 /// Each rank's rows of a partitioned assembly (2 and 3 ranks) with inclined symmetry planes are

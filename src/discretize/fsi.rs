@@ -414,8 +414,9 @@ pub struct FluidSnapshot<const D: usize> {
     /// The Windkessel outlets' `Q` and `P_c` (two per outlet; not on the mesh).
     pub lumped: Vec<f64>,
     /// The P1disc pressure of every cell of `mesh`, `pressure[c * (D + 1) + k]` (value at the
-    /// centroid, then the gradient): the next step's initial iterate only (the old cell's linear pressure at each new cell's centroid);
-    /// empty in snapshots of checkpoints of earlier builds.
+    /// centroid, then the gradient): the next step's initial iterate only (the old cell's linear
+    /// pressure at each new cell's centroid); empty in snapshots of checkpoints of earlier
+    /// builds.
     pub pressure: Vec<f64>,
 }
 
@@ -595,6 +596,13 @@ impl<const D: usize> FluidSnapshot<D> {
                 vel.num_dofs()
             )));
         }
+        let pressure = disc.flow.mesh.num_cells() * (D + 1);
+        if !f.pressure.is_empty() && f.pressure.len() != pressure {
+            return Err(FsiError::Restart(format!(
+                "the checkpoint's fluid pressure has {} values but the rebuilt mesh has {pressure}",
+                f.pressure.len()
+            )));
+        }
         let lumped = disc.layout.len(Block::Windkessel);
         if f.lumped.len() != lumped {
             return Err(FsiError::Restart(format!("the checkpoint has {} Windkessel values but the case has {lumped}", f.lumped.len())));
@@ -605,7 +613,7 @@ impl<const D: usize> FluidSnapshot<D> {
             nodes: vel.nodes.clone(),
             velocity: f.velocity.clone(),
             lumped: f.lumped.clone(),
-            pressure: if f.pressure.len() == disc.flow.mesh.num_cells() * (D + 1) { f.pressure.clone() } else { Vec::new() },
+            pressure: f.pressure.clone(),
         })
     }
 
@@ -613,8 +621,11 @@ impl<const D: usize> FluidSnapshot<D> {
     /// the fluid part of `x`): on each new cell the old cell's linear pressure at the new cell's
     /// centroid, and its gradient. A cell the adaptation left as it was keeps its pressure
     /// exactly; a Newton solve from zero pressure spends its first iteration finding the
-    /// pressure level (the 3D valve: |R| from 1.7e5, the pressure loads, to 4e2). A new cell whose
-    /// centroid lies in no old cell (uncovered by the solid) keeps zero.
+    /// pressure level (the 3D valve sector: the first |R| of a step 1.2e4 against 1.7e5, the
+    /// pressure loads). A new cell whose centroid lies in no old cell (uncovered by the solid)
+    /// keeps zero. The centroid is the mean of the vertices (the P1disc basis's on these straight
+    /// cells); a new cell beside gamma_s may take the pressure of the old cell across it, which
+    /// Newton corrects like any other part of the guess.
     fn pressure_into(&self, disc: &FsiDiscretization<D>, x: &mut [f64]) {
         let n = D + 1;
         if self.pressure.len() != self.mesh.num_cells() * n {
@@ -1917,8 +1928,9 @@ pub struct StepStart<const D: usize> {
     /// The fluid history `u*` on the new velocity nodes (fluid numbering): the velocity of `t_n`
     /// (and `t_{n-1}`) transferred.
     pub u_old: Vec<f64>,
-    /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`,
-    /// projected onto the symmetry planes of any normal ([`NormalConstraints::project`]).
+    /// The initial iterate: `u_old`, the fluid pressure of `t_n` carried onto the new cells, the
+    /// Dirichlet values, the solid pressures of `t_n`, projected onto the symmetry planes of any
+    /// normal ([`NormalConstraints::project`]).
     pub x: Vec<f64>,
     /// The constrained unknowns (identity rows of the Jacobian).
     pub constrained: Vec<bool>,

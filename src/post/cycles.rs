@@ -12,8 +12,9 @@
 //!   which it was closed (`NaN` when the valve does not close or open in the cycle);
 //! - the largest value of each peak quantity;
 //! - the mean of each forward-mean quantity over the forward flow, `int g [Q > 0] dt / int [Q >
-//!   0] dt` over the steps that start and end with `Q > 0` (trapezoidal rule): the mean systolic
-//!   transvalvular gradient of a valve, the clinical measure of its stenosis.
+//!   0] dt` over the steps that start and end with `Q > 0` and the valve open (trapezoidal rule;
+//!   a forward flux while closed, a leaflet ringing after it shut, is not systole): the mean
+//!   systolic transvalvular gradient of a valve, the clinical measure of its stenosis.
 
 /// The statistics of one whole cycle.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,8 +31,8 @@ pub struct Cycle {
     pub opening_time: f64,
     /// The largest value of each peak quantity, in their order.
     pub peaks: Vec<f64>,
-    /// The mean of each forward-mean quantity over the cycle's forward flow, in their order
-    /// (`NaN` when no step has forward flow throughout).
+    /// The mean of each forward-mean quantity over the cycle's forward flow while open, in their
+    /// order (`NaN` when no step has forward flow throughout).
     pub forward_means: Vec<f64>,
 }
 
@@ -71,7 +72,8 @@ pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], mea
             let change = |to_closed: bool| {
                 (range.start + 1..range.end).find(|&i| closed(i - 1) != to_closed && closed(i) == to_closed).map_or(f64::NAN, |i| t[i] - start)
             };
-            let forward_steps: Vec<usize> = (range.start + 1..range.end).filter(|&i| q[i - 1] > 0.0 && q[i] > 0.0).collect();
+            let open = |i: usize| q[i - 1] > 0.0 && q[i] > 0.0 && !closed(i - 1) && !closed(i);
+            let forward_steps: Vec<usize> = (range.start + 1..range.end).filter(|&i| open(i)).collect();
             let duration: f64 = forward_steps.iter().map(|&i| t[i] - t[i - 1]).sum();
             let forward_mean = |g: &[f64]| forward_steps.iter().map(|&i| 0.5 * (t[i] - t[i - 1]) * (g[i - 1] + g[i])).sum::<f64>() / duration;
             let finite = q[range.clone()].iter().all(|v| v.is_finite());
@@ -130,6 +132,16 @@ mod tests {
             // middle, k + 0.3, to half a step.
             assert!((cycle.forward_means[0] - (2.0 + k as f64 + 0.3)).abs() < 0.0051, "{cycle:?}");
         }
+        // A forward blip while closed (a leaflet ringing after it shut) is not systole: the
+        // forward mean of a quantity that is 100 there is unchanged with the contact force.
+        let mut blip = q.clone();
+        let mut marked = speed.clone();
+        for i in 70..73 {
+            blip[i] = 0.05;
+            marked[i] = 100.0;
+        }
+        let with_blip = cycles(&t, &blip, Some(&force), &[], &[&marked], 1.0, 0.0);
+        assert!((with_blip[0].forward_means[0] - c[0].forward_means[0]).abs() < 1e-12, "{with_blip:?}");
         // Without a contact force: no leak, no times.
         let open = cycles(&t, &q, None, &[], &[], 1.0, 0.0);
         assert!(open[0].leak_volume.is_nan() && open[0].closing_time.is_nan() && open[0].opening_time.is_nan());

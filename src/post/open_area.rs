@@ -15,7 +15,10 @@
 //! fluid cell, and covered when it lies in the projection of a piece of gamma_s. The area is
 //! the count of points in `S` and not covered, times the grid cell's area: exact to the
 //! rasterisation, whose error is about the length of the boundaries of both sets times the grid
-//! spacing (`tests` below: a disc with a sector covered, to 0.1 %). No crate rasterises
+//! spacing (`tests` below: the unit square less a triangle to 2 / RESOLUTION, and a plane
+//! through a layer of faces; `tests/cases.rs`: the valve sector at rest to 0.1 % of an
+//! independent computation, meshes/valve_3d_open_area.py). A plane through faces of the mesh
+//! takes each face once, from the cell below it. No crate rasterises
 //! polygons onto a bit grid without pulling in an image stack; the scan below is twenty lines.
 
 use fdfsi_fem::mesh::Mesh;
@@ -156,6 +159,14 @@ mod tests {
         // Along x: the section is the square in (y, z); the triangle projects onto a segment.
         let a = open_area(&cube, [[[0.0, 0.0, 0.0], [1.0, 0.5, 0.5], [0.5, 0.5, 0.5]]], 0, 0.5);
         assert!((a - 1.0).abs() < 2.0 / RESOLUTION as f64, "{a}");
+    }
+
+    /// A plane through a layer of faces (z = 0.5 of a 2 x 2 x 2 box mesh) sees the square once.
+    #[test]
+    fn plane_through_a_layer_of_faces() {
+        let cube = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 2, 2, 2);
+        let a = open_area(&cube, [], 2, 0.5);
+        assert!((a - 1.0).abs() < 1e-12, "{a}");
     }
 
     /// A plane that misses the mesh leaves no area.

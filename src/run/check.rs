@@ -372,8 +372,8 @@ impl Ctx<'_> {
     fn held_cells<const D: usize>(&self, solid: &Mesh<D>) -> Vec<bool> {
         let mut held = vec![false; solid.num_cells()];
         for (k, spec) in self.case.solid.iter().enumerate() {
-            let clamped =
-                spec.boundary.iter().filter(|b| b.kind == SolidBoundaryType::Displacement && b.components.as_ref().is_none_or(|c| c.len() == D));
+            let every = |c: &Vec<usize>| (0..D).all(|a| c.contains(&a));
+            let clamped = spec.boundary.iter().filter(|b| b.kind == SolidBoundaryType::Displacement && b.components.as_ref().is_none_or(every));
             for b in clamped {
                 for f in solid.boundary_facets(&self.case.solid_boundary(k, &b.name)).unwrap_or_default() {
                     held[f.cell] = true;

@@ -10,7 +10,7 @@
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
 //!   integral of the multiplier over gamma_f, plus `coupling_facets` (and `closed_gap_cells`
-//!   with contacts);
+//!   with contacts, `open_area` with `[output.open_area]`);
 //! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
 //!   gamma_f);
 //! - `summary.json` as for every run.
@@ -164,7 +164,9 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let open_area = self.open_area(&s.state.solid_x)?;
         let closed_gap = self.case.solid.iter().any(|s| !s.contact.is_empty()).then_some(r.adapt.closed_gap_cells as f64);
         let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]).chain(closed_gap).chain(open_area);
-        known.extend(self.case.builtin_quantities().into_iter().zip(builtin));
+        let (names, values): (Vec<String>, Vec<f64>) = (self.case.builtin_quantities(), builtin.collect());
+        debug_assert_eq!(names.len(), values.len(), "a value for every built-in quantity: {names:?}");
+        known.extend(names.into_iter().zip(values));
         known.extend(super::solid::contact_quantities(&self.model.solid, &self.model.problem.solid, &s.state.solid_x));
         let fluid = st.disc.fluid_dofs();
         // The step's inertia as solved: `a (u - u*)` with the scheme's `a` (BDF2: `1.5 / dt` at
