@@ -413,11 +413,6 @@ pub struct FluidSnapshot<const D: usize> {
     pub velocity: Vec<f64>,
     /// The Windkessel outlets' `Q` and `P_c` (two per outlet; not on the mesh).
     pub lumped: Vec<f64>,
-    /// The P1disc pressure of every cell of `mesh`, `pressure[c * (D + 1) + k]` (value at the
-    /// centroid, then the gradient): the next step's initial iterate only (the old cell's linear
-    /// pressure at each new cell's centroid); empty in snapshots of checkpoints of earlier
-    /// builds.
-    pub pressure: Vec<f64>,
 }
 
 /// The state of an FSI run after a step (see [`crate::discretize::fsi::FsiState`]).
@@ -457,9 +452,6 @@ pub struct FluidRestart {
     /// The Windkessel outlets' `Q` and `P_c` (absent from checkpoints of runs without them).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub lumped: Vec<f64>,
-    /// The P1disc pressure on the adapted mesh (absent from checkpoints of earlier builds).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub pressure: Vec<f64>,
 }
 
 /// The solid cells in the pattern of each coupling element, carried from step to step while
@@ -576,12 +568,7 @@ impl<const D: usize> FsiState<D> {
 
 impl<const D: usize> FluidSnapshot<D> {
     fn to_restart(&self) -> FluidRestart {
-        FluidRestart {
-            solid_base: self.solid_base.clone(),
-            velocity: self.velocity.clone(),
-            lumped: self.lumped.clone(),
-            pressure: self.pressure.clone(),
-        }
+        FluidRestart { solid_base: self.solid_base.clone(), velocity: self.velocity.clone(), lumped: self.lumped.clone() }
     }
 
     /// The snapshot of a checkpoint: its adapted mesh rebuilt from the solid position it was
@@ -596,13 +583,6 @@ impl<const D: usize> FluidSnapshot<D> {
                 vel.num_dofs()
             )));
         }
-        let pressure = disc.flow.mesh.num_cells() * (D + 1);
-        if !f.pressure.is_empty() && f.pressure.len() != pressure {
-            return Err(FsiError::Restart(format!(
-                "the checkpoint's fluid pressure has {} values but the rebuilt mesh has {pressure}",
-                f.pressure.len()
-            )));
-        }
         let lumped = disc.layout.len(Block::Windkessel);
         if f.lumped.len() != lumped {
             return Err(FsiError::Restart(format!("the checkpoint has {} Windkessel values but the case has {lumped}", f.lumped.len())));
@@ -613,39 +593,7 @@ impl<const D: usize> FluidSnapshot<D> {
             nodes: vel.nodes.clone(),
             velocity: f.velocity.clone(),
             lumped: f.lumped.clone(),
-            pressure: f.pressure.clone(),
         })
-    }
-
-    /// The pressure of this snapshot as the initial iterate on the cells of `disc` (written into
-    /// the fluid part of `x`): on each new cell the old cell's linear pressure at the new cell's
-    /// centroid, and its gradient. A cell the adaptation left as it was keeps its pressure
-    /// exactly; a Newton solve from zero pressure spends its first iteration finding the
-    /// pressure level (the 3D valve sector: the first |R| of a step 1.2e4 against 1.7e5, the
-    /// pressure loads). A new cell whose centroid lies in no old cell (uncovered by the solid)
-    /// keeps zero. The centroid is the mean of the vertices (the P1disc basis's on these straight
-    /// cells); a new cell beside gamma_s may take the pressure of the old cell across it, which
-    /// Newton corrects like any other part of the guess.
-    fn pressure_into(&self, disc: &FsiDiscretization<D>, x: &mut [f64]) {
-        let n = D + 1;
-        if self.pressure.len() != self.mesh.num_cells() * n {
-            return;
-        }
-        let centroid = |mesh: &Mesh<D>, c: usize| -> [f64; D] {
-            let v = mesh.cell_vertices(c);
-            std::array::from_fn(|d| v.iter().map(|&i| mesh.points[i][d]).sum::<f64>() / v.len() as f64)
-        };
-        let locator = fdfsi_fem::adapt::CellLocator::new(&self.mesh);
-        let (mesh, pf) = (&disc.flow.mesh, disc.flow.pressure_field());
-        for c in 0..mesh.num_cells() {
-            let xc = centroid(mesh, c);
-            let Some((old, _)) = locator.locate(&self.mesh, &xc) else { continue };
-            let (p, x_old) = (&self.pressure[old * n..(old + 1) * n], centroid(&self.mesh, old));
-            x[pf.dof(c * n, 0)] = p[0] + (0..D).map(|d| p[d + 1] * (xc[d] - x_old[d])).sum::<f64>();
-            for d in 0..D {
-                x[pf.dof(c * n + d + 1, 0)] = p[d + 1];
-            }
-        }
     }
 
     /// The velocity transferred to the velocity nodes of `disc` (fluid numbering, zero pressure).
@@ -1928,9 +1876,8 @@ pub struct StepStart<const D: usize> {
     /// The fluid history `u*` on the new velocity nodes (fluid numbering): the velocity of `t_n`
     /// (and `t_{n-1}`) transferred.
     pub u_old: Vec<f64>,
-    /// The initial iterate: `u_old`, the fluid pressure of `t_n` carried onto the new cells, the
-    /// Dirichlet values, the solid pressures of `t_n`, projected onto the symmetry planes of any
-    /// normal ([`NormalConstraints::project`]).
+    /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`,
+    /// projected onto the symmetry planes of any normal ([`NormalConstraints::project`]).
     pub x: Vec<f64>,
     /// The constrained unknowns (identity rows of the Jacobian).
     pub constrained: Vec<bool>,
@@ -2006,9 +1953,6 @@ impl<const D: usize> StepStart<D> {
         // Initial iterate and constraints.
         let mut x = vec![0.0; n];
         x[..disc.fluid_dofs()].copy_from_slice(&u_n);
-        if let Some(f) = &state.fluid {
-            f.pressure_into(&disc, &mut x);
-        }
         let mut constrained = vec![false; n];
         let mut fixed: Vec<(usize, f64)> = Vec::new();
         for (d, v) in disc.flow.dirichlet_dofs(&fluid, time)? {
@@ -2120,16 +2064,8 @@ pub fn step_with<const D: usize>(
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.velocity_field();
     let lumped = x[disc.layout.range(Block::Windkessel)].to_vec();
-    let pf = disc.flow.pressure_field();
-    let pressure = (0..disc.flow.mesh.num_cells() * (D + 1)).map(|i| x[pf.dof(i, 0)]).collect();
-    let snapshot = FluidSnapshot {
-        solid_base: geometry,
-        mesh: disc.flow.mesh.clone(),
-        nodes: vel.nodes.clone(),
-        velocity: x[vel.range()].to_vec(),
-        lumped,
-        pressure,
-    };
+    let snapshot =
+        FluidSnapshot { solid_base: geometry, mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec(), lumped };
     seconds.update = clock.elapsed().as_secs_f64();
     let report = FsiStepReport {
         time: t_new,
