@@ -237,6 +237,22 @@ pub struct SolidSpec {
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
+    /// A move of a fluid node onto gamma_s is refused (a new node is added on the cut edge
+    /// instead) where a cell touching it would get a quality (1 = equilateral) below this, in
+    /// (0, 1); default 0.01. A refused move pins the node, and the cuts on its other edges then
+    /// cluster next to it: where gamma_s passes within a few hundredths of the edge length of many
+    /// nodes (a curved leaflet in coarse tetrahedra), a smaller value trades a few cells of that
+    /// quality for far worse slivers around the pinned nodes.
+    #[serde(default = "default_min_move_quality")]
+    pub min_move_quality: f64,
+    /// A cut of gamma_s within `eps_hat` of a node on the fluid's boundary that may not move
+    /// onto it (the cut lies off the node's boundary planes): `split` (default) adds a new node
+    /// on the edge there, next to the boundary node; `touch` keeps the boundary node where it is
+    /// and takes it to lie on gamma_s (gamma_f then passes through it, at most `eps_hat` of an
+    /// edge from gamma_s): no small cells where gamma_s meets the wall (a valve leaflet's
+    /// attachment).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub boundary_cuts: BoundaryCuts,
     /// Placement (2D): rotation in degrees (counter-clockwise) about `pivot`, then `translate`
     /// (finite numbers, one coordinate per dimension). The placed solid must lie inside the fluid
     /// mesh (`fdfsi check` locates every vertex of the solid mesh).
@@ -360,8 +376,24 @@ fn is_default<T: Default + PartialEq>(v: &T) -> bool {
     *v == T::default()
 }
 
+/// What becomes of a cut of gamma_s next to a fluid boundary node that may not move onto it
+/// ([`SolidSpec::boundary_cuts`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BoundaryCuts {
+    /// A new node on the cut edge (the default).
+    #[default]
+    Split,
+    /// The boundary node, where it is, taken to lie on gamma_s.
+    Touch,
+}
+
 fn default_eps_hat() -> f64 {
     0.2
+}
+
+fn default_min_move_quality() -> f64 {
+    0.01
 }
 
 /// How the solid behaves.
@@ -1226,7 +1258,7 @@ impl Case {
     }
 
     /// The first (or only) solid: with several, the options of the whole solid are its (`model`
-    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `loading`; validation holds them
+    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `loading`; validation holds them
     /// equal).
     pub fn first_solid(&self) -> Option<&SolidSpec> {
         self.solid.first()

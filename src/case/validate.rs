@@ -450,11 +450,13 @@ fn solids(c: &Case, p: &mut Problems) {
     }
     // Each option of the whole solid as a text to compare.
     type Spelled = fn(&SolidSpec) -> String;
-    let shared: [(&str, Spelled); 5] = [
+    let shared: [(&str, Spelled); 7] = [
         ("model (fixed or a material law)", |s| (s.model == SolidModel::Fixed).to_string()),
         ("multiplier", |s| spelled(&s.multiplier)),
         ("covered_fluid", |s| spelled(&s.covered_fluid)),
         ("eps_hat", |s| s.eps_hat.to_string()),
+        ("min_move_quality", |s| s.min_move_quality.to_string()),
+        ("boundary_cuts", |s| spelled(&s.boundary_cuts)),
         ("loading", |s| format!("{{ steps = {}, mode = {} }}", s.loading.steps, spelled(&s.loading.mode))),
     ];
     // The pressure field is the whole solid's: a mixed law (`neo-hookean`) in every solid or in none.
@@ -503,7 +505,7 @@ fn solids(c: &Case, p: &mut Problems) {
     }
 }
 
-/// `[solid]`: coupling surface, material, multiplier, `eps_hat`, mesh, placement and load steps.
+/// `[solid]`: coupling surface, material, multiplier, `eps_hat`, `min_move_quality`, mesh, placement and load steps.
 fn solid(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     if c.mesh.is_some() && solid.surface.is_none() {
         p.push("solid.surface (the solid boundary coupled to the fluid) is required with a fluid");
@@ -529,6 +531,9 @@ fn solid(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     }
     if !(solid.eps_hat > 0.0 && solid.eps_hat <= 0.5) {
         p.push(format!("solid.eps_hat must lie in (0, 0.5], got {}", solid.eps_hat));
+    }
+    if !(solid.min_move_quality > 0.0 && solid.min_move_quality < 1.0) {
+        p.push(format!("solid.min_move_quality must lie in (0, 1), got {}", solid.min_move_quality));
     }
     solid_mesh(c, solid, p);
     solid_placement(c, solid, p);

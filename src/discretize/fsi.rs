@@ -1429,7 +1429,19 @@ impl<const D: usize> FsiDiscretization<D> {
     ) -> Result<NewtonReport, NewtonError<FsiAssemblyError>> {
         match &self.sparsity {
             Sparsity::Whole { pattern, .. } => {
-                newton::solve(x, pattern, solver, options, |x, k, rhs| self.assemble(model, input, x, constrained, k, rhs))
+                let mut previous: Option<Vec<f64>> = None;
+                newton::solve(x, pattern, solver, options, |x, k, rhs| {
+                    self.assemble(model, input, x, constrained, k, rhs)?;
+                    if tracing::enabled!(tracing::Level::DEBUG) {
+                        if let Some(prev) = &previous {
+                            let dx: Vec<f64> = x.iter().zip(prev).map(|(a, b)| a - b).collect();
+                            self.trace_blocks(model, "update", &dx);
+                        }
+                        previous = Some(x.to_vec());
+                        self.trace_blocks(model, "residual", rhs);
+                    }
+                    Ok(())
+                })
             }
             Sparsity::Counted(_) | Sparsity::Unassembled => {
                 Err(LinearSolveError::Setup("an FSI discretisation without its pattern or rows (Entries::Counted, Unassembled) is not solved".into())
@@ -1442,6 +1454,20 @@ impl<const D: usize> FsiDiscretization<D> {
                 })
             }
         }
+    }
+
+    /// Logs (at debug level) the norm per block of `v` (a residual, an update) and its largest
+    /// entry, named: where a Newton solve stalls.
+    fn trace_blocks(&self, model: &FsiModel<D>, what: &str, v: &[f64]) {
+        let blocks: Vec<String> = self
+            .layout
+            .blocks()
+            .filter(|(_, r)| !r.is_empty())
+            .map(|(b, r)| format!("{} {:.3e}", b.name(), v[r].iter().map(|v| v * v).sum::<f64>().sqrt()))
+            .collect();
+        let worst = (0..v.len()).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()));
+        let worst = worst.map_or(String::new(), |i| format!("; largest {:.3e}: {}", v[i], self.describe_unknown(model, i)));
+        tracing::debug!("{what}: {}{worst}", blocks.join(", "));
     }
 
     /// `lambda` at coupling point `q` (of element `e`).

@@ -4,7 +4,6 @@
 use super::{flow_problem, invalid, SetupError};
 use crate::case::Case;
 use crate::discretize::fsi::{FsiModel, FsiProblem};
-use fdfsi_fem::adapt::AdaptOptions;
 use fdfsi_fem::mesh::Mesh;
 
 /// The FSI model of a case on its (original) fluid mesh; relative paths in the case are resolved
@@ -16,7 +15,7 @@ pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &s
     let fluid = flow_problem(case, fluid_mesh, case_dir)?;
     let solid_mesh = super::solid_mesh::<D>(case, case_dir)?;
     let solid = super::solid_problem::<D>(case, solid_mesh.cell_body, false)?;
-    let problem = FsiProblem { fluid, solid, surface, adapt: AdaptOptions::new(spec.eps_hat) };
+    let problem = FsiProblem { fluid, solid, surface, adapt: super::adapt_options(spec) };
     // In the order of the problem's contacts: solid after solid.
     let cut_offs: Vec<Option<f64>> = case.solid.iter().flat_map(|s| &s.contact).map(|c| c.fluid_cut_off).collect();
     Ok(FsiModel::new(problem, fluid_mesh, solid_mesh.mesh)?

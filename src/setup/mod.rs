@@ -227,6 +227,16 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
     })
 }
 
+/// The adaptation's options of a case's (first) solid: `eps_hat`, `min_move_quality` and
+/// `boundary_cuts`.
+pub fn adapt_options(spec: &crate::case::SolidSpec) -> AdaptOptions {
+    AdaptOptions {
+        eps_hat: spec.eps_hat,
+        min_move_quality: spec.min_move_quality,
+        touch_fixed_boundary: spec.boundary_cuts == crate::case::BoundaryCuts::Touch,
+    }
+}
+
 /// Adapts `fluid` to the case's solid and tags gamma_f on the adapted mesh (which then replaces
 /// `adapted.mesh`'s boundary list with the parent's tags plus `gamma_f`).
 pub fn adapt_fluid<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &Path) -> Result<AdaptedFluid<D>, SetupError> {
@@ -241,7 +251,7 @@ pub fn adapt_fluid_with<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &
     let name = case.solid_surface().ok_or_else(|| SetupError::SolidMesh("solid.surface is not set".into()))?;
     let surface = Surface::from_mesh_boundary(&solid, &name)?;
     let background = Background::new(&fluid)?;
-    Ok(AdaptedFluid::new(fluid, &background, solid, surface, &AdaptOptions::new(spec.eps_hat), covered)?)
+    Ok(AdaptedFluid::new(fluid, &background, solid, surface, &adapt_options(spec), covered)?)
 }
 
 #[cfg(test)]

@@ -351,6 +351,7 @@ where
                 let back = *l;
                 x.iter_mut().zip(dx.iter()).for_each(|(xi, d)| *xi -= back * d);
                 report.halvings += 1;
+                tracing::debug!("newton {}: |R| = {r:.4e} after the full step: halved to {back}", report.iterations);
                 continue;
             }
         }
@@ -358,6 +359,8 @@ where
             return Err(NewtonError::NonFinite { iteration: report.iterations });
         }
         report.residual_norms.push(r);
+        // Every iteration, failed solves' included (the report of a failed solve is not kept).
+        tracing::debug!("newton {}: |R| = {r:.4e}", report.iterations);
         let r0v = *r0.get_or_insert(r);
         let tol = options.abs_tol.max(options.rel_tol * r0v);
         if r <= tol && (report.iterations > 0 || r <= options.abs_tol) {

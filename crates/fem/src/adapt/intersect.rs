@@ -61,6 +61,18 @@ pub(crate) struct CutSet<const D: usize> {
     pub snapped: usize,
 }
 
+impl<const D: usize> CutSet<D> {
+    /// Adds `vertices` (sorted) to the vertices on gamma_s.
+    pub(crate) fn touch(&mut self, vertices: &[usize]) {
+        if vertices.is_empty() {
+            return;
+        }
+        self.touched.extend_from_slice(vertices);
+        self.touched.sort_unstable();
+        self.touched.dedup();
+    }
+}
+
 /// Outcome of one edge-piece test.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Hit {

@@ -16,10 +16,16 @@ const MEASURE_TOL: f64 = 1e-12;
 /// (An adaptation whose enclosed cells were removed, [`super::remove_enclosed`], no longer fills
 /// the original's measure: it is checked before the removal.)
 pub fn verify_adapted<const D: usize>(original: &Mesh<D>, adapted: &Adapted<D>, surface: &Surface<D>) -> Result<(), String> {
+    verify_adapted_within(original, adapted, surface, 1e-12 * bbox_diameter(&original.points))
+}
+
+/// As [`verify_adapted`], with the gamma_f vertices within `distance` of gamma_s (boundary
+/// vertices taken to lie on it where they are, [`super::AdaptOptions::touch_fixed_boundary`],
+/// are up to `eps_hat / 4` of an edge from it).
+pub fn verify_adapted_within<const D: usize>(original: &Mesh<D>, adapted: &Adapted<D>, surface: &Surface<D>, distance: f64) -> Result<(), String> {
     let mesh = &adapted.mesh;
     mesh.check().map_err(|e| format!("adapted mesh: {e}"))?;
     check_conforming(mesh)?;
-    let scale = bbox_diameter(&original.points);
     let orig: f64 = (0..original.num_cells()).map(|c| original.signed_vertex_measure(c)).sum();
     let new: f64 = (0..mesh.num_cells()).map(|c| mesh.signed_vertex_measure(c)).sum();
     if (new - orig).abs() > MEASURE_TOL * orig.abs() {
@@ -29,7 +35,7 @@ pub fn verify_adapted<const D: usize>(original: &Mesh<D>, adapted: &Adapted<D>, 
     for (i, g) in adapted.gamma_f.iter().enumerate() {
         for &v in &g.vertices {
             let d = surface.project(&mesh.points[v]).map(|sp| sp.distance).unwrap_or(f64::INFINITY);
-            if d > 1e-12 * scale {
+            if d > distance {
                 return Err(format!("gamma_f facet {i}: vertex {v} is {d:.3e} away from gamma_s"));
             }
         }
