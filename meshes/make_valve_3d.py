@@ -322,8 +322,144 @@ def leaflet(name):
     gmsh.finalize()
 
 
+# ---------------------------------------------------------------------------------------------
+# The whole valve: the sector's meshes turned and mirrored
+
+
+def sector_images():
+    """The six maps of the sector onto the whole root: turns by 0, 120 and 240 degrees of the
+    sector and of its mirror image in the plane theta = 60 (each a 3x3 matrix of (x, y); z
+    kept), with whether it mirrors (and so turns cells inside out)."""
+    maps = []
+    for k in range(3):
+        c, s = math.cos(2 * SECTOR * k), math.sin(2 * SECTOR * k)
+        turn = ((c, -s), (s, c))
+        # The mirror in the line at 60 degrees: (x, y) -> (cos 120 x + sin 120 y, sin 120 x - cos 120 y).
+        c2, s2 = math.cos(2 * SECTOR), math.sin(2 * SECTOR)
+        mirror = ((c2, s2), (s2, -c2))
+        both = tuple(tuple(sum(turn[i][m] * mirror[m][j] for m in range(2)) for j in range(2)) for i in range(2))
+        maps += [(turn, False), (both, True)]
+    return maps
+
+
+def apply(m, p):
+    return (m[0][0] * p[0] + m[0][1] * p[1], m[1][0] * p[0] + m[1][1] * p[1], p[2])
+
+
+class NodeSet:
+    """Nodes merged where they coincide to 1e-9 mm (the sector's planes were snapped exactly, so
+    a node on a plane and its image in the neighbouring sector agree to round-off)."""
+
+    def __init__(self):
+        self.coords, self.index = [], {}
+
+    def add(self, p):
+        key = tuple(round(c * 1e8) for c in p)
+        for dk in ((0, 0, 0),) + tuple((a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)):
+            near = tuple(k + d for k, d in zip(key, dk))
+            if near in self.index and max(abs(a - b) for a, b in zip(self.coords[self.index[near] - 1], p)) < 1e-9:
+                return self.index[near]
+        self.coords.append(p)
+        self.index[key] = len(self.coords)
+        return self.index[key]
+
+
+def full_fluid(sector_file, name):
+    """The whole root's fluid mesh: the sector's tetrahedra and its inlet, outlet and wall
+    triangles in six images; the symmetry planes become interior."""
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.open(sector_file)
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    point = {int(t): tuple(xyz[3 * k:3 * k + 3]) for k, t in enumerate(tags)}
+    tets = [int(v) for (_, e) in gmsh.model.getEntities(3) for v in gmsh.model.mesh.getElementsByType(4, e)[1]]
+    groups = {}
+    for group in ("inlet", "outlet", "wall"):
+        tag = [t for (d, t) in gmsh.model.getPhysicalGroups(2) if gmsh.model.getPhysicalName(2, t) == group][0]
+        groups[group] = [int(v) for e in gmsh.model.getEntitiesForPhysicalGroup(2, tag) for v in gmsh.model.mesh.getElementsByType(2, e)[1]]
+    gmsh.finalize()
+    nodes = NodeSet()
+    out_tets, out_tris = [], {g: [] for g in groups}
+    for m, mirrored in sector_images():
+        image = {t: nodes.add(apply(m, p)) for t, p in point.items()}
+        for k in range(0, len(tets), 4):
+            v = [image[t] for t in tets[k:k + 4]]
+            out_tets += [v[1], v[0], v[2], v[3]] if mirrored else v
+        for g, tris in groups.items():
+            for k in range(0, len(tris), 3):
+                v = [image[t] for t in tris[k:k + 3]]
+                out_tris[g] += [v[1], v[0], v[2]] if mirrored else v
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("valve-3d-fluid")
+    volume = gmsh.model.addDiscreteEntity(3)
+    gmsh.model.mesh.addNodes(3, volume, list(range(1, len(nodes.coords) + 1)), [c for p in nodes.coords for c in p])
+    gmsh.model.mesh.addElementsByType(volume, 4, [], out_tets)
+    gmsh.model.addPhysicalGroup(3, [volume], 1, name="fluid")
+    for k, (g, tris) in enumerate(out_tris.items()):
+        surface = gmsh.model.addDiscreteEntity(2)
+        gmsh.model.mesh.addElementsByType(surface, 2, [], tris)
+        gmsh.model.addPhysicalGroup(2, [surface], 10 + k, name=g)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(name)
+    gmsh.finalize()
+    return len(out_tets) // 4
+
+
+def full_leaflet(k, name):
+    """Leaflet k (0, 1, 2) of the whole valve: the sector's half leaflet and its mirror image in
+    the plane theta = 60, one grid of 2 N_S x N_XI cells from commissure to commissure, turned
+    by 120 k degrees. Its faces are named as the half leaflet's, less `symmetry` (now inside),
+    with `commissure` at both ends, and the ventricular face in its two halves: `ventricular_a`
+    from the commissure at 120 k degrees to the middle, `ventricular_b` on to the next (each
+    half's contact plane is its own commissure's)."""
+    turn, _ = sector_images()[2 * k]
+    mirror, _ = sector_images()[1]
+    ni, nj, nk = 4 * N_S + 1, 2 * N_XI + 1, 3
+    tag = lambda i, j, kk: 1 + i + ni * (j + nj * kk)
+    coords = []
+    for kk in range(nk):
+        for j in range(nj):
+            for i in range(ni):
+                p = leaflet_point(i, j, kk) if i <= 2 * N_S else apply(mirror, leaflet_point(4 * N_S - i, j, kk))
+                coords.extend(apply(turn, p))
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add(f"valve-3d-leaflet-{k + 1}")
+    volume = gmsh.model.addDiscreteEntity(3)
+    gmsh.model.mesh.addNodes(3, volume, list(range(1, ni * nj * nk + 1)), coords)
+    hexes = []
+    for cj in range(N_XI):
+        for ci in range(2 * N_S):
+            for (a, b, c) in HEX27:
+                hexes.append(tag(2 * ci + 1 + a, 2 * cj + 1 + b, 1 + c))
+    gmsh.model.mesh.addElementsByType(volume, 12, [], hexes)
+    gmsh.model.addPhysicalGroup(3, [volume], 1, name="leaflet")
+    cells_s = range(2 * N_S)
+    ventricular = lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 0)
+    faces = [
+        ("ventricular_a", [(ci, cj) for cj in range(N_XI) for ci in range(N_S)], ventricular),
+        ("ventricular_b", [(ci, cj) for cj in range(N_XI) for ci in range(N_S, 2 * N_S)], ventricular),
+        ("aortic", [(ci, cj) for cj in range(N_XI) for ci in cells_s], lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 2)),
+        ("attachment", cells_s, lambda c, a, b: tag(2 * c + 1 + a, 0, 1 + b)),
+        ("free_edge", cells_s, lambda c, a, b: tag(2 * c + 1 + a, nj - 1, 1 + b)),
+        ("commissure", [(0, cj) for cj in range(N_XI)] + [(ni - 1, cj) for cj in range(N_XI)], lambda c, a, b: tag(c[0], 2 * c[1] + 1 + a, 1 + b)),
+    ]
+    for n, (group, cells, node) in enumerate(faces):
+        surface = gmsh.model.addDiscreteEntity(2)
+        gmsh.model.mesh.addElementsByType(surface, 10, [], [node(cell, a, b) for cell in cells for (a, b) in QUAD9])
+        gmsh.model.addPhysicalGroup(2, [surface], 10 + n, name=group)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+    gmsh.write(name)
+    gmsh.finalize()
+
+
 if __name__ == "__main__":
     h_valve, h_far = (float(sys.argv[1]), float(sys.argv[2])) if len(sys.argv) > 2 else (2.0, 3.5)
     n = fluid(h_valve, h_far, "valve-3d-sector-fluid.msh")
     leaflet("valve-3d-sector-leaflet.msh")
     print(f"valve-3d-sector-fluid.msh ({n} tetrahedra), valve-3d-sector-leaflet.msh written")
+    n = full_fluid("valve-3d-sector-fluid.msh", "valve-3d-fluid.msh")
+    for k in range(3):
+        full_leaflet(k, f"valve-3d-leaflet-{k + 1}.msh")
+    print(f"valve-3d-fluid.msh ({n} tetrahedra), valve-3d-leaflet-1.msh, -2.msh, -3.msh written")

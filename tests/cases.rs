@@ -1155,6 +1155,33 @@ fn valve_3d_sector_opens_on_its_symmetry_planes() {
     println!("valve-3d-sector after 2 steps: valve flux {:.1} mm^3/s, tip opening {:.3e} mm, open area {area:.2} mm^2", q[1], opening[1]);
 }
 
+/// cases/valve-3d.toml, the whole valve, over its first step against the sector model's: the
+/// whole valve's flux and open area those of the sector (which scales its own by 6), the middle
+/// of leaflet 1's free edge where the sector's goes and on leaflet 1's mirror plane. The meshes
+/// are the sector's images, but the adaptation differs next to the sector's planes (nodes there
+/// are boundary nodes of the sector, inner nodes of the whole), hence 2 % rather than round-off.
+/// Ignored: 372 611 unknowns (6 times the sector's), for a large machine; not yet run (session
+/// 33: the tolerance is a first guess, to set from the first run).
+#[test]
+#[ignore = "the whole valve: 372 611 unknowns, for a large machine"]
+fn valve_3d_whole_valve_takes_its_first_step_as_its_sector() {
+    let one_step = |c: &mut Case| {
+        let time = c.time.as_mut().unwrap();
+        time.end = 0.001;
+        time.output_every = 1000;
+    };
+    let (_, whole) = run_with("valve-3d", one_step);
+    let (_, sector) = run_with("valve-3d-sector", one_step);
+    let (w, s) = (history_columns(&whole), history_columns(&sector));
+    for name in ["valve_flux", "open_area", "tip_opening", "p_lv", "p_ao"] {
+        let (a, b) = (w[name][0], s[name][0]);
+        println!("valve-3d after 1 step: {name} {a:.6e}, the sector's {b:.6e} ({:+.2e})", a / b - 1.0);
+        assert!((a / b - 1.0).abs() < 2e-2, "{name}: the whole valve's {a}, the sector's {b}");
+    }
+    let off = w["tip_off_plane"][0];
+    assert!(off.abs() <= 1e-3 * w["tip_opening"][0].abs(), "leaflet 1's middle off its mirror plane by {off}");
+}
+
 /// cases/valve-3d-sector.toml over its three cardiac cycles, issue 19's checks (the whole valve's
 /// figures: the case scales the sector's by 6): every step done (3.5 beats, the cycles from
 /// mid-diastole); the valve opens and closes in every cycle with the leaflet in contact; forward

@@ -339,6 +339,7 @@ const TOML_TOKENS: &[&str] = &[
     "min_move_quality",
     "boundary_cuts",
     "\"touch\"",
+    "\"split\"",
     "rotate_deg",
     "translate",
     "time_function",

@@ -15,7 +15,6 @@ use fdfsi::discretize::fsi::{step_with, FsiDiscretization, FsiModel, FsiProblem,
 use fdfsi::discretize::solid::{solve_quasi_static, Lagrangian, LoadStepping, SolidDiscretization, SolidProblem, SolidSolution};
 use fdfsi::discretize::symmetry::SymmetryBc;
 use fdfsi::discretize::time_scheme::TimeScheme;
-use fdfsi::fem::adapt::AdaptOptions;
 use fdfsi::fem::generate::{box_hexahedra, quarter_disc_hexahedra};
 use fdfsi::fem::gmsh::AnyMesh;
 use fdfsi::fem::mesh::{GeometryOrder, Mesh};
@@ -418,7 +417,7 @@ fn model_problem_4_model(r: &Rotation, inclined: bool, method: LinearMethod) -> 
         fluid: flow_problem(&case, &fluid, &dir).unwrap(),
         solid: solid_problem::<3>(&case, solid_mesh.cell_body, false).unwrap(),
         surface: case.solid_surface().unwrap(),
-        adapt: AdaptOptions::new(spec.eps_hat),
+        adapt: fdfsi::setup::adapt_options(spec),
     };
     assert_eq!((problem.fluid.symmetry.len(), problem.solid.symmetry.len()), if inclined { (2, 2) } else { (0, 0) });
     let model = FsiModel::new(problem, &fluid, solid_mesh.mesh).unwrap().with_multiplier(spec.multiplier).with_covered_fluid(spec.covered_fluid);

@@ -41,4 +41,5 @@ pub const BUILTIN_CASES: &[(&str, &str)] = &[
     ("fluid-film", include_str!("../../cases/fluid-film.toml")),
     ("valve-2d", include_str!("../../cases/valve-2d.toml")),
     ("valve-3d-sector", include_str!("../../cases/valve-3d-sector.toml")),
+    ("valve-3d", include_str!("../../cases/valve-3d.toml")),
 ];

@@ -245,11 +245,11 @@ pub struct SolidSpec {
     /// quality for far worse slivers around the pinned nodes.
     #[serde(default = "default_min_move_quality")]
     pub min_move_quality: f64,
-    /// A cut of gamma_s within `eps_hat` of a node on the fluid's boundary that may not move
+    /// A cut of gamma_s within `eps_hat / 4` of a node on the fluid's boundary that may not move
     /// onto it (the cut lies off the node's boundary planes): `split` (default) adds a new node
     /// on the edge there, next to the boundary node; `touch` keeps the boundary node where it is
-    /// and takes it to lie on gamma_s (gamma_f then passes through it, at most `eps_hat` of an
-    /// edge from gamma_s): no small cells where gamma_s meets the wall (a valve leaflet's
+    /// and takes it to lie on gamma_s (gamma_f then passes through it, at most `eps_hat / 4` of
+    /// an edge from gamma_s): no small cells where gamma_s meets the wall (a valve leaflet's
     /// attachment).
     #[serde(default, skip_serializing_if = "is_default")]
     pub boundary_cuts: BoundaryCuts,
@@ -1258,7 +1258,7 @@ impl Case {
     }
 
     /// The first (or only) solid: with several, the options of the whole solid are its (`model`
-    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `loading`; validation holds them
+    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `boundary_cuts`, `loading`; validation holds them
     /// equal).
     pub fn first_solid(&self) -> Option<&SolidSpec> {
         self.solid.first()

@@ -1435,7 +1435,7 @@ impl<const D: usize> FsiDiscretization<D> {
                     if tracing::enabled!(tracing::Level::DEBUG) {
                         if let Some(prev) = &previous {
                             let dx: Vec<f64> = x.iter().zip(prev).map(|(a, b)| a - b).collect();
-                            self.trace_blocks(model, "update", &dx);
+                            self.trace_blocks(model, "change since the last assembly", &dx);
                         }
                         previous = Some(x.to_vec());
                         self.trace_blocks(model, "residual", rhs);

@@ -258,6 +258,22 @@ pub fn adapt_fluid_with<const D: usize>(case: &Case, fluid: Mesh<D>, case_dir: &
 mod tests {
     use super::*;
 
+    /// The adaptation's options of `[solid]` reach [`AdaptOptions`]; without them, the defaults
+    /// of [`AdaptOptions::new`].
+    #[test]
+    fn the_solid_adaptation_options_reach_the_adaptation() {
+        let base = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/malformed/ok-solid.toml")).unwrap();
+        let options = |extra: &str| {
+            let case = Case::from_toml_str(&base.replace("[solid]\n", &format!("[solid]\n{extra}")), "ok-solid.toml").unwrap();
+            adapt_options(case.first_solid().unwrap())
+        };
+        let defaults = options("");
+        assert_eq!((defaults.eps_hat, defaults.min_move_quality, defaults.touch_fixed_boundary), (0.2, 0.01, false));
+        let given = options("eps_hat = 0.3\nmin_move_quality = 0.001\nboundary_cuts = \"touch\"\n");
+        assert_eq!((given.eps_hat, given.min_move_quality, given.touch_fixed_boundary), (0.3, 0.001, true));
+        assert!(!options("boundary_cuts = \"split\"\n").touch_fixed_boundary);
+    }
+
     /// `normal_axis` on a pressure inlet holds the other velocity components at 0 there (a
     /// Dirichlet condition on component 1 only); `backflow_stabilization` becomes a
     /// [`BackflowBc`]; neither is there without its key.

@@ -351,7 +351,7 @@ where
                 let back = *l;
                 x.iter_mut().zip(dx.iter()).for_each(|(xi, d)| *xi -= back * d);
                 report.halvings += 1;
-                tracing::debug!("newton {}: |R| = {r:.4e} after the full step: halved to {back}", report.iterations);
+                tracing::debug!("newton {}: |R| = {r:.4e} after {} of the Newton step: back to {back}", report.iterations, 2.0 * back);
                 continue;
             }
         }

@@ -286,6 +286,18 @@ fn boundary_vertices_next_to_a_plane_are_touched_when_asked() {
         let longest = (0..3).map(|k| (1.0 / n[k] as f64).powi(2)).sum::<f64>().sqrt();
         verify_adapted_within(&mesh, &touch, &s, eps_hat / 4.0 * longest + 1e-12).unwrap_or_else(|e| panic!("{what} (touch): {e}"));
         assert_eq!(split.stats.boundary_touches, 0, "{what}");
+        // No new node beside a touched vertex: its cuts within eps_hat of an edge were dropped.
+        let shortest = 1.0 / *n.iter().max().unwrap() as f64;
+        let nv = mesh.points.len();
+        let on_face = |p: &[f64; 3]| p.iter().any(|&c| c.abs() < 1e-12 || (c - 1.0).abs() < 1e-12);
+        let off = |p: &[f64; 3]| (0..3).map(|k| (p[k] - v[k] - d * normal[k]) * normal[k]).sum::<f64>().abs() > 1e-12;
+        for t in (0..nv).filter(|&t| touch.on_surface[t] && on_face(&touch.mesh.points[t]) && off(&touch.mesh.points[t])) {
+            let x = touch.mesh.points[t];
+            for (k, y) in touch.mesh.points[nv..].iter().enumerate() {
+                let r = (0..3).map(|c| (x[c] - y[c]).powi(2)).sum::<f64>().sqrt();
+                assert!(r >= 0.99 * eps_hat * shortest, "{what}: new node {} at {r:.3e} from the touched vertex {t}", nv + k);
+            }
+        }
         touched += (touch.stats.boundary_touches > 0) as usize;
         better += (touch.stats.min_quality > 2.0 * split.stats.min_quality) as usize;
         worse += (touch.stats.min_quality < split.stats.min_quality) as usize;
@@ -295,6 +307,7 @@ fn boundary_vertices_next_to_a_plane_are_touched_when_asked() {
     // Measured: touches in 97 of 200 cases, the worst cell of all 1.0e-6 with new nodes and
     // 2.1e-3 with touches, worse in 4 cases (a little: the vertex's other cells).
     assert!(touched >= 2 * cases / 5, "touches in only {touched} of {cases} cases");
-    assert!(worst[0] < 1e-5 && worst[1] > 1e-3, "the worst cells of all, with new nodes and with touches: {worst:?}");
+    assert!(better >= cases / 10, "the worst cell twice as good in only {better} of {cases} cases");
+    assert!(worst[0] < 1e-5 && worst[1] > 1000.0 * worst[0], "the worst cells of all, with new nodes and with touches: {worst:?}");
     assert!(worse <= cases / 20, "touches made the worst cell worse in {worse} of {cases} cases");
 }

@@ -55,7 +55,8 @@ pub(crate) struct CutSet<const D: usize> {
     /// The second point of each edge cut at several points, sorted by edge (see the module
     /// documentation); one per edge cut at several points (`multi_cut_edges`).
     pub second_cuts: Vec<Cut<D>>,
-    /// Original vertices lying on gamma_s (touched or snapped), sorted, unique.
+    /// Original vertices lying on gamma_s (touched or snapped; after step 2 also the boundary
+    /// touches, taken to lie on it), sorted, unique.
     pub touched: Vec<usize>,
     pub edges_in_surface: usize,
     pub snapped: usize,

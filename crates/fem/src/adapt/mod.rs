@@ -47,9 +47,10 @@
 //!   at a moved end is dropped instead (above). Undoing re-runs steps 2-3 with that node pinned,
 //!   until no cell is refused.
 //! * **Boundary touches** (`boundary_touches`, opt-in: [`AdaptOptions::touch_fixed_boundary`]):
-//!   a boundary vertex that may not move onto a cut within `eps_hat / 4` of it stays where it is
-//!   and counts as on gamma_s (the cut is dropped, and, as for a moved node, the cuts within
-//!   `eps_hat` of it on its other edges).
+//!   a boundary vertex that may not move onto a cut within `eps_hat / 4` of it (a cut off its
+//!   boundary planes; it may be pinned) stays where it is and counts as on gamma_s: its cuts
+//!   within `eps_hat` are dropped, as for a moved node, on all its edges. A gamma_f facet with a
+//!   vertex farther from gamma_s than the gamma_f rule allows its centroid is rejected.
 //!   Where gamma_s enters the domain's boundary (a valve leaflet embedded in the wall), the new
 //!   nodes the refusal adds otherwise cluster around the vertex in cells of hundredths of its
 //!   edges (`TOUCH_FRACTION`).
@@ -443,7 +444,8 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.boundary_touches = plan.boundary_touched.len();
     stats.new_cells = out.mesh.num_cells() - bg.num_cells();
     stats.coupling_facets = gamma_f.len();
-    stats.touched_vertices = cuts.touched.len().saturating_sub(moves.len()); // corner nodes touch by design
+    // Corner nodes touch by design; boundary touches are counted on their own.
+    stats.touched_vertices = cuts.touched.len().saturating_sub(moves.len() + plan.boundary_touched.len());
     stats.snapped_cuts = cuts.snapped;
     stats.edges_in_surface = cuts.edges_in_surface;
     stats.multi_cut_edges = cuts.second_cuts.len();
@@ -519,6 +521,7 @@ fn plan_moves<const D: usize>(
     };
     order.sort_by(|&i, &j| near(i).total_cmp(&near(j)).then(cuts.cuts[i].edge.cmp(&cuts.cuts[j].edge)));
     let mut plan = Plan::default();
+    let touchable = if opts.touch_fixed_boundary { touchable_boundary_vertices(bg, cuts, eps_hat) } else { HashSet::new() };
     let mut touched_here: HashSet<usize> = HashSet::new();
     // Moves first, nearest cut first; the cuts that are not moves wait until all moves are known.
     let mut unmoved = Vec::new();
@@ -533,16 +536,13 @@ fn plan_moves<const D: usize>(
             unmoved.push(i);
             continue;
         };
+        let may_move = !pinned.contains(&v) && boundary_move_ok(bg, v, &cut.x);
         if cuts.touched.binary_search(&v).is_ok() || plan.moved.contains_key(&v) || touched_here.contains(&v) {
             plan.skipped += 1;
-        } else if opts.touch_fixed_boundary
-            && cut.t.min(1.0 - cut.t) < TOUCH_FRACTION * eps_hat
-            && !pinned.contains(&v)
-            && !boundary_move_ok(bg, v, &cut.x)
-        {
+        } else if !may_move && touchable.contains(&v) {
             // The vertex stays, on gamma_s as the adapted mesh sees it; the cut is dropped.
             touched_here.insert(v);
-        } else if pinned.contains(&v) || !boundary_move_ok(bg, v, &cut.x) {
+        } else if !may_move {
             plan.refused += 1;
             plan.refused_boundary += !pinned.contains(&v) as usize;
             unmoved.push(i);
@@ -590,6 +590,28 @@ fn second_cut_moves<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, pinned
             plan.second_cut_moves += 1;
         }
     }
+}
+
+/// The boundary vertices [`AdaptOptions::touch_fixed_boundary`] may take to lie on gamma_s: those
+/// with a cut within `TOUCH_FRACTION * eps_hat` of their edge that they may not move onto. Found
+/// before the moves, so that the order of the cuts (by distance, not by fraction of the edge)
+/// does not leave a nearer cut's new node beside a vertex touched later.
+fn touchable_boundary_vertices<const D: usize>(bg: &Background<D>, cuts: &CutSet<D>, eps_hat: f64) -> HashSet<usize> {
+    let limit = TOUCH_FRACTION * eps_hat;
+    cuts.cuts
+        .iter()
+        .filter_map(|cut| {
+            let [a, b] = bg.topology.edges[cut.edge];
+            let v = if cut.t < limit {
+                a
+            } else if cut.t > 1.0 - limit {
+                b
+            } else {
+                return None;
+            };
+            (!bg.vertex_boundary.row(v).is_empty() && !boundary_move_ok(bg, v, &cut.x)).then_some(v)
+        })
+        .collect()
 }
 
 fn add_node<const D: usize>(plan: &mut Plan<D>, edge: usize, x: [f64; D]) {
@@ -1091,7 +1113,11 @@ fn build_gamma_f<const D: usize>(
             } else {
                 !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
             };
-        if sp.distance * sp.distance > GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2 || spans_a_feature {
+        // Vertices on gamma_s to round-off, except boundary touches (up to `eps_hat / 4` of an
+        // edge off it): the coupling locates every quadrature point within this distance.
+        let tol2 = GAMMA_F_REL_TOL * GAMMA_F_REL_TOL * diam2;
+        let vertex_off = verts.iter().any(|&v| locate(v).distance.powi(2) > tol2);
+        if sp.distance * sp.distance > tol2 || spans_a_feature || vertex_off {
             rejected += 1;
             continue;
         }
