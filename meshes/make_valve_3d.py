@@ -278,48 +278,64 @@ HEX27 = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1), (-1, -1, 1), (1, -1
 QUAD9 = [(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)]
 
 
-def leaflet(name):
-    ni, nj, nk = 2 * N_S + 1, 2 * N_XI + 1, 3
+def write_leaflet_grid(model, cells_s, point, faces, name):
+    """Writes a leaflet's grid of cells_s x N_XI x 1 Q2 cells, node (i, j, k) at point(i, j, k)
+    (i along the free edge, j from the band to the free edge, k through the thickness from the
+    ventricular face), as 27-node hexahedra with the physical surfaces faces(tag): (group, cells,
+    node) triples, node(cell, a, b) the grid node at the cell's face coordinates (a, b) in
+    [-1, 1]^2 and tag(i, j, k) a grid node's number."""
+    ni, nj, nk = 2 * cells_s + 1, 2 * N_XI + 1, 3
     tag = lambda i, j, k: 1 + i + ni * (j + nj * k)
-    coords = []
-    for k in range(nk):
-        for j in range(nj):
-            for i in range(ni):
-                coords.extend(leaflet_point(i, j, k))
+    coords = [c for k in range(nk) for j in range(nj) for i in range(ni) for c in point(i, j, k)]
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("valve-3d-sector-leaflet")
+    gmsh.model.add(model)
     volume = gmsh.model.addDiscreteEntity(3)
     gmsh.model.mesh.addNodes(3, volume, list(range(1, ni * nj * nk + 1)), coords)
     hexes = []
     for cj in range(N_XI):
-        for ci in range(N_S):
+        for ci in range(cells_s):
             for (a, b, c) in HEX27:
                 hexes.append(tag(2 * ci + 1 + a, 2 * cj + 1 + b, 1 + c))
     gmsh.model.mesh.addElementsByType(volume, 12, [], hexes)
     gmsh.model.addPhysicalGroup(3, [volume], 1, name="leaflet")
-
-    def face(group, cells, node):
-        """A discrete surface of 9-node quadrilaterals: `node(cell, a, b)` is the grid node at
-        the cell's face coordinates (a, b) in [-1, 1]^2."""
+    surfaces = []
+    for group, cells, node in faces(tag):
         surface = gmsh.model.addDiscreteEntity(2)
-        quads = [node(cell, a, b) for cell in cells for (a, b) in QUAD9]
-        gmsh.model.mesh.addElementsByType(surface, 10, [], quads)
-        return group, surface
-
-    faces = [
-        face("ventricular", [(ci, cj) for cj in range(N_XI) for ci in range(N_S)], lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 0)),
-        face("aortic", [(ci, cj) for cj in range(N_XI) for ci in range(N_S)], lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 2)),
-        face("attachment", range(N_S), lambda c, a, b: tag(2 * c + 1 + a, 0, 1 + b)),
-        face("free_edge", range(N_S), lambda c, a, b: tag(2 * c + 1 + a, nj - 1, 1 + b)),
-        face("commissure", range(N_XI), lambda c, a, b: tag(0, 2 * c + 1 + a, 1 + b)),
-        face("symmetry", range(N_XI), lambda c, a, b: tag(ni - 1, 2 * c + 1 + a, 1 + b)),
-    ]
-    for k, (group, surface) in enumerate(faces):
+        gmsh.model.mesh.addElementsByType(surface, 10, [], [node(cell, a, b) for cell in cells for (a, b) in QUAD9])
+        surfaces.append((group, surface))
+    for k, (group, surface) in enumerate(surfaces):
         gmsh.model.addPhysicalGroup(2, [surface], 10 + k, name=group)
     gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
     gmsh.write(name)
     gmsh.finalize()
+
+
+def leaflet_faces(tag, cells_s, ventricular_halves):
+    """The faces of a leaflet grid of cells_s cells along the free edge: its ventricular face
+    (whole, or in its two halves), aortic face, attachment (the band's outer face), free edge and
+    the two short sides (i = 0 and i = 2 cells_s), as write_leaflet_grid takes them."""
+    ni, nj = 2 * cells_s + 1, 2 * N_XI + 1
+    across = lambda k: lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, k)
+    side = lambda i: lambda c, a, b: tag(i, 2 * c + 1 + a, 1 + b)
+    band = lambda j: lambda c, a, b: tag(2 * c + 1 + a, j, 1 + b)
+    cells = lambda first, last: [(ci, cj) for cj in range(N_XI) for ci in range(first, last)]
+    if ventricular_halves:
+        ventricular = [("ventricular_a", cells(0, cells_s // 2), across(0)), ("ventricular_b", cells(cells_s // 2, cells_s), across(0))]
+    else:
+        ventricular = [("ventricular", cells(0, cells_s), across(0))]
+    return ventricular + [
+        ("aortic", cells(0, cells_s), across(2)),
+        ("attachment", range(cells_s), band(0)),
+        ("free_edge", range(cells_s), band(nj - 1)),
+        ("commissure", range(N_XI), side(0)),
+        ("symmetry" if not ventricular_halves else "commissure_end", range(N_XI), side(ni - 1)),
+    ]
+
+
+def leaflet(name):
+    """The sector's half leaflet: from the commissure (i = 0) to the mirror plane theta = 60."""
+    write_leaflet_grid("valve-3d-sector-leaflet", N_S, leaflet_point, lambda tag: leaflet_faces(tag, N_S, False), name)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -409,49 +425,18 @@ def full_fluid(sector_file, name):
 def full_leaflet(k, name):
     """Leaflet k (0, 1, 2) of the whole valve: the sector's half leaflet and its mirror image in
     the plane theta = 60, one grid of 2 N_S x N_XI cells from commissure to commissure, turned
-    by 120 k degrees. Its faces are named as the half leaflet's, less `symmetry` (now inside),
-    with `commissure` at both ends, and the ventricular face in its two halves: `ventricular_a`
-    from the commissure at 120 k degrees to the middle, `ventricular_b` on to the next (each
-    half's contact plane is its own commissure's)."""
+    by 120 k degrees. Its faces are named as the half leaflet's, less `symmetry` (now inside):
+    `commissure` and `commissure_end` at its two ends, and the ventricular face in two halves,
+    `ventricular_a` from the commissure at 120 k degrees to the middle and `ventricular_b` on to
+    the next (each half's contact plane is its own commissure's)."""
     turn, _ = sector_images()[2 * k]
     mirror, _ = sector_images()[1]
-    ni, nj, nk = 4 * N_S + 1, 2 * N_XI + 1, 3
-    tag = lambda i, j, kk: 1 + i + ni * (j + nj * kk)
-    coords = []
-    for kk in range(nk):
-        for j in range(nj):
-            for i in range(ni):
-                p = leaflet_point(i, j, kk) if i <= 2 * N_S else apply(mirror, leaflet_point(4 * N_S - i, j, kk))
-                coords.extend(apply(turn, p))
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add(f"valve-3d-leaflet-{k + 1}")
-    volume = gmsh.model.addDiscreteEntity(3)
-    gmsh.model.mesh.addNodes(3, volume, list(range(1, ni * nj * nk + 1)), coords)
-    hexes = []
-    for cj in range(N_XI):
-        for ci in range(2 * N_S):
-            for (a, b, c) in HEX27:
-                hexes.append(tag(2 * ci + 1 + a, 2 * cj + 1 + b, 1 + c))
-    gmsh.model.mesh.addElementsByType(volume, 12, [], hexes)
-    gmsh.model.addPhysicalGroup(3, [volume], 1, name="leaflet")
-    cells_s = range(2 * N_S)
-    ventricular = lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 0)
-    faces = [
-        ("ventricular_a", [(ci, cj) for cj in range(N_XI) for ci in range(N_S)], ventricular),
-        ("ventricular_b", [(ci, cj) for cj in range(N_XI) for ci in range(N_S, 2 * N_S)], ventricular),
-        ("aortic", [(ci, cj) for cj in range(N_XI) for ci in cells_s], lambda c, a, b: tag(2 * c[0] + 1 + a, 2 * c[1] + 1 + b, 2)),
-        ("attachment", cells_s, lambda c, a, b: tag(2 * c + 1 + a, 0, 1 + b)),
-        ("free_edge", cells_s, lambda c, a, b: tag(2 * c + 1 + a, nj - 1, 1 + b)),
-        ("commissure", [(0, cj) for cj in range(N_XI)] + [(ni - 1, cj) for cj in range(N_XI)], lambda c, a, b: tag(c[0], 2 * c[1] + 1 + a, 1 + b)),
-    ]
-    for n, (group, cells, node) in enumerate(faces):
-        surface = gmsh.model.addDiscreteEntity(2)
-        gmsh.model.mesh.addElementsByType(surface, 10, [], [node(cell, a, b) for cell in cells for (a, b) in QUAD9])
-        gmsh.model.addPhysicalGroup(2, [surface], 10 + n, name=group)
-    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-    gmsh.write(name)
-    gmsh.finalize()
+
+    def point(i, j, kk):
+        p = leaflet_point(i, j, kk) if i <= 2 * N_S else apply(mirror, leaflet_point(4 * N_S - i, j, kk))
+        return apply(turn, p)
+
+    write_leaflet_grid(f"valve-3d-leaflet-{k + 1}", 2 * N_S, point, lambda tag: leaflet_faces(tag, 2 * N_S, True), name)
 
 
 if __name__ == "__main__":

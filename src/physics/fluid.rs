@@ -427,6 +427,32 @@ mod tests {
 
     /// Asserts that the Jacobian `eval` gives at `x0` is the central finite difference of the
     /// residual it gives, column by column, to `1e-6 (1 + |fd|)`.
+    /// The fluid kernel on `cv` as a function of the cell's unknowns (velocity, then pressure):
+    /// `(x, K, R)` with `K` and `R` zeroed first.
+    fn kernel<'a, const D: usize>(
+        cv: &'a CellValues<D>,
+        form: Formulation,
+        params: &'a FluidParams,
+        u_old: &'a [f64],
+        f: &'a dyn Fn(&[f64; D]) -> [f64; D],
+    ) -> impl Fn(&[f64], &mut Vec<f64>, &mut Vec<f64>) + 'a {
+        move |xs, ke, re| {
+            ke.iter_mut().for_each(|v| *v = 0.0);
+            re.iter_mut().for_each(|v| *v = 0.0);
+            let st = CellState { u: &xs[..u_old.len()], u_old, p: &xs[u_old.len()..] };
+            fluid_cell(cv, form, params, &st, f, ke, re);
+        }
+    }
+
+    /// Numbers in [-0.5, 0.5) from a linear congruential generator seeded with `seed`.
+    fn centred_uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
     fn assert_jacobian_is_the_residuals_derivative(x0: &[f64], eval: impl Fn(&[f64], &mut Vec<f64>, &mut Vec<f64>), what: &str) {
         let n = x0.len();
         let (mut ke, mut re) = (vec![0.0; n * n], vec![0.0; n]);
@@ -469,21 +495,12 @@ mod tests {
                 viscous_form: form_v,
                 stabilization: Stabilization::None,
             };
-            let mut s = 7u64;
-            let mut rnd = || {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-            };
+            let mut rnd = centred_uniform(7);
             let x0: Vec<f64> = (0..n).map(|_| rnd()).collect();
             let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
             let f = |x: &[f64; 2]| [x[0].sin(), x[1] * x[0]];
             for form in [Formulation::Plane, Formulation::Axisymmetric] {
-                let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
-                    ke.iter_mut().for_each(|v| *v = 0.0);
-                    re.iter_mut().for_each(|v| *v = 0.0);
-                    let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
-                    fluid_cell(&cv, form, &params, &st, &f, ke, re);
-                };
+                let eval = kernel(&cv, form, &params, &u_old, &f);
                 assert_jacobian_is_the_residuals_derivative(&x0, eval, &format!("{form:?}"));
             }
         }
@@ -503,11 +520,7 @@ mod tests {
             (&curved, vec![[0.2, 0.3], [1.1, 0.4], [0.5, 1.2], [0.65, 0.3], [0.9, 0.9], [0.3, 0.75]]),
         ];
         let (nu, n) = (14, 17);
-        let mut s = 11u64;
-        let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = centred_uniform(11);
         let x0: Vec<f64> = (0..n).map(|_| 3.0 * rnd()).collect();
         let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
         let f = |x: &[f64; 2]| [x[0].sin(), x[1] * x[0]];
@@ -529,12 +542,7 @@ mod tests {
                     viscous_form: form_v,
                     stabilization: Stabilization::Supg,
                 };
-                let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
-                    ke.iter_mut().for_each(|v| *v = 0.0);
-                    re.iter_mut().for_each(|v| *v = 0.0);
-                    let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
-                    fluid_cell(&cv, form, &params, &st, &f, ke, re);
-                };
+                let eval = kernel(&cv, form, &params, &u_old, &f);
                 let (mut ke, mut re) = (vec![0.0; n * n], vec![0.0; n]);
                 eval(&x0, &mut ke, &mut re);
                 // The SUPG term is there: the residual differs from Galerkin's.
@@ -565,11 +573,7 @@ mod tests {
             [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.4, 0.3, 0.01]],
         ];
         let (nu, n) = (45, 49);
-        let mut s = 13u64;
-        let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rnd = centred_uniform(13);
         let x0: Vec<f64> = (0..n).map(|_| 3.0 * rnd()).collect();
         let u_old: Vec<f64> = (0..nu).map(|_| rnd()).collect();
         let f = |x: &[f64; 3]| [x[0].sin(), x[1] * x[0], x[2]];
@@ -586,12 +590,7 @@ mod tests {
                     viscous_form: form_v,
                     stabilization: Stabilization::Supg,
                 };
-                let eval = |xs: &[f64], ke: &mut Vec<f64>, re: &mut Vec<f64>| {
-                    ke.iter_mut().for_each(|v| *v = 0.0);
-                    re.iter_mut().for_each(|v| *v = 0.0);
-                    let st = CellState { u: &xs[..nu], u_old: &u_old, p: &xs[nu..] };
-                    fluid_cell(&cv, Formulation::Plane, &params, &st, &f, ke, re);
-                };
+                let eval = kernel(&cv, Formulation::Plane, &params, &u_old, &f);
                 assert_jacobian_is_the_residuals_derivative(&x0, eval, &format!("3D {form_v:?} {form_c:?} cell {coords:?}"));
             }
         }
