@@ -1159,9 +1159,9 @@ fn valve_3d_sector_opens_on_its_symmetry_planes() {
 /// whole valve's flux and open area those of the sector (which scales its own by 6), the middle
 /// of leaflet 1's free edge where the sector's goes and on leaflet 1's mirror plane. The meshes
 /// are the sector's images, but the adaptation differs next to the sector's planes (nodes there
-/// are boundary nodes of the sector, inner nodes of the whole), hence 2 % rather than round-off.
-/// Ignored: 372 611 unknowns (6 times the sector's), for a large machine; not yet run (session
-/// 33: the tolerance is a first guess, to set from the first run).
+/// are boundary nodes of the sector, inner nodes of the whole), hence not round-off. Measured
+/// (session 33): flux 1.0e-3, open area 3.1e-5, tip 2.3e-4, pressures 4e-7 apart; held at 3e-3.
+/// Ignored: 372 611 unknowns (6 times the sector's), 11.3 GiB and about 6 minutes here.
 #[test]
 #[ignore = "the whole valve: 372 611 unknowns, for a large machine"]
 fn valve_3d_whole_valve_takes_its_first_step_as_its_sector() {
@@ -1176,7 +1176,7 @@ fn valve_3d_whole_valve_takes_its_first_step_as_its_sector() {
     for name in ["valve_flux", "open_area", "tip_opening", "p_lv", "p_ao"] {
         let (a, b) = (w[name][0], s[name][0]);
         println!("valve-3d after 1 step: {name} {a:.6e}, the sector's {b:.6e} ({:+.2e})", a / b - 1.0);
-        assert!((a / b - 1.0).abs() < 2e-2, "{name}: the whole valve's {a}, the sector's {b}");
+        assert!((a / b - 1.0).abs() < 3e-3, "{name}: the whole valve's {a}, the sector's {b}");
     }
     let off = w["tip_off_plane"][0];
     assert!(off.abs() <= 1e-3 * w["tip_opening"][0].abs(), "leaflet 1's middle off its mirror plane by {off}");
