@@ -371,7 +371,7 @@ class NodeSet:
 
     def add(self, p):
         key = tuple(round(c * 1e8) for c in p)
-        for dk in ((0, 0, 0),) + tuple((a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)):
+        for dk in ((a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)):
             near = tuple(k + d for k, d in zip(key, dk))
             if near in self.index and max(abs(a - b) for a, b in zip(self.coords[self.index[near] - 1], p)) < 1e-9:
                 return self.index[near]

@@ -536,18 +536,17 @@ fn plan_moves<const D: usize>(
             unmoved.push(i);
             continue;
         };
-        let may_move = !pinned.contains(&v) && boundary_move_ok(bg, v, &cut.x);
         if cuts.touched.binary_search(&v).is_ok() || plan.moved.contains_key(&v) || touched_here.contains(&v) {
             plan.skipped += 1;
-        } else if !may_move && touchable.contains(&v) {
+        } else if !pinned.contains(&v) && boundary_move_ok(bg, v, &cut.x) {
+            plan.moved.insert(v, cut.x);
+        } else if touchable.contains(&v) {
             // The vertex stays, on gamma_s as the adapted mesh sees it; the cut is dropped.
             touched_here.insert(v);
-        } else if !may_move {
+        } else {
             plan.refused += 1;
             plan.refused_boundary += !pinned.contains(&v) as usize;
             unmoved.push(i);
-        } else {
-            plan.moved.insert(v, cut.x);
         }
     }
     plan.boundary_touched = touched_here.into_iter().collect();
