@@ -74,17 +74,20 @@
 //!   sharing two parts lie all on one feature line: a sliver along it, rejected too; a closed
 //!   line's own triangles, such as a cap's rim, would be too), and where
 //!   it has none (a smooth gamma_s, or pieces given without shared corners), its vertices within
-//!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid
-//!   (that test also refuses chords of faces curved more than that, such as a sheared block's
-//!   sides near the floor, so it is not used where the parts tell the edges); rejected ones are
+//!   `GAMMA_F_REL_TOL` times its diameter of the plane of the gamma_s piece nearest its centroid,
+//!   or (3D) its normal within `corners::CORNER_ANGLE_DEG` of the normals of the pieces nearest
+//!   its vertices (the plane test alone refuses chords of faces curved more than that, such as a
+//!   sheared block's sides near the floor or the 3D valve's leaflet, so it is not used where the
+//!   parts tell the edges; the normals tell them where the parts do not); rejected ones are
 //!   counted (`rejected_facets`). Where these rules leave a hole in gamma_f around a closed
 //!   gamma_s that the mesh can close, [`remove_enclosed`] rebuilds it from the sides of gamma_s the cells lie on
 //!   (`cells_by_side`).
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
 //!   feature lines (3D): its vertices share a smooth part and its centroid lies within
 //!   `GAMMA_F_REL_TOL` times its diameter of gamma_s. Without: its vertices lie within that
-//!   distance of the plane of the piece nearest its centroid, and none at a corner placed in
-//!   step 0. A cell spanning a solid's corner or edge is not flat: it fills it.
+//!   distance of the plane of the piece nearest its centroid, or (3D) two of its facets would
+//!   be on gamma_f by the rule above; and none lies at a corner placed in step 0. A cell spanning a solid's
+//!   corner or edge is not flat: it fills it.
 //! * **Quadratic geometry**: a mesh with 6/10-node cells is adapted through its vertex mesh; its
 //!   curved boundary geometry is not carried into the adapted (linear) mesh.
 //! * **Region interfaces** inside the fluid mesh are not protected against moves (only the
@@ -752,7 +755,8 @@ struct FlatTest<'a, const D: usize> {
 /// with its third vertex on the bottom face). With feature lines the plane test is replaced by
 /// the gamma_f rule's distance: the centroid within [`GAMMA_F_REL_TOL`] times the diameter of
 /// gamma_s (the plane test let thin cells along a curved face pass as not flat, and their
-/// facets on both sides went to gamma_f). A cell with vertices on a block's edge that lies along
+/// facets on both sides went to gamma_f); without, in 3D, a cell that fails the plane test is
+/// flat still where two of its facets would be on gamma_f ([`smooth_gamma_f_facet`]). A cell with vertices on a block's edge that lies along
 /// one face is flat: a face moved near a plane of the grid gave such cells (a 3D block swinging
 /// in fluid, t = 2.6 and 3.8).
 fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
@@ -776,8 +780,37 @@ fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
         // cells of a face curved by more than the tolerance over their diameter).
         sp.distance <= GAMMA_F_REL_TOL * diameter
     } else {
+        // 3D: a cell along a curved gamma_s with facets on gamma_f on two of its sides.
         in_piece_plane(t.surface, sp.piece, &p, GAMMA_F_REL_TOL * diameter)
+            || (D == 3
+                && p.len() == 4
+                && (0..4).filter(|&k| smooth_gamma_f_facet(t.surface, &std::array::from_fn(|j| p[(k + 1 + j) % 4]))).count() >= 2)
     }
+}
+
+/// Without feature lines (3D): does the triangle `corners`, on gamma_s, lie along it rather than
+/// across a wedge of pieces given without shared corners? Its normal within
+/// [`corners::CORNER_ANGLE_DEG`] of the normals of the pieces nearest its corners, either way
+/// round (pieces need not be consistently oriented). This accepts a chord of a curved gamma_s
+/// over pieces that turn, which the plane test refuses (a 3.5 mm facet over the 3D valve's
+/// leaflet, its corners 0.35-0.43 mm off the plane of the piece nearest its centroid, 6 degrees
+/// off, left a hole in gamma_f); a triangle across a block's edge is 45 degrees off both faces.
+fn along_gamma_s<const D: usize>(surface: &Surface<D>, corners: &[[f64; D]; D]) -> bool {
+    let n = surface::piece_normal(corners);
+    let cos_corner = corners::CORNER_ANGLE_DEG.to_radians().cos();
+    corners.iter().all(|x| surface.project(x).is_some_and(|sp| geom::dot(&surface.normal(sp.piece), &n).abs() >= cos_corner))
+}
+
+/// Would the facet `corners`, its vertices on gamma_s, be on gamma_f where gamma_s has no
+/// feature lines (3D; see the module documentation): its centroid within [`GAMMA_F_REL_TOL`]
+/// times its diameter of gamma_s, and it lies within that distance of the plane of the piece
+/// nearest its centroid or [`along_gamma_s`]?
+fn smooth_gamma_f_facet<const D: usize>(surface: &Surface<D>, corners: &[[f64; D]; D]) -> bool {
+    let centroid: [f64; D] = std::array::from_fn(|d| corners.iter().map(|p| p[d]).sum::<f64>() / D as f64);
+    let diameter = corners.iter().flat_map(|a| corners.iter().map(move |b| dist2(a, b))).fold(0.0, f64::max).sqrt();
+    let Some(sp) = surface.project(&centroid) else { return false };
+    let tol = GAMMA_F_REL_TOL * diameter;
+    sp.distance <= tol && (in_piece_plane(surface, sp.piece, corners, tol) || along_gamma_s(surface, corners))
 }
 
 /// Do all `points` lie within `tol` of the line (2D) or plane (3D) of gamma_s piece `piece`?
@@ -1110,7 +1143,7 @@ fn build_gamma_f<const D: usize>(
                 // closed line's triangles, such as a cap's rim, would be refused too).
                 parts_at.shared_parts(&verts, |v| mesh.points[v]) != 1
             } else {
-                !in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt())
+                !(in_piece_plane(surface, sp.piece, &pts, GAMMA_F_REL_TOL * diam2.sqrt()) || along_gamma_s(surface, &pts))
             };
         // Vertices on gamma_s to round-off, except boundary touches (up to `eps_hat / 4` of an
         // edge off it): the coupling locates every quadrature point within this distance.
