@@ -76,8 +76,8 @@ enum Command {
         #[arg(long = "with", value_name = "OTHER_DIR")]
         with: Vec<PathBuf>,
     },
-    /// Draw DIR/animation.gif of a 2D time-dependent run: the speed at every output time of
-    /// DIR/solution.pvd, with the solid and gamma_f.
+    /// Draw DIR/animation.gif of a time-dependent run: the speed at every output time of
+    /// DIR/solution.pvd (3D: on the plane of speed.png), with the solid and gamma_f.
     Animate { dir: PathBuf },
     /// Run the manufactured-solution convergence studies and print errors and rates.
     Verify {
@@ -434,7 +434,7 @@ fn run_command() -> Result<()> {
                 println!("{}", gif.display());
                 log(&format!("{frames} frames in {}", gif.display()));
             }
-            None => anyhow::bail!("{}: nothing to animate (a 2D run with fields at two or more times is needed)", dir.display()),
+            None => anyhow::bail!("{}: nothing to animate (a run with fluid fields at two or more times is needed)", dir.display()),
         },
         Command::Cases { name } => match name {
             None => {

@@ -947,7 +947,7 @@ pub const WITHOUT_PETSC: &str =
 #[derive(Clone, Debug, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
-    /// 2D time-dependent runs with a fluid: draw `animation.gif` of the speed at every output
+    /// Time-dependent runs with a fluid: draw `animation.gif` of the speed at every output
     /// time at the end of the run ([`crate::io::animation`]); default true.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub animation: Option<bool>,

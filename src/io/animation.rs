@@ -1,13 +1,19 @@
-//! `animation.gif` of a 2D time-dependent run: `fdfsi animate DIR`, and by itself at the end of
+//! `animation.gif` of a time-dependent run: `fdfsi animate DIR`, and by itself at the end of
 //! `fdfsi run` (unless `[output] animation = false`).
 //!
-//! The frames are the fields the run wrote (`DIR/solution.pvd`): at every output time the speed
-//! of the fluid piece, with the solid piece (its cells, in grey) and gamma_f (in white) when the
-//! run has them, drawn as `speed.png` is ([`super::picture`]) on one colour scale. The window is
-//! the solid's box over the whole run widened by twice its size on each side (an FSI run), or
-//! the fluid mesh (a flow run).
+//! The frames are the fields the run wrote (`DIR/solution.pvd`), at every output time on one
+//! colour scale, drawn as `speed.png` is ([`super::picture`]):
+//! - 2D: the speed of the fluid piece, with the solid piece (its cells, in grey) and gamma_f (in
+//!   white) when the run has them. The window is the solid's box over the whole run widened by
+//!   twice its size on each side (an FSI run), or the fluid mesh (a flow run).
+//! - 3D: the speed on the plane of `speed.png` (the case's `[output.slice]`, read from
+//!   `DIR/case.toml`; by default normal to the fluid's thinnest axis through the middle of the
+//!   solid), with what the plane cuts from the solid's cells (grey) and gamma_f (white). The
+//!   window is the solid's section box over the whole run widened as in 2D.
 
-use super::picture::{window_around, write_speed_gif, Frame, PictureError, SpeedField, SpeedPicture, QUAD9_OUTLINE};
+use super::picture::{grid_slice_field, window_around, write_speed_gif, Frame, PictureError, Slice, SpeedField, SpeedPicture, QUAD9_OUTLINE};
+use crate::case::Case;
+use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::mesh::bounding_box;
 use fdfsi_fem::vtk::{read_pvd, read_vtu, PvdEntry, UnstructuredGrid, VtkCellType, VtkError};
 use std::path::{Path, PathBuf};
@@ -31,7 +37,8 @@ pub enum AnimationError {
 
 /// Draws `DIR/animation.gif` from the fields in `DIR/solution.pvd` (see the module
 /// documentation); returns its path and the number of frames. A run with fewer than two output
-/// times, or a 3D run, has nothing to animate: `None`.
+/// times, or whose fluid grid is of neither 6-node triangles (2D) nor 10-node tetrahedra (3D),
+/// has nothing to animate: `None`.
 pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationError> {
     let pvd = dir.join("solution.pvd");
     let entries = read_pvd(&pvd)?;
@@ -41,36 +48,122 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
     if times.len() < 2 {
         return Ok(None);
     }
-    let part = |time: f64, name: &str| entries.iter().rfind(|e| e.time == time && e.name == name);
-    let read = |e: &PvdEntry| read_vtu(&e.resolve(&pvd));
-    let mut frames = Vec::with_capacity(times.len());
-    for &time in &times {
-        let Some(fluid) = part(time, "fluid") else { continue };
-        let grid = read(fluid)?;
-        if grid.points.iter().any(|p| p[2] != 0.0) || grid.cell_types.iter().any(|&t| t != VtkCellType::QuadraticTriangle) {
-            return Ok(None); // 3D (or not a fluid of 6-node triangles): no animation
-        }
-        let field =
-            SpeedField::of_grid(&grid).map_err(|source| AnimationError::Fields { path: fluid.resolve(&pvd).display().to_string(), source })?;
-        let solid = part(time, "solid").map(read).transpose()?.map(|g| solid_cells(&g)).unwrap_or_default();
-        let outlines = part(time, "gamma_f").map(read).transpose()?.map(|g| lines(&g)).unwrap_or_default();
-        frames.push(Frame {
-            field,
-            picture: SpeedPicture { title: format!("speed |u| at t = {time:.4}"), window: None, solid, outlines, axis_labels: None },
-        });
-    }
+    let run = Fields { pvd: &pvd, entries: &entries };
+    let Some(first) = times.iter().find_map(|&t| run.part(t, "fluid")) else { return Ok(None) };
+    let grid = run.read(first)?;
+    let frames = if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTriangle) && grid.points.iter().all(|p| p[2] == 0.0) {
+        frames_2d(&run, &times)?
+    } else if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTetra) {
+        frames_3d(dir, &run, &times, &grid)?
+    } else {
+        return Ok(None);
+    };
     if frames.len() < 2 {
         return Ok(None);
-    }
-    let solid_points: Vec<[f64; 2]> = frames.iter().flat_map(|f| f.picture.solid.iter().flatten().copied()).collect();
-    if !solid_points.is_empty() {
-        let (lo, hi) = bounding_box(&solid_points);
-        frames[0].picture.window = Some(window_around(lo, hi));
     }
     let gif = dir.join("animation.gif");
     write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS)
         .map_err(|source| AnimationError::Draw { path: gif.display().to_string(), source })?;
     Ok(Some((gif, frames.len())))
+}
+
+/// The parts of a run's `solution.pvd` and how to read them.
+struct Fields<'a> {
+    pvd: &'a Path,
+    entries: &'a [PvdEntry],
+}
+
+impl Fields<'_> {
+    /// The part `name` (`fluid`, `solid`, `gamma_f`) written at `time` (the last, if several).
+    fn part(&self, time: f64, name: &str) -> Option<&PvdEntry> {
+        self.entries.iter().rfind(|e| e.time == time && e.name == name)
+    }
+
+    fn read(&self, entry: &PvdEntry) -> Result<UnstructuredGrid, AnimationError> {
+        Ok(read_vtu(&entry.resolve(self.pvd))?)
+    }
+
+    /// The part `name` at `time`, read, if the run wrote it.
+    fn read_part(&self, time: f64, name: &str) -> Result<Option<UnstructuredGrid>, AnimationError> {
+        self.part(time, name).map(|e| self.read(e)).transpose()
+    }
+
+    fn fields_error(&self, entry: &PvdEntry, source: PictureError) -> AnimationError {
+        AnimationError::Fields { path: entry.resolve(self.pvd).display().to_string(), source }
+    }
+}
+
+/// The frames of a 2D run (see the module documentation).
+fn frames_2d(run: &Fields, times: &[f64]) -> Result<Vec<Frame>, AnimationError> {
+    let mut frames = Vec::with_capacity(times.len());
+    for &time in times {
+        let Some(fluid) = run.part(time, "fluid") else { continue };
+        let field = SpeedField::of_grid(&run.read(fluid)?).map_err(|source| run.fields_error(fluid, source))?;
+        let solid = run.read_part(time, "solid")?.map(|g| solid_cells(&g)).unwrap_or_default();
+        let outlines = run.read_part(time, "gamma_f")?.map(|g| lines(&g)).unwrap_or_default();
+        frames.push(Frame {
+            field,
+            picture: SpeedPicture { title: format!("speed |u| at t = {time:.4}"), window: None, solid, outlines, axis_labels: None },
+        });
+    }
+    let solid_points: Vec<[f64; 2]> = frames.iter().flat_map(|f| f.picture.solid.iter().flatten().copied()).collect();
+    if let (false, Some(first)) = (solid_points.is_empty(), frames.first_mut()) {
+        let (lo, hi) = bounding_box(&solid_points);
+        first.picture.window = Some(window_around(lo, hi));
+    }
+    Ok(frames)
+}
+
+/// The frames of a 3D run whose first fluid grid is `first` (see the module documentation).
+fn frames_3d(dir: &Path, run: &Fields, times: &[f64], first: &UnstructuredGrid) -> Result<Vec<Frame>, AnimationError> {
+    let (flo, fhi) = bounding_box(&first.points);
+    // The solid's box over the whole run (its corner nodes).
+    let mut solid_points = Vec::new();
+    for &time in times {
+        if let Some(solid) = run.read_part(time, "solid")? {
+            solid_points.extend((0..solid.num_cells()).flat_map(|c| corners(&solid, c)));
+        }
+    }
+    let centre = if solid_points.is_empty() { (flo, fhi) } else { bounding_box(&solid_points) };
+    let spec = std::fs::read_to_string(dir.join("case.toml"))
+        .ok()
+        .and_then(|text| Case::from_toml_str(&text, "case.toml").ok())
+        .and_then(|c| c.output.slice);
+    let plane = Slice::through(spec.map(|s| s.normal.index()), spec.and_then(|s| s.at), (flo, fhi), centre);
+    let bounds = plane.project_box(flo, fhi);
+    let window = (!solid_points.is_empty()).then(|| {
+        let [a, b] = plane.project_box(centre.0, centre.1);
+        window_around(a, b)
+    });
+    let tri = ReferenceCell::Triangle.edges();
+    let hex = ReferenceCell::Hexahedron.edges();
+    let mut frames = Vec::with_capacity(times.len());
+    for &time in times {
+        let Some(fluid) = run.part(time, "fluid") else { continue };
+        let field = grid_slice_field(&run.read(fluid)?, &plane, bounds, window, ANIMATION_WIDTH).map_err(|source| run.fields_error(fluid, source))?;
+        let solid = run
+            .read_part(time, "solid")?
+            .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(&g, c), hex)).filter(|p| p.len() >= 3).collect())
+            .unwrap_or_default();
+        let outlines = run
+            .read_part(time, "gamma_f")?
+            .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(&g, c), tri)).filter(|p| p.len() >= 2).collect())
+            .unwrap_or_default();
+        let title = format!("speed |u| on {} at t = {time:.4}", plane.describe());
+        frames.push(Frame { field, picture: SpeedPicture { title, window, solid, outlines, axis_labels: Some(plane.axis_labels()) } });
+    }
+    Ok(frames)
+}
+
+/// The corner nodes of cell `c` of a 3D grid: the 8 of a hexahedron (27-node or 8-node), the 3
+/// of a triangle.
+fn corners(grid: &UnstructuredGrid, c: usize) -> Vec<[f64; 3]> {
+    let n = match grid.cell_types[c] {
+        VtkCellType::TriquadraticHexahedron | VtkCellType::Hexahedron => 8,
+        VtkCellType::Triangle | VtkCellType::QuadraticTriangle => 3,
+        _ => grid.cell(c).len(),
+    };
+    grid.cell(c)[..n].iter().map(|&k| grid.points[k]).collect()
 }
 
 /// The outlines of the 9-node quadrilaterals of a solid grid ([`QUAD9_OUTLINE`]).

@@ -93,10 +93,7 @@ impl SpeedField {
     /// The speed of a fluid grid as `fdfsi run` writes it (6-node triangles, point data
     /// `velocity`).
     pub fn of_grid(grid: &UnstructuredGrid) -> Result<Self, PictureError> {
-        let velocity = grid.point_array("velocity").ok_or_else(|| PictureError::Input("the grid has no point data 'velocity'".into()))?;
-        if velocity.components != 3 || velocity.values.len() != 3 * grid.num_points() {
-            return Err(PictureError::Input(format!("'velocity' has {} components for {} points", velocity.components, grid.num_points())));
-        }
+        let v = velocity_of(grid)?;
         let mut triangles = Vec::with_capacity(grid.num_cells());
         for c in 0..grid.num_cells() {
             match (grid.cell_types[c], grid.cell(c)) {
@@ -104,7 +101,6 @@ impl SpeedField {
                 (other, _) => return Err(PictureError::Input(format!("cell {c} is a {other:?}, not a 6-node triangle (a 2D fluid grid)"))),
             }
         }
-        let v = &velocity.values;
         Ok(SpeedField {
             nodes: grid.points.iter().map(|p| [p[0], p[1]]).collect(),
             triangles,
@@ -122,41 +118,58 @@ impl SpeedField {
         disc: &FlowDiscretization<D>,
         x: &[f64],
         slice: &Slice,
-        [lo, hi]: [[f64; 2]; 2],
-        [m, n]: [usize; 2],
+        window: [[f64; 2]; 2],
+        cells: [usize; 2],
     ) -> Result<Self, PictureError> {
         if D != 3 {
             return Err(PictureError::Input(format!("slices are drawn of 3D flows, not {D}D")));
         }
-        if m == 0 || n == 0 {
-            return Err(PictureError::Input(format!("a slice needs at least one cell across and up, got {m} x {n}")));
-        }
-        let (nu, nv) = (2 * m + 1, 2 * n + 1);
-        let node = |i: usize, j: usize| j * nu + i;
-        let nodes: Vec<[f64; 2]> = (0..nv)
-            .flat_map(|j| {
-                (0..nu).map(move |i| [lo[0] + (hi[0] - lo[0]) * i as f64 / (nu - 1) as f64, lo[1] + (hi[1] - lo[1]) * j as f64 / (nv - 1) as f64])
-            })
-            .collect();
-        let points: Vec<[f64; D]> = nodes
-            .iter()
-            .map(|&q| {
-                let p = slice.point(q);
-                std::array::from_fn(|d| p[d])
-            })
-            .collect();
+        let samples = SliceSamples::new(slice, window, cells)?;
+        let points: Vec<[f64; D]> = samples.points.iter().map(|p| std::array::from_fn(|d| p[d])).collect();
         let vf = disc.velocity_field();
         let velocity = fdfsi_fem::adapt::transfer::transfer_p2plus_or(&disc.mesh, &vf.nodes, &x[vf.range()], &points, 0.0, |_, _| Ok([f64::NAN; D]))?;
         let speed = velocity.chunks_exact(D).map(|v| v.iter().map(|c| c * c).sum::<f64>().sqrt()).collect();
-        let mut triangles = Vec::with_capacity(2 * m * n);
-        for j in (0..nv - 1).step_by(2) {
-            for i in (0..nu - 1).step_by(2) {
-                let q = |a: usize, b: usize| node(i + a, j + b);
-                triangles.push([q(0, 0), q(2, 0), q(2, 2), q(1, 0), q(2, 1), q(1, 1)]);
-                triangles.push([q(0, 0), q(2, 2), q(0, 2), q(1, 1), q(1, 2), q(0, 1)]);
+        Ok(samples.with_speed(speed))
+    }
+
+    /// The speed of a 3D fluid grid as `fdfsi run` writes it (10-node tetrahedra in VTK's order,
+    /// point data `velocity`) on `slice`, sampled as [`Self::of_slice`]: the P2 velocity of the
+    /// tetrahedron containing each point (the grid has no bubble), NaN outside the grid.
+    pub fn of_grid_slice(grid: &UnstructuredGrid, slice: &Slice, window: [[f64; 2]; 2], cells: [usize; 2]) -> Result<Self, PictureError> {
+        let velocity = velocity_of(grid)?;
+        let mut tets = Vec::with_capacity(grid.num_cells());
+        for c in 0..grid.num_cells() {
+            match (grid.cell_types[c], grid.cell(c)) {
+                (VtkCellType::QuadraticTetra, nodes) => tets.push(<[usize; 10]>::try_from(nodes).expect("10 nodes")),
+                (other, _) => return Err(PictureError::Input(format!("cell {c} is a {other:?}, not a 10-node tetrahedron (a 3D fluid grid)"))),
             }
         }
-        Ok(SpeedField { nodes, triangles, speed })
+        // The straight tetrahedra of the vertices, for the point location.
+        let mesh = fdfsi_fem::mesh::Mesh::<3> {
+            points: grid.points.clone(),
+            cell_type: fdfsi_fem::element::ReferenceCell::Tetrahedron,
+            order: fdfsi_fem::mesh::GeometryOrder::Linear,
+            cell_nodes: tets.iter().flat_map(|t| t[..4].to_vec()).collect(),
+            cell_tags: vec![0; tets.len()],
+            region_names: Vec::new(),
+            boundary: Vec::new(),
+            boundary_names: Vec::new(),
+        };
+        let locator = fdfsi_fem::adapt::CellLocator::new(&mesh);
+        let samples = SliceSamples::new(slice, window, cells)?;
+        let speed = samples
+            .points
+            .iter()
+            .map(|p| match locator.locate(&mesh, p) {
+                Some((c, xi)) => {
+                    let phi = p2_tetrahedron(xi);
+                    let u: [f64; 3] = std::array::from_fn(|a| tets[c].iter().zip(&phi).map(|(&n, f)| f * velocity[3 * n + a]).sum());
+                    u.iter().map(|c| c * c).sum::<f64>().sqrt()
+                }
+                None => f64::NAN,
+            })
+            .collect();
+        Ok(samples.with_speed(speed))
     }
 
     /// The bounding box of the nodes.
@@ -169,6 +182,62 @@ impl SpeedField {
     pub fn max_speed_in(&self, lo: [f64; 2], hi: [f64; 2]) -> f64 {
         let inside = |p: &[f64; 2]| (0..2).all(|d| p[d] >= lo[d] && p[d] <= hi[d]);
         (0..self.nodes.len()).filter(|&n| inside(&self.nodes[n])).map(|n| self.speed[n]).filter(|s| s.is_finite()).fold(1e-12, f64::max)
+    }
+}
+
+/// The point array `velocity` of a fluid grid as `fdfsi run` writes it (3 components a point).
+fn velocity_of(grid: &UnstructuredGrid) -> Result<&[f64], PictureError> {
+    let velocity = grid.point_array("velocity").ok_or_else(|| PictureError::Input("the grid has no point data 'velocity'".into()))?;
+    if velocity.components != 3 || velocity.values.len() != 3 * grid.num_points() {
+        return Err(PictureError::Input(format!("'velocity' has {} components for {} points", velocity.components, grid.num_points())));
+    }
+    Ok(&velocity.values)
+}
+
+/// The P2 basis of the tetrahedron at the reference point `xi` (barycentric `l = (1 - xi_1 -
+/// xi_2 - xi_3, xi_1, xi_2, xi_3)`), in VTK's node order: `l_i (2 l_i - 1)` at the vertices,
+/// `4 l_i l_j` on the edges [`fdfsi_fem::element::TET_EDGES`].
+fn p2_tetrahedron(xi: [f64; 3]) -> [f64; 10] {
+    let l = [1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]];
+    let edges = fdfsi_fem::element::TET_EDGES;
+    std::array::from_fn(|k| if k < 4 { l[k] * (2.0 * l[k] - 1.0) } else { 4.0 * l[edges[k - 4][0]] * l[edges[k - 4][1]] })
+}
+
+/// The points where a slice is sampled ([`SpeedField::of_slice`]): `(2 m + 1) x (2 n + 1)` points
+/// of the rectangle `[lo, hi]` of the plane for `cells = [m, n]`, each `2 x 2` block of them
+/// two 6-node triangles.
+struct SliceSamples {
+    nodes: Vec<[f64; 2]>,
+    points: Vec<[f64; 3]>,
+    triangles: Vec<[usize; 6]>,
+}
+
+impl SliceSamples {
+    fn new(slice: &Slice, [lo, hi]: [[f64; 2]; 2], [m, n]: [usize; 2]) -> Result<Self, PictureError> {
+        if m == 0 || n == 0 {
+            return Err(PictureError::Input(format!("a slice needs at least one cell across and up, got {m} x {n}")));
+        }
+        let (nu, nv) = (2 * m + 1, 2 * n + 1);
+        let node = |i: usize, j: usize| j * nu + i;
+        let nodes: Vec<[f64; 2]> = (0..nv)
+            .flat_map(|j| {
+                (0..nu).map(move |i| [lo[0] + (hi[0] - lo[0]) * i as f64 / (nu - 1) as f64, lo[1] + (hi[1] - lo[1]) * j as f64 / (nv - 1) as f64])
+            })
+            .collect();
+        let points = nodes.iter().map(|&q| slice.point(q)).collect();
+        let mut triangles = Vec::with_capacity(2 * m * n);
+        for j in (0..nv - 1).step_by(2) {
+            for i in (0..nu - 1).step_by(2) {
+                let q = |a: usize, b: usize| node(i + a, j + b);
+                triangles.push([q(0, 0), q(2, 0), q(2, 2), q(1, 0), q(2, 1), q(1, 1)]);
+                triangles.push([q(0, 0), q(2, 2), q(0, 2), q(1, 1), q(1, 2), q(0, 1)]);
+            }
+        }
+        Ok(SliceSamples { nodes, points, triangles })
+    }
+
+    fn with_speed(self, speed: Vec<f64>) -> SpeedField {
+        SpeedField { nodes: self.nodes, triangles: self.triangles, speed }
     }
 }
 
@@ -334,6 +403,26 @@ impl Layout {
         let plot_h = plot_h.min(4.0 * plot_w as f64) as u32;
         Ok(Layout { lo, hi, plot_w, plot_h, height: plot_h + X_LABELS + CAPTION + 2 * MARGIN })
     }
+
+    /// The cells a slice is sampled with ([`SpeedField::of_slice`]): one per 4 pixels.
+    fn slice_cells(&self) -> [usize; 2] {
+        [(self.plot_w / 4).max(1) as usize, (self.plot_h / 4).max(1) as usize]
+    }
+}
+
+/// A frame of a 3D run's animation: the speed of the fluid `grid` (see
+/// [`SpeedField::of_grid_slice`]) on `slice` where a picture `width` pixels wide shows it, the
+/// `window` of the plane (default: all of it) within `bounds`, the rectangle of the plane the
+/// fluid's box projects to, sampled as [`write_slice_png`] samples.
+pub fn grid_slice_field(
+    grid: &UnstructuredGrid,
+    slice: &Slice,
+    bounds: [[f64; 2]; 2],
+    window: Option<[[f64; 2]; 2]>,
+    width: u32,
+) -> Result<SpeedField, PictureError> {
+    let layout = Layout::new((bounds[0], bounds[1]), window, width)?;
+    SpeedField::of_grid_slice(grid, slice, [layout.lo, layout.hi], layout.slice_cells())
 }
 
 /// Writes the speed `|u|` of a 2D flow solution `x` as a PNG `width` pixels wide: the flow in
@@ -371,8 +460,7 @@ pub fn write_slice_png<const D: usize>(
     let (lo, hi) = fdfsi_fem::mesh::bounding_box(&disc.mesh.points);
     let [a, b] = slice.project_box(lift(&lo), lift(&hi));
     let layout = Layout::new((a, b), picture.window, width)?;
-    let cells = [(layout.plot_w / 4).max(1) as usize, (layout.plot_h / 4).max(1) as usize];
-    let field = SpeedField::of_slice(disc, x, slice, [layout.lo, layout.hi], cells)?;
+    let field = SpeedField::of_slice(disc, x, slice, [layout.lo, layout.hi], layout.slice_cells())?;
     if !field.speed.iter().any(|s| s.is_finite()) {
         return Err(PictureError::Input(format!("{} misses the fluid mesh (or the flow is not finite there)", slice.describe())));
     }
@@ -673,6 +761,14 @@ mod tests {
             }
         }
         assert!(inside > 100 && outside > 100, "{inside} samples inside, {outside} outside");
+        // The same from the grid a run writes (10-node tetrahedra, P2 without the bubble: exact
+        // for this quadratic flow too), as the frames of a 3D animation are drawn.
+        let grid = crate::io::fields::fluid_grid(&disc, &x).unwrap();
+        let from_grid = SpeedField::of_grid_slice(&grid, &plane, [[-0.5, -0.25], [2.5, 1.25]], [12, 6]).unwrap();
+        assert_eq!((&from_grid.nodes, &from_grid.triangles), (&field.nodes, &field.triangles));
+        for ((q, s), t) in field.nodes.iter().zip(&field.speed).zip(&from_grid.speed) {
+            assert!((s.is_nan() && t.is_nan()) || (s - t).abs() < 1e-12, "at {q:?}: {t} from the grid against {s}");
+        }
         // Each triangle: vertices at three corners of its 2 x 2 block, mid-edge nodes between them.
         for t in &field.triangles {
             for (m, [a, b]) in [(3, [0, 1]), (4, [1, 2]), (5, [2, 0])] {
