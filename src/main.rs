@@ -430,9 +430,13 @@ fn run_command() -> Result<()> {
             log(&format!("{} plots in {}", files.len(), dir.join("plots").display()));
         }
         Command::Animate { dir } => match fdfsi::io::animation::animate_run(&dir)? {
-            Some((gif, frames)) => {
-                println!("{}", gif.display());
-                log(&format!("{frames} frames in {}", gif.display()));
+            Some(a) => {
+                println!("{}", a.gif.display());
+                log(&format!("{} frames in {}", a.frames, a.gif.display()));
+                if let Some(solid) = a.solid_gif {
+                    println!("{}", solid.display());
+                    log(&format!("the solid seen along the flow: {}", solid.display()));
+                }
             }
             None => anyhow::bail!("{}: nothing to animate (a run with fluid fields at two or more times is needed)", dir.display()),
         },

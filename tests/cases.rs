@@ -1134,7 +1134,7 @@ fn valve_2d_opens_at_the_start_of_ejection() {
 /// projected analytic leaflet surface (meshes/make_valve_3d.py's map, 400 x 400 quadrilaterals)
 /// subtracted from the exact annulus sector, 159.524 mm^2 for the whole valve
 /// (meshes/valve_3d_open_area.py; fdfsi: the faceted fluid section and the Q2 leaflet's facets,
-/// rasterised); and its animation (3D: the speed on the plane of speed.png).
+/// rasterised); and its animations (the speed on the plane of speed.png, the solid from the aorta).
 #[test]
 fn valve_3d_sector_opens_on_its_symmetry_planes() {
     let (_, out) = run_with("valve-3d-sector", |c| {
@@ -1144,9 +1144,12 @@ fn valve_3d_sector_opens_on_its_symmetry_planes() {
     });
     let h = history_columns(&out);
     assert_eq!(h["time"].len(), 2, "every step done");
-    // The animation of a 3D run: the speed on the plane of speed.png at both steps.
-    let gif = std::fs::read(out.join("animation.gif")).unwrap();
-    assert!(gif.starts_with(b"GIF89a") && gif.len() > 50_000, "animation.gif: {} bytes", gif.len());
+    // The animation of a 3D run: the speed on the plane of speed.png at both steps, and the
+    // leaflet seen along the flow with its 5 mirror images (src/io/view.rs).
+    for (name, least) in [("animation.gif", 50_000), ("solid.gif", 20_000)] {
+        let gif = std::fs::read(out.join(name)).unwrap();
+        assert!(gif.starts_with(b"GIF89a") && gif.len() > least, "{name}: {} bytes", gif.len());
+    }
     let (q, opening, off) = (&h["valve_flux"], &h["tip_opening"], &h["tip_off_plane"]);
     assert!(q.iter().all(|v| *v > 0.0), "forward flow: {q:?}");
     assert!(opening[0] > 0.0 && opening[1] > opening[0], "the free edge moves away from the axis: {opening:?}");

@@ -9,10 +9,12 @@
 //! - 3D: the speed on the plane of `speed.png` (the case's `[output.slice]`, read from
 //!   `DIR/case.toml`; by default normal to the fluid's thinnest axis through the middle of the
 //!   solid), with what the plane cuts from the solid's cells (grey) and gamma_f (white). The
-//!   window is the solid's section box over the whole run widened as in 2D.
+//!   window is the solid's section box over the whole run widened as in 2D. Beside it,
+//!   `solid.gif`: the solid seen along the flow with its mirror images ([`super::view`]).
 
 use super::picture::{grid_slice_field, window_around, write_speed_gif, Frame, PictureError, Slice, SpeedField, SpeedPicture, QUAD9_OUTLINE};
-use crate::case::Case;
+use super::view::{boundary_quads, bounding_plane, mirror_group, write_solid_gif, Isometry, Quad, SolidFrame};
+use crate::case::{BoundaryType, Case};
 use fdfsi_fem::element::ReferenceCell;
 use fdfsi_fem::mesh::bounding_box;
 use fdfsi_fem::vtk::{read_pvd, read_vtu, PvdEntry, UnstructuredGrid, VtkCellType, VtkError};
@@ -35,11 +37,22 @@ pub enum AnimationError {
     Draw { path: String, source: PictureError },
 }
 
-/// Draws `DIR/animation.gif` from the fields in `DIR/solution.pvd` (see the module
-/// documentation); returns its path and the number of frames. A run with fewer than two output
-/// times, or whose fluid grid is of neither 6-node triangles (2D) nor 10-node tetrahedra (3D),
-/// has nothing to animate: `None`.
-pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationError> {
+/// What [`animate_run`] drew.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Animated {
+    /// `DIR/animation.gif`.
+    pub gif: PathBuf,
+    /// Its frames: one per output time.
+    pub frames: usize,
+    /// `DIR/solid.gif` of a 3D run with a solid.
+    pub solid_gif: Option<PathBuf>,
+}
+
+/// Draws `DIR/animation.gif` (and in 3D `DIR/solid.gif`) from the fields in `DIR/solution.pvd`
+/// (see the module documentation). A run with fewer than two output times, or whose fluid grid
+/// is of neither 6-node triangles (2D) nor 10-node tetrahedra (3D), has nothing to animate:
+/// `None`.
+pub fn animate_run(dir: &Path) -> Result<Option<Animated>, AnimationError> {
     let pvd = dir.join("solution.pvd");
     let entries = read_pvd(&pvd)?;
     let mut times: Vec<f64> = entries.iter().map(|e| e.time).collect();
@@ -51,21 +64,34 @@ pub fn animate_run(dir: &Path) -> Result<Option<(PathBuf, usize)>, AnimationErro
     let run = Fields { pvd: &pvd, entries: &entries };
     let Some(first) = times.iter().find_map(|&t| run.part(t, "fluid")) else { return Ok(None) };
     let grid = run.read(first)?;
-    let frames = if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTriangle) && grid.points.iter().all(|p| p[2] == 0.0) {
-        frames_2d(&run, &times)?
+    let case = std::fs::read_to_string(dir.join("case.toml")).ok().and_then(|text| Case::from_toml_str(&text, "case.toml").ok());
+    let (frames, solid_frames) = if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTriangle) && grid.points.iter().all(|p| p[2] == 0.0) {
+        (frames_2d(&run, &times)?, Vec::new())
     } else if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTetra) {
-        frames_3d(dir, &run, &times, &grid)?
+        frames_3d(case.as_ref(), &run, &times, &grid)?
     } else {
         return Ok(None);
     };
     if frames.len() < 2 {
         return Ok(None);
     }
+    let draw_error = |path: &Path, source| AnimationError::Draw { path: path.display().to_string(), source };
     let gif = dir.join("animation.gif");
-    write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS)
-        .map_err(|source| AnimationError::Draw { path: gif.display().to_string(), source })?;
-    Ok(Some((gif, frames.len())))
+    write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS).map_err(|e| draw_error(&gif, e))?;
+    let solid_gif = if solid_frames.len() >= 2 {
+        let path = dir.join("solid.gif");
+        let (lo, hi) = bounding_box(&grid.points);
+        let flow_axis = (0..3).fold(0, |best, d| if hi[d] - lo[d] > hi[best] - lo[best] { d } else { best });
+        write_solid_gif(&solid_frames, flow_axis, &path, SOLID_SIZE, FRAME_DELAY_MS).map_err(|e| draw_error(&path, e))?;
+        Some(path)
+    } else {
+        None
+    };
+    Ok(Some(Animated { gif, frames: frames.len(), solid_gif }))
 }
+
+/// Side of `solid.gif` (pixels).
+pub const SOLID_SIZE: u32 = 640;
 
 /// The parts of a run's `solution.pvd` and how to read them.
 struct Fields<'a> {
@@ -114,8 +140,9 @@ fn frames_2d(run: &Fields, times: &[f64]) -> Result<Vec<Frame>, AnimationError> 
     Ok(frames)
 }
 
-/// The frames of a 3D run whose first fluid grid is `first` (see the module documentation).
-fn frames_3d(dir: &Path, run: &Fields, times: &[f64], first: &UnstructuredGrid) -> Result<Vec<Frame>, AnimationError> {
+/// The frames of a 3D run whose first fluid grid is `first`, of `animation.gif` and of
+/// `solid.gif` (see the module documentation).
+fn frames_3d(case: Option<&Case>, run: &Fields, times: &[f64], first: &UnstructuredGrid) -> Result<(Vec<Frame>, Vec<SolidFrame>), AnimationError> {
     let (flo, fhi) = bounding_box(&first.points);
     // The solid's box over the whole run (its corner nodes).
     let mut solid_points = Vec::new();
@@ -125,10 +152,8 @@ fn frames_3d(dir: &Path, run: &Fields, times: &[f64], first: &UnstructuredGrid) 
         }
     }
     let centre = if solid_points.is_empty() { (flo, fhi) } else { bounding_box(&solid_points) };
-    let spec = std::fs::read_to_string(dir.join("case.toml"))
-        .ok()
-        .and_then(|text| Case::from_toml_str(&text, "case.toml").ok())
-        .and_then(|c| c.output.slice);
+    let spec = case.and_then(|c| c.output.slice);
+    let images = mirror_group(&mirrors(case, first), 1e-9 * lo_hi_scale(flo, fhi));
     let plane = Slice::through(spec.map(|s| s.normal.index()), spec.and_then(|s| s.at), (flo, fhi), centre);
     let bounds = plane.project_box(flo, fhi);
     let window = (!solid_points.is_empty()).then(|| {
@@ -137,14 +162,21 @@ fn frames_3d(dir: &Path, run: &Fields, times: &[f64], first: &UnstructuredGrid) 
     });
     let tri = ReferenceCell::Triangle.edges();
     let hex = ReferenceCell::Hexahedron.edges();
-    let mut frames = Vec::with_capacity(times.len());
+    let (mut frames, mut solid_frames) = (Vec::with_capacity(times.len()), Vec::new());
     for &time in times {
         let Some(fluid) = run.part(time, "fluid") else { continue };
         let field = grid_slice_field(&run.read(fluid)?, &plane, bounds, window, ANIMATION_WIDTH).map_err(|source| run.fields_error(fluid, source))?;
-        let solid = run
-            .read_part(time, "solid")?
-            .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(&g, c), hex)).filter(|p| p.len() >= 3).collect())
+        let solid_grid = run.read_part(time, "solid")?;
+        let solid = solid_grid
+            .as_ref()
+            .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(g, c), hex)).filter(|p| p.len() >= 3).collect())
             .unwrap_or_default();
+        if let Some(g) = &solid_grid {
+            let faces = boundary_quads(g);
+            let faces: Vec<Quad> = images.iter().flat_map(|m| faces.iter().map(move |q| q.map(|p| m.apply(&p)))).collect();
+            let whole = if images.len() > 1 { format!(" and its {} mirror images", images.len() - 1) } else { String::new() };
+            solid_frames.push(SolidFrame { title: format!("the solid{whole} at t = {time:.4}"), faces });
+        }
         let outlines = run
             .read_part(time, "gamma_f")?
             .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(&g, c), tri)).filter(|p| p.len() >= 2).collect())
@@ -152,7 +184,30 @@ fn frames_3d(dir: &Path, run: &Fields, times: &[f64], first: &UnstructuredGrid) 
         let title = format!("speed |u| on {} at t = {time:.4}", plane.describe());
         frames.push(Frame { field, picture: SpeedPicture { title, window, solid, outlines, axis_labels: Some(plane.axis_labels()) } });
     }
-    Ok(frames)
+    Ok((frames, solid_frames))
+}
+
+/// The largest coordinate of the box `[lo, hi]` in size, at least 1: the scale of tolerances.
+fn lo_hi_scale(lo: [f64; 3], hi: [f64; 3]) -> f64 {
+    lo.iter().chain(&hi).fold(1.0, |m: f64, v| m.max(v.abs()))
+}
+
+/// The reflections in the fluid's symmetry planes of `case` (see the module documentation), each
+/// plane where the fluid grid `fluid` ends along its normal.
+fn mirrors(case: Option<&Case>, fluid: &UnstructuredGrid) -> Vec<Isometry> {
+    let Some(case) = case else { return Vec::new() };
+    let (lo, hi) = bounding_box(&fluid.points);
+    let tol = 1e-9 * lo_hi_scale(lo, hi);
+    case.boundary
+        .iter()
+        .filter(|b| b.kind == BoundaryType::Symmetry)
+        .filter_map(|b| match (b.normal_axis, &b.normal) {
+            (Some(axis), _) if axis < 3 => Some(std::array::from_fn(|d| if d == axis { 1.0 } else { 0.0 })),
+            (_, Some(n)) if n.len() == 3 => Some([n[0], n[1], n[2]]),
+            _ => None,
+        })
+        .map(|n: [f64; 3]| Isometry::reflection(n, bounding_plane(&fluid.points, n, tol)))
+        .collect()
 }
 
 /// The corner nodes of cell `c` of a 3D grid: the 8 of a hexahedron (27-node or 8-node), the 3

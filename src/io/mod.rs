@@ -25,6 +25,7 @@ pub mod matrix_market;
 pub mod picture;
 pub mod plot;
 pub mod provenance;
+pub mod view;
 
 pub use history::History;
 

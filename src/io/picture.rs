@@ -28,7 +28,7 @@ pub enum PictureError {
 }
 
 /// A drawing backend's failure as a [`PictureError`].
-fn draw_failed(e: impl std::fmt::Display) -> PictureError {
+pub(super) fn draw_failed(e: impl std::fmt::Display) -> PictureError {
     PictureError::Draw(e.to_string())
 }
 

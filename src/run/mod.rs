@@ -384,7 +384,12 @@ pub fn run_case(case: &Case, options: &RunOptions, log: &mut dyn RunObserver) ->
     }
     if case.time.is_some() && case.output.animation != Some(false) {
         match crate::io::animation::animate_run(&options.out_dir) {
-            Ok(Some((gif, frames))) => log.log(&format!("animation: {frames} frames in {}", gif.display())),
+            Ok(Some(a)) => {
+                log.log(&format!("animation: {} frames in {}", a.frames, a.gif.display()));
+                if let Some(solid) = a.solid_gif {
+                    log.log(&format!("the solid seen along the flow: {}", solid.display()));
+                }
+            }
             Ok(None) => {}
             Err(e) => log.log(&format!("warning: animation not made: {e}")),
         }
