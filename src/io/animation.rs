@@ -100,9 +100,11 @@ struct Fields<'a> {
 }
 
 impl Fields<'_> {
-    /// The part `name` (`fluid`, `solid`, `gamma_f`) written at `time` (the last, if several).
+    /// The part `name` (`fluid`, `solid`, `gamma_f`) written at `time` (the last, if several),
+    /// if its file is there (a run resumed from its checkpoint alone lists fields whose files
+    /// stayed with its earlier parts: those times are left out).
     fn part(&self, time: f64, name: &str) -> Option<&PvdEntry> {
-        self.entries.iter().rfind(|e| e.time == time && e.name == name)
+        self.entries.iter().rfind(|e| e.time == time && e.name == name).filter(|e| e.resolve(self.pvd).exists())
     }
 
     fn read(&self, entry: &PvdEntry) -> Result<UnstructuredGrid, AnimationError> {
