@@ -6,9 +6,10 @@
 //! - 2D: the speed of the fluid piece, with the solid piece (its cells, in grey) and gamma_f (in
 //!   white) when the run has them. The window is the solid's box over the whole run widened by
 //!   twice its size on each side (an FSI run), or the fluid mesh (a flow run).
-//! - 3D: the speed on the plane of `speed.png` (the case's `[output.slice]`, read from
-//!   `DIR/case.toml`; by default normal to the fluid's thinnest axis through the middle of the
-//!   solid), with what the plane cuts from the solid's cells (grey) and gamma_f (white). The
+//! - 3D: the speed on the case's `[output.slice]` (read from `DIR/case.toml`, as `speed.png`;
+//!   by default normal to the fluid's thinnest axis through the middle of the solid's box over
+//!   the whole run, where `speed.png` takes the box at its own time), with what the plane cuts
+//!   from the solid's hexahedra (grey) and gamma_f's triangles (white). The
 //!   window is the solid's section box over the whole run widened as in 2D. Beside it,
 //!   `solid.gif`: the solid seen along the flow with its mirror images ([`super::view`]).
 
@@ -35,6 +36,9 @@ pub enum AnimationError {
     Fields { path: String, source: PictureError },
     #[error("{path}: {source}")]
     Draw { path: String, source: PictureError },
+    /// The run's `case.toml` (3D: the slice and the symmetry planes) does not read back.
+    #[error("{0}")]
+    Case(#[from] crate::case::CaseError),
 }
 
 /// What [`animate_run`] drew.
@@ -64,7 +68,11 @@ pub fn animate_run(dir: &Path) -> Result<Option<Animated>, AnimationError> {
     let run = Fields { pvd: &pvd, entries: &entries };
     let Some(first) = times.iter().find_map(|&t| run.part(t, "fluid")) else { return Ok(None) };
     let grid = run.read(first)?;
-    let case = std::fs::read_to_string(dir.join("case.toml")).ok().and_then(|text| Case::from_toml_str(&text, "case.toml").ok());
+    let case_path = dir.join("case.toml");
+    let case = match std::fs::read_to_string(&case_path) {
+        Ok(text) => Some(Case::from_toml_str(&text, &case_path.display().to_string())?),
+        Err(_) => None,
+    };
     let (frames, solid_frames) = if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTriangle) && grid.points.iter().all(|p| p[2] == 0.0) {
         (frames_2d(&run, &times)?, Vec::new())
     } else if grid.cell_types.iter().all(|&t| t == VtkCellType::QuadraticTetra) {
@@ -78,7 +86,7 @@ pub fn animate_run(dir: &Path) -> Result<Option<Animated>, AnimationError> {
     let draw_error = |path: &Path, source| AnimationError::Draw { path: path.display().to_string(), source };
     let gif = dir.join("animation.gif");
     write_speed_gif(&frames, &gif, ANIMATION_WIDTH, FRAME_DELAY_MS).map_err(|e| draw_error(&gif, e))?;
-    let solid_gif = if solid_frames.len() >= 2 {
+    let solid_gif = if solid_frames.len() >= 2 && solid_frames.iter().all(|f| !f.faces.is_empty()) {
         let path = dir.join("solid.gif");
         let (lo, hi) = bounding_box(&grid.points);
         let flow_axis = (0..3).fold(0, |best, d| if hi[d] - lo[d] > hi[best] - lo[best] { d } else { best });
@@ -150,7 +158,7 @@ fn frames_3d(case: Option<&Case>, run: &Fields, times: &[f64], first: &Unstructu
     let mut solid_points = Vec::new();
     for &time in times {
         if let Some(solid) = run.read_part(time, "solid")? {
-            solid_points.extend((0..solid.num_cells()).flat_map(|c| corners(&solid, c)));
+            solid_points.extend((0..solid.num_cells()).filter_map(|c| corners(&solid, c)).flatten());
         }
     }
     let centre = if solid_points.is_empty() { (flo, fhi) } else { bounding_box(&solid_points) };
@@ -169,20 +177,14 @@ fn frames_3d(case: Option<&Case>, run: &Fields, times: &[f64], first: &Unstructu
         let Some(fluid) = run.part(time, "fluid") else { continue };
         let field = grid_slice_field(&run.read(fluid)?, &plane, bounds, window, ANIMATION_WIDTH).map_err(|source| run.fields_error(fluid, source))?;
         let solid_grid = run.read_part(time, "solid")?;
-        let solid = solid_grid
-            .as_ref()
-            .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(g, c), hex)).filter(|p| p.len() >= 3).collect())
-            .unwrap_or_default();
+        let solid = solid_grid.as_ref().map(|g| sections(g, &plane, hex, 3)).unwrap_or_default();
         if let Some(g) = &solid_grid {
             let faces = boundary_quads(g);
             let faces: Vec<Quad> = images.iter().flat_map(|m| faces.iter().map(move |q| q.map(|p| m.apply(&p)))).collect();
             let whole = if images.len() > 1 { format!(" and its {} mirror images", images.len() - 1) } else { String::new() };
             solid_frames.push(SolidFrame { title: format!("the solid{whole} at t = {time:.4}"), faces });
         }
-        let outlines = run
-            .read_part(time, "gamma_f")?
-            .map(|g| (0..g.num_cells()).map(|c| plane.cut(&corners(&g, c), tri)).filter(|p| p.len() >= 2).collect())
-            .unwrap_or_default();
+        let outlines = run.read_part(time, "gamma_f")?.map(|g| sections(&g, &plane, tri, 2)).unwrap_or_default();
         let title = format!("speed |u| on {} at t = {time:.4}", plane.describe());
         frames.push(Frame { field, picture: SpeedPicture { title, window, solid, outlines, axis_labels: Some(plane.axis_labels()) } });
     }
@@ -199,7 +201,7 @@ fn lo_hi_scale(lo: [f64; 3], hi: [f64; 3]) -> f64 {
 fn mirrors(case: Option<&Case>, fluid: &UnstructuredGrid) -> Vec<Isometry> {
     let Some(case) = case else { return Vec::new() };
     let (lo, hi) = bounding_box(&fluid.points);
-    let tol = 1e-9 * lo_hi_scale(lo, hi);
+    let tol = 1e-6 * lo_hi_scale(lo, hi);
     case.boundary
         .iter()
         .filter(|b| b.kind == BoundaryType::Symmetry)
@@ -208,19 +210,33 @@ fn mirrors(case: Option<&Case>, fluid: &UnstructuredGrid) -> Vec<Isometry> {
             (_, Some(n)) if n.len() == 3 => Some([n[0], n[1], n[2]]),
             _ => None,
         })
-        .map(|n: [f64; 3]| Isometry::reflection(n, bounding_plane(&fluid.points, n, tol)))
+        .filter_map(|n: [f64; 3]| {
+            let n = n.map(|c| c / (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt());
+            bounding_plane(&fluid.points, n, tol).map(|c| Isometry::reflection(n, c))
+        })
         .collect()
 }
 
 /// The corner nodes of cell `c` of a 3D grid: the 8 of a hexahedron (27-node or 8-node), the 3
-/// of a triangle.
-fn corners(grid: &UnstructuredGrid, c: usize) -> Vec<[f64; 3]> {
+/// of a triangle; none for another cell.
+fn corners(grid: &UnstructuredGrid, c: usize) -> Option<Vec<[f64; 3]>> {
     let n = match grid.cell_types[c] {
         VtkCellType::TriquadraticHexahedron | VtkCellType::Hexahedron => 8,
         VtkCellType::Triangle | VtkCellType::QuadraticTriangle => 3,
-        _ => grid.cell(c).len(),
+        _ => return None,
     };
-    grid.cell(c)[..n].iter().map(|&k| grid.points[k]).collect()
+    Some(grid.cell(c)[..n].iter().map(|&k| grid.points[k]).collect())
+}
+
+/// The polygons where `plane` cuts the cells of `grid` with `edges` (hexahedra, or triangles),
+/// those of at least `least` points.
+fn sections(grid: &UnstructuredGrid, plane: &Slice, edges: &[[usize; 2]], least: usize) -> Vec<Vec<[f64; 2]>> {
+    let num_corners = edges.iter().flatten().max().map_or(0, |m| m + 1);
+    (0..grid.num_cells())
+        .filter_map(|c| corners(grid, c).filter(|v| v.len() == num_corners))
+        .map(|v| plane.cut(&v, edges))
+        .filter(|p| p.len() >= least)
+        .collect()
 }
 
 /// The outlines of the 9-node quadrilaterals of a solid grid ([`QUAD9_OUTLINE`]).

@@ -85,9 +85,10 @@
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
 //!   feature lines (3D): its vertices share a smooth part and its centroid lies within
 //!   `GAMMA_F_REL_TOL` times its diameter of gamma_s. Without: its vertices lie within that
-//!   distance of the plane of the piece nearest its centroid, or (3D) two of its facets would
-//!   be on gamma_f by the rule above; and none lies at a corner placed in step 0. A cell spanning a solid's
-//!   corner or edge is not flat: it fills it.
+//!   distance of the plane of the piece nearest its centroid, or (3D) the pieces nearest its
+//!   vertices turn by less than the corner angle from one another and two of its facets would
+//!   be on gamma_f by the rule above; and none lies at a corner placed in step 0. A cell
+//!   spanning a solid's corner or edge is not flat: it fills it.
 //! * **Quadratic geometry**: a mesh with 6/10-node cells is adapted through its vertex mesh; its
 //!   curved boundary geometry is not carried into the adapted (linear) mesh.
 //! * **Region interfaces** inside the fluid mesh are not protected against moves (only the
@@ -112,6 +113,7 @@ pub use surface::{Surface, SurfacePoint};
 pub use transfer::{transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::{verify_adapted, verify_adapted_within};
 
+use crate::element::ReferenceCell;
 use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
 use geom::{dist2, min_angle2, simplex_measure, simplex_quality, sub};
 use intersect::{find_cuts, CutSet, T_SNAP};
@@ -748,15 +750,17 @@ struct FlatTest<'a, const D: usize> {
 /// Is the cell with vertices `kid` flat: all its vertices on gamma_s, along one smooth part of
 /// it? A cell that fills a solid's corner or wedge, its facets on the sides that meet there, is
 /// not: where gamma_s has feature lines (3D), its vertices share no smooth part ([`PartsAt`]);
-/// without (2D, or 3D without feature lines), it has a vertex placed at a corner in step 0. Nor is a cell that spans such a
-/// wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
+/// without (2D, or 3D without feature lines), it has a vertex placed at a corner in step 0.
+/// Nor is a cell that spans such a wedge without one: a vertex farther than [`GAMMA_F_REL_TOL`] times the cell's diameter
 /// from the plane of the gamma_s piece nearest the cell's centroid (in 3D, cells between a
 /// block's two faces beside the chain of its edge; in 2D, a cell cut twice by a bar's tip face
 /// with its third vertex on the bottom face). With feature lines the plane test is replaced by
 /// the gamma_f rule's distance: the centroid within [`GAMMA_F_REL_TOL`] times the diameter of
 /// gamma_s (the plane test let thin cells along a curved face pass as not flat, and their
 /// facets on both sides went to gamma_f); without, in 3D, a cell that fails the plane test is
-/// flat still where two of its facets would be on gamma_f ([`smooth_gamma_f_facet`]). A cell with vertices on a block's edge that lies along
+/// flat still where the pieces at its vertices lie on one sheet ([`on_one_sheet`]) and two of
+/// its facets would be on gamma_f ([`smooth_gamma_f_facet`]). A cell with vertices on a block's
+/// edge that lies along
 /// one face is flat: a face moved near a plane of the grid gave such cells (a 3D block swinging
 /// in fluid, t = 2.6 and 3.8).
 fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
@@ -780,37 +784,50 @@ fn is_flat<const D: usize>(kid: &[usize; 4], t: &FlatTest<D>) -> bool {
         // cells of a face curved by more than the tolerance over their diameter).
         sp.distance <= GAMMA_F_REL_TOL * diameter
     } else {
-        // 3D: a cell along a curved gamma_s with facets on gamma_f on two of its sides.
+        // 3D: a cell along one sheet of a curved gamma_s with facets on gamma_f on two of its
+        // sides (not one across a wedge, each of its two facets along one face).
+        let facet = |k: usize| -> [[f64; D]; D] {
+            let local = ReferenceCell::Tetrahedron.facet(k);
+            std::array::from_fn(|j| p[local[j]])
+        };
         in_piece_plane(t.surface, sp.piece, &p, GAMMA_F_REL_TOL * diameter)
-            || (D == 3
-                && p.len() == 4
-                && (0..4).filter(|&k| smooth_gamma_f_facet(t.surface, &std::array::from_fn(|j| p[(k + 1 + j) % 4]))).count() >= 2)
+            || (D == 3 && p.len() == 4 && on_one_sheet(t.surface, &p) && (0..4).filter(|&k| smooth_gamma_f_facet(t.surface, &facet(k))).count() >= 2)
     }
 }
 
-/// Without feature lines (3D): does the triangle `corners`, on gamma_s, lie along it rather than
-/// across a wedge of pieces given without shared corners? Its normal within
-/// [`corners::CORNER_ANGLE_DEG`] of the normals of the pieces nearest its corners, either way
-/// round (pieces need not be consistently oriented). This accepts a chord of a curved gamma_s
-/// over pieces that turn, which the plane test refuses (a 3.5 mm facet over the 3D valve's
-/// leaflet, its corners 0.35-0.43 mm off the plane of the piece nearest its centroid, 6 degrees
-/// off, left a hole in gamma_f); a triangle across a block's edge is 45 degrees off both faces.
-fn along_gamma_s<const D: usize>(surface: &Surface<D>, corners: &[[f64; D]; D]) -> bool {
-    let n = surface::piece_normal(corners);
+/// Do the gamma_s pieces nearest `points` all turn by less than [`corners::CORNER_ANGLE_DEG`]
+/// from one another (either way round)? Not so for points on two faces of a wedge.
+fn on_one_sheet<const D: usize>(surface: &Surface<D>, points: &[[f64; D]]) -> bool {
+    let normals: Vec<[f64; D]> = points.iter().filter_map(|x| surface.project(x)).map(|sp| surface.normal(sp.piece)).collect();
     let cos_corner = corners::CORNER_ANGLE_DEG.to_radians().cos();
-    corners.iter().all(|x| surface.project(x).is_some_and(|sp| geom::dot(&surface.normal(sp.piece), &n).abs() >= cos_corner))
+    normals.iter().enumerate().all(|(i, a)| normals[i + 1..].iter().all(|b| geom::dot(a, b).abs() >= cos_corner))
 }
 
-/// Would the facet `corners`, its vertices on gamma_s, be on gamma_f where gamma_s has no
-/// feature lines (3D; see the module documentation): its centroid within [`GAMMA_F_REL_TOL`]
-/// times its diameter of gamma_s, and it lies within that distance of the plane of the piece
-/// nearest its centroid or [`along_gamma_s`]?
-fn smooth_gamma_f_facet<const D: usize>(surface: &Surface<D>, corners: &[[f64; D]; D]) -> bool {
-    let centroid: [f64; D] = std::array::from_fn(|d| corners.iter().map(|p| p[d]).sum::<f64>() / D as f64);
-    let diameter = corners.iter().flat_map(|a| corners.iter().map(move |b| dist2(a, b))).fold(0.0, f64::max).sqrt();
+/// Without feature lines (3D): does the triangle `vertices`, on gamma_s, lie along it rather
+/// than across a wedge of pieces given without shared corners? Its normal within
+/// [`corners::CORNER_ANGLE_DEG`] of the normals of the pieces nearest its vertices, either way
+/// round (pieces need not be consistently oriented). This accepts a chord of a curved gamma_s
+/// over pieces that turn, which the plane test refuses (a 3.5 mm facet over the 3D valve's
+/// leaflet, its vertices 0.35-0.43 mm off the plane of the piece nearest its centroid, 6
+/// degrees off, left a hole in gamma_f). A triangle across a wedge is half the wedge's turn off
+/// each face: refused where the faces turn by more than twice the corner angle (a block's edge:
+/// 45 degrees off both); across a shallower wedge only the centroid rule refuses it.
+fn along_gamma_s<const D: usize>(surface: &Surface<D>, vertices: &[[f64; D]; D]) -> bool {
+    let n = surface::piece_normal(vertices);
+    let cos_corner = corners::CORNER_ANGLE_DEG.to_radians().cos();
+    vertices.iter().all(|x| surface.project(x).is_some_and(|sp| geom::dot(&surface.normal(sp.piece), &n).abs() >= cos_corner))
+}
+
+/// Would the facet `vertices`, on gamma_s, be on gamma_f where gamma_s has no feature lines
+/// (3D; see the module documentation): its centroid within [`GAMMA_F_REL_TOL`] times its
+/// diameter of gamma_s, and it lies within that distance of the plane of the piece nearest its
+/// centroid or [`along_gamma_s`]?
+fn smooth_gamma_f_facet<const D: usize>(surface: &Surface<D>, vertices: &[[f64; D]; D]) -> bool {
+    let centroid: [f64; D] = std::array::from_fn(|d| vertices.iter().map(|p| p[d]).sum::<f64>() / D as f64);
+    let diameter = vertices.iter().flat_map(|a| vertices.iter().map(move |b| dist2(a, b))).fold(0.0, f64::max).sqrt();
     let Some(sp) = surface.project(&centroid) else { return false };
     let tol = GAMMA_F_REL_TOL * diameter;
-    sp.distance <= tol && (in_piece_plane(surface, sp.piece, corners, tol) || along_gamma_s(surface, corners))
+    sp.distance <= tol && (in_piece_plane(surface, sp.piece, vertices, tol) || along_gamma_s(surface, vertices))
 }
 
 /// Do all `points` lie within `tol` of the line (2D) or plane (3D) of gamma_s piece `piece`?
@@ -1182,6 +1199,21 @@ mod tests {
         assert!(matches!(adapt(&m, &s, 0.6), Err(AdaptError::EpsHat(_))));
         let q = crate::generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, crate::mesh::GeometryOrder::Linear);
         assert!(matches!(adapt(&q, &s, 0.2), Err(AdaptError::NotSimplex(_))));
+    }
+
+    /// A cell in the wedge of two faces given without shared corners (no feature lines), two of
+    /// its vertices on the edge and one on each face: each face holds one of its facets, but it
+    /// fills the wedge and is not flat.
+    #[test]
+    fn a_cell_across_a_wedge_of_loose_pieces_is_not_flat() {
+        let pieces = vec![[0.0, -1.0, 0.0], [2.0, -1.0, 0.0], [0.0, 2.0, 0.0], [0.0, -1.0, 0.0], [0.0, 2.0, 0.0], [0.0, -1.0, 2.0]];
+        let s = Surface::from_pieces(pieces, vec![[0, 1, 2], [3, 4, 5]]).unwrap();
+        let x: [[f64; 3]; 4] = [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.5]];
+        let (on, pos) = (|_: usize| true, |g: usize| x[g]);
+        let t = FlatTest { on_surface: &on, corners: &[], parts: None, pos: &pos, surface: &s };
+        assert!(!is_flat(&[0, 1, 2, 3], &t));
+        // Each of the two facets alone would be on gamma_f.
+        assert!(smooth_gamma_f_facet(&s, &[x[0], x[1], x[2]]) && smooth_gamma_f_facet(&s, &[x[0], x[1], x[3]]));
     }
 
     #[test]
