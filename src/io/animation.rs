@@ -154,13 +154,9 @@ fn frames_2d(run: &Fields, times: &[f64]) -> Result<Vec<Frame>, AnimationError> 
 /// `solid.gif` (see the module documentation).
 fn frames_3d(case: Option<&Case>, run: &Fields, times: &[f64], first: &UnstructuredGrid) -> Result<(Vec<Frame>, Vec<SolidFrame>), AnimationError> {
     let (flo, fhi) = bounding_box(&first.points);
-    // The solid's box over the whole run (its corner nodes).
-    let mut solid_points = Vec::new();
-    for &time in times {
-        if let Some(solid) = run.read_part(time, "solid")? {
-            solid_points.extend((0..solid.num_cells()).filter_map(|c| corners(&solid, c)).flatten());
-        }
-    }
+    // The solid at every time, read once, and its box over the whole run (its corner nodes).
+    let solids = times.iter().map(|&time| run.read_part(time, "solid")).collect::<Result<Vec<_>, _>>()?;
+    let solid_points: Vec<[f64; 3]> = solids.iter().flatten().flat_map(|g| (0..g.num_cells()).filter_map(|c| corners(g, c)).flatten()).collect();
     let centre = if solid_points.is_empty() { (flo, fhi) } else { bounding_box(&solid_points) };
     let spec = case.and_then(|c| c.output.slice);
     let images = mirror_group(&mirrors(case, first), 1e-9 * lo_hi_scale(flo, fhi));
@@ -173,12 +169,11 @@ fn frames_3d(case: Option<&Case>, run: &Fields, times: &[f64], first: &Unstructu
     let tri = ReferenceCell::Triangle.edges();
     let hex = ReferenceCell::Hexahedron.edges();
     let (mut frames, mut solid_frames) = (Vec::with_capacity(times.len()), Vec::new());
-    for &time in times {
+    for (&time, solid_grid) in times.iter().zip(&solids) {
         let Some(fluid) = run.part(time, "fluid") else { continue };
         let field = grid_slice_field(&run.read(fluid)?, &plane, bounds, window, ANIMATION_WIDTH).map_err(|source| run.fields_error(fluid, source))?;
-        let solid_grid = run.read_part(time, "solid")?;
         let solid = solid_grid.as_ref().map(|g| sections(g, &plane, hex, 3)).unwrap_or_default();
-        if let Some(g) = &solid_grid {
+        if let Some(g) = solid_grid {
             let faces = boundary_quads(g);
             let faces: Vec<Quad> = images.iter().flat_map(|m| faces.iter().map(move |q| q.map(|p| m.apply(&p)))).collect();
             let whole = if images.len() > 1 { format!(" and its {} mirror images", images.len() - 1) } else { String::new() };

@@ -136,25 +136,25 @@ impl SpeedField {
     /// point data `velocity`) on `slice`, sampled as [`Self::of_slice`]: the P2 velocity of the
     /// tetrahedron containing each point (the grid has no bubble), NaN outside the grid.
     pub fn of_grid_slice(grid: &UnstructuredGrid, slice: &Slice, window: [[f64; 2]; 2], cells: [usize; 2]) -> Result<Self, PictureError> {
+        use fdfsi_fem::element::{ElementFamily, ReferenceCell, ReferenceElement};
         let velocity = velocity_of(grid)?;
-        let mut tets = Vec::with_capacity(grid.num_cells());
-        for c in 0..grid.num_cells() {
-            match (grid.cell_types[c], grid.cell(c)) {
-                (VtkCellType::QuadraticTetra, nodes) => tets.push(<[usize; 10]>::try_from(nodes).expect("10 nodes")),
-                (other, _) => return Err(PictureError::Input(format!("cell {c} is a {other:?}, not a 10-node tetrahedron (a 3D fluid grid)"))),
-            }
+        if let Some(c) = (0..grid.num_cells()).find(|&c| grid.cell_types[c] != VtkCellType::QuadraticTetra) {
+            return Err(PictureError::Input(format!("cell {c} is a {:?}, not a 10-node tetrahedron (a 3D fluid grid)", grid.cell_types[c])));
         }
-        // The straight tetrahedra of the vertices, for the point location.
+        // The grid as a mesh of 10-node tetrahedra (VTK's node order is the P2 element's), for
+        // the point location (by the cells' vertices) and the basis.
         let mesh = fdfsi_fem::mesh::Mesh::<3> {
             points: grid.points.clone(),
-            cell_type: fdfsi_fem::element::ReferenceCell::Tetrahedron,
-            order: fdfsi_fem::mesh::GeometryOrder::Linear,
-            cell_nodes: tets.iter().flat_map(|t| t[..4].to_vec()).collect(),
-            cell_tags: vec![0; tets.len()],
+            cell_type: ReferenceCell::Tetrahedron,
+            order: fdfsi_fem::mesh::GeometryOrder::Quadratic,
+            cell_nodes: grid.connectivity.clone(),
+            cell_tags: vec![0; grid.num_cells()],
             region_names: Vec::new(),
             boundary: Vec::new(),
             boundary_names: Vec::new(),
         };
+        let p2 = ReferenceElement::<3>::new(ReferenceCell::Tetrahedron, ElementFamily::P2).expect("the P2 tetrahedron");
+        let (mut phi, mut grads) = ([0.0; 10], [[0.0; 3]; 10]);
         let locator = fdfsi_fem::adapt::CellLocator::new(&mesh);
         let samples = SliceSamples::new(slice, window, cells)?;
         let speed = samples
@@ -162,8 +162,8 @@ impl SpeedField {
             .iter()
             .map(|p| match locator.locate(&mesh, p) {
                 Some((c, xi)) => {
-                    let phi = p2_tetrahedron(xi);
-                    let u: [f64; 3] = std::array::from_fn(|a| tets[c].iter().zip(&phi).map(|(&n, f)| f * velocity[3 * n + a]).sum());
+                    p2.eval_into(&xi, &mut phi, &mut grads);
+                    let u: [f64; 3] = std::array::from_fn(|a| mesh.cell(c).iter().zip(&phi).map(|(&n, f)| f * velocity[3 * n + a]).sum());
                     u.iter().map(|c| c * c).sum::<f64>().sqrt()
                 }
                 None => f64::NAN,
@@ -192,15 +192,6 @@ fn velocity_of(grid: &UnstructuredGrid) -> Result<&[f64], PictureError> {
         return Err(PictureError::Input(format!("'velocity' has {} components for {} points", velocity.components, grid.num_points())));
     }
     Ok(&velocity.values)
-}
-
-/// The P2 basis of the tetrahedron at the reference point `xi` (barycentric `l = (1 - xi_1 -
-/// xi_2 - xi_3, xi_1, xi_2, xi_3)`), in VTK's node order: `l_i (2 l_i - 1)` at the vertices,
-/// `4 l_i l_j` on the edges [`fdfsi_fem::element::TET_EDGES`].
-fn p2_tetrahedron(xi: [f64; 3]) -> [f64; 10] {
-    let l = [1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]];
-    let edges = fdfsi_fem::element::TET_EDGES;
-    std::array::from_fn(|k| if k < 4 { l[k] * (2.0 * l[k] - 1.0) } else { 4.0 * l[edges[k - 4][0]] * l[edges[k - 4][1]] })
 }
 
 /// The points where a slice is sampled ([`SpeedField::of_slice`]): `(2 m + 1) x (2 n + 1)` points
