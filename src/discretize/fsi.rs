@@ -71,6 +71,7 @@ use fdfsi_fem::quadrature;
 use fdfsi_fem::sparse::{Colouring, CscMatrix, HeldRows, Pattern, ResidualOnly, RowMatrix, RowPattern, SystemTarget, WholeSystem};
 use fdfsi_fem::values::det_inv;
 use serde::{Deserialize, Serialize};
+use std::collections::HashSet;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use thiserror::Error;
@@ -280,7 +281,8 @@ impl<const D: usize> FsiModel<D> {
     /// `adapted` (to gamma_s `surface` at the solid displacement `solid_x`) with the fluid cut
     /// off where a contact of the solid has closed ([`ClosedGap`]): on a plane
     /// ([`GapPlane::is_closed`]) the gap layer below gamma_s and the contact boundary
-    /// ([`GapPlane::layer`]); against another body (a contact pressure in `solid_x` positive)
+    /// ([`GapPlane::layer`]; where the contact boundary is gamma_s itself, only on the gap's side
+    /// of gamma_s, see [`remove_closed_gaps`]); against another body (a contact pressure in `solid_x` positive)
     /// the layers between the two bodies ([`FsiModel::layers_between`]). Unchanged without
     /// contacts or while none is closed.
     pub(crate) fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
@@ -290,7 +292,7 @@ impl<const D: usize> FsiModel<D> {
             return Ok(adapted);
         }
         let mesh = self.current_solid_mesh(solid_x);
-        let mut layers = Vec::new();
+        let (mut layers, mut pressed) = (Vec::new(), Vec::new());
         for (k, (gap, contact)) in self.closed_gaps.iter().zip(&self.problem.solid.contact).enumerate() {
             if gap.cut_off() <= 0.0 {
                 continue;
@@ -298,8 +300,13 @@ impl<const D: usize> FsiModel<D> {
             let boundary = Surface::from_mesh_boundary(&mesh, &contact.boundary)?;
             match (gap, &contact.target) {
                 (ClosedGap::Plane(plane), _) if plane.is_closed(&boundary) => {
-                    layers.extend(plane.layer(surface));
-                    layers.extend(plane.layer(&boundary));
+                    if self.is_part_of_gamma_s(&contact.boundary)? {
+                        // gamma_s itself pressed on the plane: the fluid behind it stays.
+                        pressed.extend(plane.layer(surface));
+                    } else {
+                        layers.extend(plane.layer(surface));
+                        layers.extend(plane.layer(&boundary));
+                    }
                 }
                 (ClosedGap::Between { cut_off }, ContactTarget::Boundary(master)) => {
                     let master = Surface::from_mesh_boundary(&mesh, master)?;
@@ -310,7 +317,26 @@ impl<const D: usize> FsiModel<D> {
                 _ => {}
             }
         }
-        Ok(remove_closed_gaps(adapted, &layers))
+        let open = self.open_boundaries(&adapted.mesh);
+        Ok(remove_closed_gaps(adapted, &layers, &pressed, surface, &open))
+    }
+
+    /// Whether every facet of the solid's boundary `name` is a facet of gamma_s.
+    fn is_part_of_gamma_s(&self, name: &str) -> Result<bool, FsiError> {
+        let mesh = &self.solid.mesh;
+        let gamma_s: HashSet<(usize, usize)> = mesh.boundary_facets(&self.problem.surface)?.iter().map(|b| (b.cell, b.facet)).collect();
+        Ok(mesh.boundary_facets(name)?.iter().all(|b| gamma_s.contains(&(b.cell, b.facet))))
+    }
+
+    /// The tags of the boundaries of `mesh` (the adapted fluid mesh) that set the level of the
+    /// fluid's pressure: those without a Dirichlet or symmetry condition (traction, pressure,
+    /// Windkessel, or none). Fluid cut off from them by a closed gap is cut off too
+    /// ([`remove_closed_gaps`]).
+    fn open_boundaries(&self, mesh: &Mesh<D>) -> Vec<u32> {
+        let fluid = &self.problem.fluid;
+        let held: HashSet<&str> =
+            fluid.dirichlet.iter().map(|b| b.boundary.as_str()).chain(fluid.symmetry.iter().map(|b| b.boundary.as_str())).collect();
+        mesh.boundary_names.iter().filter(|(name, _)| !held.contains(name.as_str())).map(|(_, tag)| *tag).collect()
     }
 
     /// Whether the `k`-th contact (against another boundary `master`) is closed at `solid_x`: a

@@ -14,7 +14,10 @@
 //!   convex polytope between the piece and its projection onto the plane (a trapezoid in 2D, a
 //!   prism in 3D; flat where the piece lies on the plane);
 //! * a fluid cell that meets the gap layer (by the separating-axis test, touching counts) is
-//!   removed ([`remove_closed_gaps`]); the facets between kept and removed cells that are not on
+//!   removed ([`remove_closed_gaps`]), but where gamma_s itself is the face pressed on the plane
+//!   (a 3D leaflet's coaptation face), only on the gap's side of gamma_s: the fluid behind it
+//!   stays and presses the solid onto the plane; the fluid then left without a boundary that
+//!   sets its pressure is removed too; the facets between kept and removed cells that are not on
 //!   gamma_f become the boundary [`CLOSED_GAP`], where the fluid is held at rest like the plane
 //!   (its Dirichlet condition is the caller's);
 //! * each step adapts the original mesh again, so the cells come back in the first step after
@@ -26,8 +29,9 @@
 //! pieces face which boundary.
 //!
 //! The kept cells keep their P1-discontinuous pressure and their zero divergence; with the fluid
-//! at rest on the new walls the global flux balance holds exactly. What is lost is the fluid in
-//! the cut cells, which the closed contact has pinched off.
+//! at rest on the new walls the global flux balance holds exactly (counting, where gamma_f is
+//! left with fluid on one side only, the flux the solid sweeps through it). What is lost is the
+//! fluid in the cut cells, which the closed contact has pinched off.
 
 use super::{Adapted, GammaFacet, Surface};
 use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
@@ -137,35 +141,106 @@ pub fn cell_height_at<const D: usize>(mesh: &Mesh<D>, plane: &GapPlane<D>) -> f6
     }
 }
 
-/// `adapted` without the fluid cells that meet the gap layers `layers` (see the module
-/// documentation): cells renumbered in their old order, gamma_f seen from the kept cells only
+/// `adapted` without the fluid cells that meet the gap layers (see the module documentation):
+/// every cell that meets one of `layers`, and every cell that meets one of `pressed` (the layers
+/// below gamma_s `surface` where gamma_s is itself the contact boundary) on the gap's side of
+/// gamma_s. A cell whose vertices all lie on gamma_s (the adaptation's
+/// [`Adapted::on_surface`]) or behind it ([`Surface::side`] at most 0: the side its outward
+/// normals point away from, where the solid and the fluid beyond a thin one are) stays although
+/// it touches a pressed layer, as it does wherever it borders gamma_f there: the fluid behind
+/// presses the solid onto the plane. Cut off with the gap, it left the solid's surface over the
+/// whole contact without a load: a 3D leaflet closing on its plane sprang back off it at once
+/// and the contact chattered (`tests/contact.rs`). Where the contact boundary is another face
+/// (a 2D leaflet's tip), both sides of gamma_s next to it are cut off: which fluid cells border
+/// gamma_s's end from behind changes from step to step with the adaptation there, and its
+/// load with them. Then the pockets of fluid the cut leaves without an `open` boundary leave too
+/// ([`pockets`]). Cells renumbered in their old order, gamma_f seen from the kept cells only
 /// (facets with no kept cell on either side dropped), the facets between kept and removed cells
-/// off gamma_f tagged [`CLOSED_GAP`] (the name is added even when there are none, so a condition
-/// on it always finds its boundary), [`super::AdaptStats::closed_gap_cells`] set.
-pub fn remove_closed_gaps<const D: usize>(adapted: Adapted<D>, layers: &[Vec<[f64; D]>]) -> Adapted<D> {
+/// off gamma_f tagged [`CLOSED_GAP`] (the name is added even when there are none, so a
+/// condition on it always finds its boundary), [`super::AdaptStats::closed_gap_cells`] set.
+pub fn remove_closed_gaps<const D: usize>(
+    adapted: Adapted<D>,
+    layers: &[Vec<[f64; D]>],
+    pressed: &[Vec<[f64; D]>],
+    surface: &Surface<D>,
+    open: &[u32],
+) -> Adapted<D> {
     let mesh = &adapted.mesh;
     let (lo, hi) = crate::mesh::bounding_box(&mesh.points);
     let tol = 1e-9 * (0..D).map(|d| hi[d] - lo[d]).fold(0.0, f64::max);
-    let boxes: Vec<_> = layers.iter().map(|l| crate::mesh::bounding_box(l)).collect();
+    let boxes = |polytopes: &[Vec<[f64; D]>]| polytopes.iter().map(|l| crate::mesh::bounding_box(l)).collect::<Vec<_>>();
+    let (layer_boxes, pressed_boxes) = (boxes(layers), boxes(pressed));
+    let behind_gamma_s =
+        |c: usize| mesh.cell_vertices(c).iter().all(|&v| adapted.on_surface[v] || surface.side(&mesh.points[v]).is_some_and(|s| s <= tol));
     let mut cut = HashSet::new();
     let mut corners = Vec::new();
     for c in 0..mesh.num_cells() {
         corners.clear();
         corners.extend(mesh.cell_vertices(c).iter().map(|&v| mesh.points[v]));
         let (clo, chi) = crate::mesh::bounding_box(&corners);
-        let meets = layers
-            .iter()
-            .zip(&boxes)
-            .any(|(layer, (llo, lhi))| (0..D).all(|d| clo[d] <= lhi[d] + tol && llo[d] <= chi[d] + tol) && convex_hulls_meet(&corners, layer, tol));
-        if meets {
+        let meets = |polytopes: &[Vec<[f64; D]>], boxes: &[([f64; D], [f64; D])]| {
+            polytopes.iter().zip(boxes).any(|(layer, (llo, lhi))| {
+                (0..D).all(|d| clo[d] <= lhi[d] + tol && llo[d] <= chi[d] + tol) && convex_hulls_meet(&corners, layer, tol)
+            })
+        };
+        if meets(layers, &layer_boxes) || (meets(pressed, &pressed_boxes) && !behind_gamma_s(c)) {
             cut.insert(c);
         }
+    }
+    if !cut.is_empty() {
+        cut.extend(pockets(&adapted, &cut, open));
     }
     let count = cut.len();
     let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
     out.stats.closed_gap_cells = count;
     out.stats.coupling_facets = out.gamma_f.len();
     out
+}
+
+/// The cells of `adapted` outside `cut` that the fluid cannot reach from a boundary whose tag is
+/// in `open` (one that sets the pressure's level: a traction, pressure or Windkessel condition,
+/// or none) without crossing gamma_f or a cell of `cut`; where none reaches one, all but the
+/// largest such region. Such a pocket is bounded by walls, where the velocity is held, and by
+/// gamma_f, where it is the solid's: the level of its pressure is free, and the system singular
+/// (cells behind gamma_s kept next to a closed gap can be closed in so: the sinus side of a
+/// leaflet pressed onto its plane next to the commissure).
+fn pockets<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, open: &[u32]) -> Vec<usize> {
+    let mesh = &adapted.mesh;
+    let ct = mesh.cell_type;
+    let topology = Topology::build(mesh);
+    let on_gamma_f: HashSet<usize> =
+        adapted.gamma_f.iter().flat_map(|g| g.sides).filter(|&s| s != NO_CELL).map(|(c, f)| topology.facet(ct, c, f)).collect();
+    let opens: HashSet<usize> = mesh.boundary.iter().filter(|b| open.contains(&b.tag)).map(|b| b.cell).collect();
+    // Regions of kept cells joined across facets off gamma_f, flooded one at a time.
+    let mut region = vec![usize::MAX; mesh.num_cells()];
+    let mut regions: Vec<(Vec<usize>, bool)> = Vec::new();
+    for seed in 0..mesh.num_cells() {
+        if region[seed] != usize::MAX || cut.contains(&seed) {
+            continue;
+        }
+        let id = regions.len();
+        let (mut cells, mut reaches_open) = (vec![seed], false);
+        region[seed] = id;
+        let mut k = 0;
+        while k < cells.len() {
+            let c = cells[k];
+            k += 1;
+            reaches_open |= opens.contains(&c);
+            for f in 0..ct.num_facets() {
+                if on_gamma_f.contains(&topology.facet(ct, c, f)) {
+                    continue;
+                }
+                if let Some(n) = topology.neighbour(ct, c, f).filter(|n| region[*n] == usize::MAX && !cut.contains(n)) {
+                    region[n] = id;
+                    cells.push(n);
+                }
+            }
+        }
+        regions.push((cells, reaches_open));
+    }
+    let largest = regions.iter().enumerate().max_by_key(|(_, (cells, _))| cells.len()).map(|(i, _)| i);
+    let any_open = regions.iter().any(|(_, open)| *open);
+    regions.into_iter().enumerate().filter(|(i, (_, open))| !open && (any_open || Some(*i) != largest)).flat_map(|(_, (cells, _))| cells).collect()
 }
 
 /// Whether the convex hulls of the point sets `a` and `b` (simplices, prisms; possibly flat)
@@ -335,32 +410,77 @@ mod tests {
         assert_eq!(cell_height_at(&mesh, &inside), 0.0);
     }
 
-    #[test]
-    fn cells_meeting_the_layer_leave_with_walls_where_they_were() {
+    /// A flat piece of gamma_s at height 0.05 over [0.3, 0.7] of the unit square, its normal down
+    /// to the plane y = 0 (closed), its layer down to the plane, cut off as a layer of another
+    /// face (`both_sides`) or as one of gamma_s pressed on the plane.
+    fn cut_below_a_flat_piece(both_sides: bool) -> (Adapted<2>, Vec<Vec<[f64; 2]>>, f64) {
         use crate::generate::{rectangle_triangles, DiagonalPattern};
         let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 8, 8, DiagonalPattern::Right);
-        // A flat piece at height 0.05 over [0.3, 0.7]: its layer reaches down to y = 0.
         let surface = Surface::from_pieces(vec![[0.3, 0.05], [0.7, 0.05]], vec![[0, 1]]).unwrap();
         let adapted = super::super::adapt(&mesh, &surface, 0.2).unwrap();
         let plane = GapPlane { point: [0.0, 0.0], normal: [0.0, 1.0], cut_off: 0.1 };
         assert!(plane.is_closed(&Surface::from_pieces(vec![[0.3, 0.0], [0.7, 0.0]], vec![[0, 1]]).unwrap()));
         assert!(!plane.is_closed(&surface));
         let layer = plane.layer(&surface);
-        let before = adapted.mesh.num_cells();
-        let cut = remove_closed_gaps(adapted, &layer);
+        let (before, gamma_f_before) = (adapted.mesh.num_cells(), adapted.gamma_f_measure());
+        assert!(gamma_f_before > 0.3);
+        let (cut_both, pressed) = if both_sides { (&layer[..], &[][..]) } else { (&[][..], &layer[..]) };
+        let cut = remove_closed_gaps(adapted, cut_both, pressed, &surface, &[]);
         let removed = before - cut.mesh.num_cells();
         assert_eq!(cut.stats.closed_gap_cells, removed);
         assert!(removed > 0);
-        // No kept cell meets the layer, and walls bound the hole on the fluid side.
-        for c in 0..cut.mesh.num_cells() {
-            let corners: Vec<[f64; 2]> = cut.mesh.cell_vertices(c).iter().map(|&v| cut.mesh.points[v]).collect();
-            assert!(!convex_hulls_meet(&corners, &layer[0], 1e-12));
-        }
-        let walls = cut.mesh.boundary_facets(CLOSED_GAP).unwrap();
-        assert!(!walls.is_empty());
+        assert!(!cut.mesh.boundary_facets(CLOSED_GAP).unwrap().is_empty(), "walls bound the hole");
         // The kept mesh and the hole tile the square.
         let kept: f64 = (0..cut.mesh.num_cells()).map(|c| cut.mesh.signed_vertex_measure(c)).sum();
         assert!(kept < 1.0 - 0.4 * 0.05 && kept > 0.5);
+        let meeting = (0..cut.mesh.num_cells())
+            .map(|c| cut.mesh.cell_vertices(c).iter().map(|&v| cut.mesh.points[v]).collect::<Vec<_>>())
+            .filter(|corners| convex_hulls_meet(corners, &layer[0], 1e-12))
+            .collect();
+        (cut, meeting, gamma_f_before)
+    }
+
+    /// Cut off as another face's layer, no kept cell meets it, and gamma_f on it is gone.
+    #[test]
+    fn cells_meeting_the_layer_leave_with_walls_where_they_were() {
+        let (cut, meeting, _) = cut_below_a_flat_piece(true);
+        assert!(meeting.is_empty(), "{meeting:?}");
+        assert!(cut.gamma_f.is_empty(), "both sides of the piece cut off");
+    }
+
+    /// Where gamma_s itself is pressed on the plane, the cells above it (behind gamma_s) stay,
+    /// and gamma_f with them, seen from above: the fluid there keeps pressing the solid down.
+    #[test]
+    fn the_fluid_behind_gamma_s_pressed_on_the_plane_stays() {
+        let (cut, meeting, gamma_f_before) = cut_below_a_flat_piece(false);
+        assert!(!meeting.is_empty());
+        for corners in &meeting {
+            assert!(corners.iter().all(|x| x[1] >= 0.05 - 1e-12), "a kept cell below gamma_s meets the layer: {corners:?}");
+        }
+        assert!((cut.gamma_f_measure() - gamma_f_before).abs() < 1e-12, "gamma_f {} of {gamma_f_before}", cut.gamma_f_measure());
+        assert!(cut.gamma_f.iter().all(|g| g.sides.iter().filter(|&&s| s != NO_CELL).count() == 1));
+    }
+
+    /// gamma_s across the whole square at y = 0.5 parts it in two; a cut at the bottom leaves the
+    /// lower half a pocket unless its boundary sets the pressure there (`open`).
+    #[test]
+    fn a_pocket_without_an_open_boundary_leaves_with_the_gap() {
+        use crate::generate::{rectangle_triangles, DiagonalPattern};
+        let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 8, 8, DiagonalPattern::Right);
+        let surface = Surface::from_pieces(vec![[1.0, 0.5], [0.0, 0.5]], vec![[0, 1]]).unwrap();
+        let adapted = super::super::adapt(&mesh, &surface, 0.2).unwrap();
+        let (bottom, top) = (3, 4);
+        let layer = vec![vec![[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]]];
+        let lower =
+            |a: &Adapted<2>| (0..a.mesh.num_cells()).filter(|&c| a.mesh.cell_vertices(c).iter().all(|&v| a.mesh.points[v][1] <= 0.5 + 1e-12)).count();
+        let halves = lower(&adapted);
+        assert!(halves > 0 && halves < adapted.mesh.num_cells());
+        let sealed = remove_closed_gaps(adapted.clone(), &layer, &[], &surface, &[top]);
+        assert_eq!(lower(&sealed), 0, "the lower half has no open boundary but where it is closed off");
+        assert!(sealed.gamma_f.iter().all(|g| g.sides.iter().filter(|&&s| s != NO_CELL).count() == 1));
+        let open = remove_closed_gaps(adapted, &layer, &[], &surface, &[top, bottom]);
+        assert_eq!(lower(&open), halves - open.stats.closed_gap_cells, "only the layer's cells leave");
+        assert!(open.stats.closed_gap_cells > 0 && open.stats.closed_gap_cells < 4);
     }
 
     #[test]
