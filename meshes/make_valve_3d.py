@@ -37,9 +37,7 @@ The half leaflet (in its unloaded, half-open shape; see `leaflet_point`) is a ru
     seals along the attachment;
   - the free edge, from 3 mm inside the wall at the commissure (theta = 3, z = H_C) to the
     middle of the leaflet at R_M = 4 from the axis (theta = 60, z = Z_M), bowed towards the
-    axis and sagging 4 mm towards the ventricle between them (FREE_EDGE_SAG: 14.1 long, enough
-    to reach the axis along the plane theta = 0 when the valve closes); the leaflet's middle
-    line, nadir to free edge, is 16 long (the 2D valve's leaflet);
+    axis; the leaflet's middle line, nadir to free edge, is 16 long (the 2D valve's leaflet);
     the 3 degrees leave the commissure open at rest (the ventricular face 0.56 mm from the
     plane theta = 0 at the free edge's corner, 0.69 at the wall), so that the leaflet touches
     its neighbour (that plane) only when it closes;
@@ -76,15 +74,6 @@ E_WALL = 0.5
 D_WALL = 0.5
 L_COMMISSURE = 3.0
 R_M = 4.0
-# The free edge sags by up to 4 mm (sin^2, level at both ends: smooth across the mirror plane)
-# between the commissure and the leaflet's middle: 14.1 long (10.3 without), so that closed it
-# reaches from the commissure along the plane theta = 0 to the axis (13.3 in a straight line
-# from its corner at the commissure, r = 10.6 and z = 18, to the axis at z = 10, where the 16 mm
-# middle line from the nadir ends), with some slack to coapt: the free edge of 10.3 left a hole
-# of about 4 mm radius at the axis when the valve closed (session 35). Seen along the axis the
-# leaflet is the same (the sag is along z): its open area at rest too. (A sag of 5 turns the
-# ventricular face's normal over near the middle, and the cells through the thickness with it.)
-FREE_EDGE_SAG = 4.0
 MIDLINE = 16.0
 N_S, N_XI = 12, 11
 XI_GRADING = 1.4
@@ -217,12 +206,11 @@ def middle_tip_height():
 
 def free_edge(s):
     """The free edge: from L_COMMISSURE inside the wall at the commissure to R_M from the axis
-    on the plane theta = 60, its height from H_C down to Z_M, bowed towards the axis and sagging
-    by up to FREE_EDGE_SAG between its ends."""
+    on the plane theta = 60, its height from H_C down to Z_M, bowed towards the axis."""
     theta = THETA_C + (SECTOR - THETA_C) * s
     r0 = wall_radius(THETA_C, H_C) - L_COMMISSURE
     r = r0 + (R_M - r0) * math.sin(0.5 * math.pi * s)
-    z = H_C + (middle_tip_height() - H_C) * math.sin(0.5 * math.pi * s) - FREE_EDGE_SAG * math.sin(math.pi * s) ** 2
+    z = H_C + (middle_tip_height() - H_C) * math.sin(0.5 * math.pi * s)
     return r, theta, z
 
 
