@@ -279,12 +279,13 @@ impl<const D: usize> FsiModel<D> {
     }
 
     /// `adapted` (to gamma_s `surface` at the solid displacement `solid_x`) with the fluid cut
-    /// off where a contact of the solid has closed ([`ClosedGap`]): on a plane
-    /// ([`GapPlane::is_closed`]) the gap layer below gamma_s and the contact boundary
-    /// ([`GapPlane::layer`]; where the contact boundary is gamma_s itself, only on the gap's side
-    /// of gamma_s, see [`remove_closed_gaps`]); against another body (a contact pressure in `solid_x` positive)
-    /// the layers between the two bodies ([`FsiModel::layers_between`]). Unchanged without
-    /// contacts or while none is closed.
+    /// off where a contact of the solid has closed ([`ClosedGap`], [`remove_closed_gaps`]): on a
+    /// plane ([`GapPlane::is_closed`]) the gap layer below gamma_s and the contact boundary
+    /// ([`GapPlane::layer`]), only on the gap's side of gamma_s where the contact boundary is
+    /// part of gamma_s; against another body (a contact pressure in `solid_x` positive) the
+    /// layers between the two bodies ([`FsiModel::layers_between`]); then the fluid walled in
+    /// away from gamma_f and the boundaries that set the pressure ([`FsiModel::open_boundaries`]).
+    /// Unchanged without contacts or while none is closed.
     pub(crate) fn cut_off_closed_gaps(&self, adapted: Adapted<D>, surface: &Surface<D>, solid_x: &[f64]) -> Result<Adapted<D>, FsiError> {
         // With contacts the boundary `closed_gap` is always named (the fluid's condition on it
         // must find it), even when nothing is cut off.
@@ -328,15 +329,21 @@ impl<const D: usize> FsiModel<D> {
         Ok(mesh.boundary_facets(name)?.iter().all(|b| gamma_s.contains(&(b.cell, b.facet))))
     }
 
-    /// The tags of the boundaries of `mesh` (the adapted fluid mesh) that set the level of the
-    /// fluid's pressure: those without a Dirichlet or symmetry condition (traction, pressure,
-    /// Windkessel, or none). Fluid cut off from them by a closed gap is cut off too
-    /// ([`remove_closed_gaps`]).
+    /// The tags in `mesh` (the adapted fluid mesh) of the fluid boundaries that set the level of
+    /// its pressure, where its normal velocity is free: the original mesh's boundaries with a
+    /// traction (pressure, free) or Windkessel condition, or none. Fluid a closed gap cuts off
+    /// from them, and from gamma_f, is cut off too ([`remove_closed_gaps`]).
     fn open_boundaries(&self, mesh: &Mesh<D>) -> Vec<u32> {
         let fluid = &self.problem.fluid;
-        let held: HashSet<&str> =
-            fluid.dirichlet.iter().map(|b| b.boundary.as_str()).chain(fluid.symmetry.iter().map(|b| b.boundary.as_str())).collect();
-        mesh.boundary_names.iter().filter(|(name, _)| !held.contains(name.as_str())).map(|(_, tag)| *tag).collect()
+        let named = |name: &str| {
+            fluid.dirichlet.iter().any(|b| b.boundary == name)
+                || fluid.symmetry.iter().any(|b| b.boundary == name)
+                || fluid.traction.iter().any(|b| b.boundary == name)
+                || fluid.windkessel.iter().any(|b| b.boundary == name)
+        };
+        let open =
+            |name: &str| fluid.traction.iter().any(|b| b.boundary == name) || fluid.windkessel.iter().any(|b| b.boundary == name) || !named(name);
+        self.background.mesh.boundary_names.iter().filter(|(name, _)| open(name)).filter_map(|(name, _)| mesh.boundary_tag(name).ok()).collect()
     }
 
     /// Whether the `k`-th contact (against another boundary `master`) is closed at `solid_x`: a

@@ -179,7 +179,12 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
                 });
                 pressure_fixed = true;
             }
-            BoundaryType::Free => pressure_fixed = true,
+            BoundaryType::Free => {
+                // Traction-free, as by default; named so that it is known to set the pressure's
+                // level (a closed valve's gap cuts off fluid that reaches no such boundary).
+                traction.push(TractionBc { boundary: b.name.clone(), traction: Arc::new(|_: &[f64; D], _: &[f64; D], _| [0.0; D]) });
+                pressure_fixed = true;
+            }
             BoundaryType::Windkessel => {
                 let w = b.windkessel.as_ref().ok_or_else(|| CaseError::Invalid {
                     file: "case".into(),
