@@ -238,11 +238,11 @@ def unit_normal(s, xi, h=1e-6):
     dxi = [(p[2][d] - p[3][d]) / (2 * h) for d in range(3)]
     n = [ds[1] * dxi[2] - ds[2] * dxi[1], ds[2] * dxi[0] - ds[0] * dxi[2], ds[0] * dxi[1] - ds[1] * dxi[0]]
     norm = math.sqrt(sum(c * c for c in n))
-    n = [c / norm for c in n]
-    # Orient towards the aorta: up the axis.
-    if n[2] < 0.0:
-        n = [-c for c in n]
-    return n
+    # ds x dxi (s from the commissure to the middle, xi from the wall to the free edge) points
+    # towards the aorta all over the leaflet (and up the axis all over this one: the same normals
+    # as by orienting them up the axis, which near the free edge of a leaflet closer to closed
+    # point down, and turn the cells through the thickness over there).
+    return [c / norm for c in n]
 
 
 def leaflet_point(i, j, k):
