@@ -335,14 +335,9 @@ impl<const D: usize> FsiModel<D> {
     /// from them, and from gamma_f, is cut off too ([`remove_closed_gaps`]).
     fn open_boundaries(&self, mesh: &Mesh<D>) -> Vec<u32> {
         let fluid = &self.problem.fluid;
-        let named = |name: &str| {
-            fluid.dirichlet.iter().any(|b| b.boundary == name)
-                || fluid.symmetry.iter().any(|b| b.boundary == name)
-                || fluid.traction.iter().any(|b| b.boundary == name)
-                || fluid.windkessel.iter().any(|b| b.boundary == name)
-        };
-        let open =
-            |name: &str| fluid.traction.iter().any(|b| b.boundary == name) || fluid.windkessel.iter().any(|b| b.boundary == name) || !named(name);
+        let loaded = |name: &str| fluid.traction.iter().any(|b| b.boundary == name) || fluid.windkessel.iter().any(|b| b.boundary == name);
+        let held = |name: &str| fluid.dirichlet.iter().any(|b| b.boundary == name) || fluid.symmetry.iter().any(|b| b.boundary == name);
+        let open = |name: &str| loaded(name) || !held(name);
         self.background.mesh.boundary_names.iter().filter(|(name, _)| open(name)).filter_map(|(name, _)| mesh.boundary_tag(name).ok()).collect()
     }
 

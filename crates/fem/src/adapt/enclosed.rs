@@ -61,7 +61,8 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>
     Ok(out)
 }
 
-fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
+/// The mean of `points` of `mesh`.
+pub(super) fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
     std::array::from_fn(|d| points.iter().map(|&p| mesh.points[p][d]).sum::<f64>() / points.len() as f64)
 }
 

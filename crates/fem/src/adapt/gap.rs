@@ -177,8 +177,7 @@ pub fn remove_closed_gaps<const D: usize>(
     let behind = |x: &[f64; D]| surface.side(x).is_some_and(|s| s <= tol);
     let behind_gamma_s = |c: usize| {
         let vertices = mesh.cell_vertices(c);
-        let centroid: [f64; D] = std::array::from_fn(|d| vertices.iter().map(|&v| mesh.points[v][d]).sum::<f64>() / vertices.len() as f64);
-        vertices.iter().all(|&v| adapted.on_surface[v] || behind(&mesh.points[v])) && behind(&centroid)
+        vertices.iter().all(|&v| adapted.on_surface[v] || behind(&mesh.points[v])) && behind(&super::enclosed::centroid(mesh, vertices))
     };
     let mut cut = HashSet::new();
     let mut corners = Vec::new();
