@@ -716,7 +716,12 @@ fn fluid_the_solid_uncovered_in_a_step_takes_the_solids_velocity() {
         solid_x,
         solid_f: FsiState::at_rest(&model).solid_f,
         solid_v,
-        fluid: Some(FluidRestart { solid_base: at_rest, velocity: vec![0.0; old.flow.velocity_field().num_dofs()], lumped: vec![] }),
+        fluid: Some(FluidRestart {
+            solid_base: at_rest,
+            velocity: vec![0.0; old.flow.velocity_field().num_dofs()],
+            lumped: vec![],
+            pressure: vec![],
+        }),
         coupling_pattern: CouplingPattern::default(),
         previous: None,
         dt: 0.1,

@@ -18,7 +18,9 @@
 //! 4. the previous fluid velocity is transferred to the new velocity nodes
 //!    ([`transfer_p2plus_or`]; nodes the solid uncovered since take the old velocity's extension
 //!    up to a cell into the old mesh's hole and the solid's velocity farther in, or zero in a
-//!    closed gap, `FluidSnapshot::transferred_to`);
+//!    closed gap, `FluidSnapshot::transferred_to`), and the previous pressure to the new cells
+//!    (`FluidSnapshot::pressure_on`, [`transfer_p1disc`]): both start Newton, with the solid's
+//!    increment and the multipliers at zero;
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
 //!    discretisations ([`FlowDiscretization::assemble_into`],
 //!    [`SolidDiscretization::assemble_into`], updated Lagrangian) into block matrices and
@@ -60,8 +62,8 @@ use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
 use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards};
 use fdfsi_fem::adapt::{
-    adapt_with, remove_closed_gaps, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet, GapPlane, Surface,
-    CLOSED_GAP, GAMMA_F_REL_TOL,
+    adapt_with, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet,
+    GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
 };
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
@@ -441,6 +443,9 @@ pub struct FluidSnapshot<const D: usize> {
     pub velocity: Vec<f64>,
     /// The Windkessel outlets' `Q` and `P_c` (two per outlet; not on the mesh).
     pub lumped: Vec<f64>,
+    /// The P1-discontinuous pressure on `mesh` (`D + 1` values per cell; empty where not known:
+    /// the next step's Newton solve then starts from zero pressure).
+    pub pressure: Vec<f64>,
 }
 
 /// The state of an FSI run after a step (see [`crate::discretize::fsi::FsiState`]).
@@ -480,6 +485,9 @@ pub struct FluidRestart {
     /// The Windkessel outlets' `Q` and `P_c` (absent from checkpoints of runs without them).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub lumped: Vec<f64>,
+    /// The fluid pressure on the rebuilt mesh (absent from checkpoints of earlier builds).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pressure: Vec<f64>,
 }
 
 /// The solid cells in the pattern of each coupling element, carried from step to step while
@@ -596,7 +604,12 @@ impl<const D: usize> FsiState<D> {
 
 impl<const D: usize> FluidSnapshot<D> {
     fn to_restart(&self) -> FluidRestart {
-        FluidRestart { solid_base: self.solid_base.clone(), velocity: self.velocity.clone(), lumped: self.lumped.clone() }
+        FluidRestart {
+            solid_base: self.solid_base.clone(),
+            velocity: self.velocity.clone(),
+            lumped: self.lumped.clone(),
+            pressure: self.pressure.clone(),
+        }
     }
 
     /// The snapshot of a checkpoint: its adapted mesh rebuilt from the solid position it was
@@ -615,13 +628,32 @@ impl<const D: usize> FluidSnapshot<D> {
         if f.lumped.len() != lumped {
             return Err(FsiError::Restart(format!("the checkpoint has {} Windkessel values but the case has {lumped}", f.lumped.len())));
         }
+        let pressure = disc.flow.pressure_field().num_dofs();
+        if !f.pressure.is_empty() && f.pressure.len() != pressure {
+            return Err(FsiError::Restart(format!(
+                "the checkpoint's fluid pressure has {} values but the rebuilt mesh has {pressure}",
+                f.pressure.len()
+            )));
+        }
         Ok(FluidSnapshot {
             solid_base: f.solid_base.clone(),
             mesh: disc.flow.mesh.clone(),
             nodes: vel.nodes.clone(),
             velocity: f.velocity.clone(),
             lumped: f.lumped.clone(),
+            pressure: f.pressure.clone(),
         })
+    }
+
+    /// The pressure transferred to the cells of `disc` ([`transfer_p1disc`]; fluid pressure
+    /// numbering), the initial iterate of the next step's pressure: zero where the snapshot holds
+    /// none, and in cells whose centroid lies outside the old mesh (in a hole it had).
+    fn pressure_on(&self, disc: &FsiDiscretization<D>) -> Result<Vec<f64>, FsiError> {
+        let n = disc.flow.pressure_field().num_dofs();
+        if self.pressure.is_empty() {
+            return Ok(vec![0.0; n]);
+        }
+        Ok(transfer_p1disc(&self.mesh, &self.pressure, &disc.flow.mesh, 0.0)?)
     }
 
     /// The velocity transferred to the velocity nodes of `disc` (fluid numbering, zero pressure).
@@ -1540,7 +1572,13 @@ impl<const D: usize> FsiDiscretization<D> {
                 let (node, a) = node_and_component(self.flow.velocity_field(), i);
                 format!("the fluid velocity {} at {}", axes[a], at(&self.flow.velocity_nodes[node]))
             }
-            Block::FluidPressure => cell_dof(self.flow.pressure_field(), i, "fluid"),
+            Block::FluidPressure => {
+                let (node, _) = node_and_component(self.flow.pressure_field(), i);
+                let cell = node / self.flow.pressure_field().nodes.per_cell;
+                let v = self.flow.mesh.cell_vertices(cell);
+                let centroid: [f64; D] = std::array::from_fn(|d| v.iter().map(|&n| self.flow.mesh.points[n][d]).sum::<f64>() / v.len() as f64);
+                format!("{} (centroid {})", cell_dof(self.flow.pressure_field(), i, "fluid"), at(&centroid))
+            }
             Block::Windkessel => {
                 let what = if k % 2 == 0 { "flux" } else { "capacitor pressure" };
                 format!("the {what} of the Windkessel outlet '{}'", self.flow.outlets()[k / 2])
@@ -1930,8 +1968,9 @@ pub struct StepStart<const D: usize> {
     /// The fluid history `u*` on the new velocity nodes (fluid numbering): the velocity of `t_n`
     /// (and `t_{n-1}`) transferred.
     pub u_old: Vec<f64>,
-    /// The initial iterate: `u_old`, the Dirichlet values, the solid pressures of `t_n`,
-    /// projected onto the symmetry planes of any normal ([`NormalConstraints::project`]).
+    /// The initial iterate: `u_old`, the fluid pressure of `t_n` transferred, the Dirichlet
+    /// values, the solid pressures of `t_n`, projected onto the symmetry planes of any normal
+    /// ([`NormalConstraints::project`]).
     pub x: Vec<f64>,
     /// The constrained unknowns (identity rows of the Jacobian).
     pub constrained: Vec<bool>,
@@ -2007,6 +2046,12 @@ impl<const D: usize> StepStart<D> {
         // Initial iterate and constraints.
         let mut x = vec![0.0; n];
         x[..disc.fluid_dofs()].copy_from_slice(&u_n);
+        // The last step's pressure: nearer the solution than zero (the pressure loads on the
+        // boundaries are balanced from the start).
+        if let Some(f) = &state.fluid {
+            x[disc.flow.pressure_field().range()].copy_from_slice(&f.pressure_on(&disc)?);
+        }
+        let nus = model.solid.displacement_field().num_dofs();
         let mut constrained = vec![false; n];
         let mut fixed: Vec<(usize, f64)> = Vec::new();
         for (d, v) in disc.flow.dirichlet_dofs(&fluid, time)? {
@@ -2017,7 +2062,6 @@ impl<const D: usize> StepStart<D> {
         for &d in &disc.inactive_multiplier_dofs {
             constrained[d] = true;
         }
-        let nus = model.solid.displacement_field().num_dofs();
         x[os + nus..ol].copy_from_slice(&state.solid_x[nus..]);
         let solid_fixed = model.solid.dirichlet_values(&model.problem.solid, time)?;
         for &(d, v) in &solid_fixed {
@@ -2118,8 +2162,15 @@ pub fn step_with<const D: usize>(
     let max_solid_increment = inc[..nus].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let vel = &disc.flow.velocity_field();
     let lumped = x[disc.layout.range(Block::Windkessel)].to_vec();
-    let snapshot =
-        FluidSnapshot { solid_base: geometry, mesh: disc.flow.mesh.clone(), nodes: vel.nodes.clone(), velocity: x[vel.range()].to_vec(), lumped };
+    let pressure = x[disc.flow.pressure_field().range()].to_vec();
+    let snapshot = FluidSnapshot {
+        solid_base: geometry,
+        mesh: disc.flow.mesh.clone(),
+        nodes: vel.nodes.clone(),
+        velocity: x[vel.range()].to_vec(),
+        lumped,
+        pressure,
+    };
     seconds.update = clock.elapsed().as_secs_f64();
     let report = FsiStepReport {
         time: t_new,

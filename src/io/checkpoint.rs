@@ -67,7 +67,7 @@ pub enum RestartState {
     /// A flow run: the solution and the time level (with `x^{k-1}` for BDF2).
     Flow { x: Vec<f64>, level: crate::time::TimeLevel },
     /// An FSI run.
-    Fsi(FsiRestart),
+    Fsi(Box<FsiRestart>),
     /// A solid run: the state after the last load step.
     Solid(LoadState),
     /// A solid run with inertia: the state after the last time step.

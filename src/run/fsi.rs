@@ -189,7 +189,7 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
     }
 
     fn restart(&self, s: &FsiStepper<'_, D>, _done: &StepDone) -> RestartState {
-        RestartState::Fsi(s.state.to_restart())
+        RestartState::Fsi(Box::new(s.state.to_restart()))
     }
 
     fn dofs(&self, s: &FsiStepper<'_, D>) -> Vec<(String, usize)> {

@@ -796,7 +796,13 @@ impl AugmentedLagrangian {
         tracing::debug!("augmented block assembled in {:.3} s", t0.elapsed().as_secs_f64());
         let t = std::time::Instant::now();
         num.factorized = false; // until the LU succeeds: failed factors are never held
-        num.lu.factorize(&ag)?;
+                                // The LU names its unknowns in the `F` numbering; the caller knows the global one.
+        num.lu.factorize(&ag).map_err(|e| match e {
+            LinearSolveError::ZeroPivot { pivot, largest, unknown, step } => {
+                LinearSolveError::ZeroPivot { pivot, largest, unknown: s.f_dofs.get(unknown).copied().unwrap_or(unknown), step }
+            }
+            other => other,
+        })?;
         num.values = ag.values;
         tracing::debug!("factorised the augmented block in {:.3} s: {}", t.elapsed().as_secs_f64(), num.lu.describe());
         num.factorized = true;

@@ -1142,7 +1142,12 @@ impl LinearSolver for FaerLu {
         let key = pattern_key(a.pattern);
         self.active = Active::None;
         let mut reused = false;
-        if self.key != Some(key) {
+        // The held analysis ordered the zero-diagonal unknowns of its matrix after their
+        // neighbours; where others have a zero diagonal now (a contact node that came into
+        // contact: its row is its gap, no longer `-lambda / c`), it may eliminate one first, on
+        // a pivot of exactly zero (the 3D valve at its first closure).
+        let zeros_moved = self.static_lu.as_ref().is_some_and(|s| !s.sym.same_unknowns(a, &zero_diagonals(a)));
+        if self.key != Some(key) || zeros_moved {
             reused = self.options.reuse_analysis && self.reanalyse(a);
             if !self.options.reuse_analysis {
                 self.analyse_pattern(a, None);
@@ -1328,6 +1333,46 @@ mod tests {
         let mut lu = FaerLu::default();
         let r = lu.factorize(&a).and_then(|_| lu.solve_in_place(&a, &mut [1.0, 1.0]).map(|_| ()));
         assert!(r.is_err());
+    }
+
+    /// A multiplier whose diagonal turns zero on a matrix of the same pattern (a contact node
+    /// coming into contact: `-1 / c` becomes its gap row) is ordered after its neighbour afresh:
+    /// the analysis of the first matrix eliminated it first (its degree is the least), on what
+    /// is now a zero pivot. The static LU, not the pivoting fallback, solves both.
+    #[test]
+    fn a_diagonal_turned_zero_is_ordered_afresh() {
+        // u0..u3 all coupled, u1 also to the multiplier 4.
+        let p = Pattern::from_cells(5, 2, |c, b| {
+            b.clear();
+            b.extend_from_slice(if c == 0 { &[0, 1, 2, 3] } else { &[1, 4] });
+        });
+        let matrix = |d: f64| {
+            let mut a = CscMatrix::zeros(&p);
+            for j in 0..5 {
+                for k in p.col_ptr[j]..p.col_ptr[j + 1] {
+                    let i = p.row_idx[k];
+                    a.values[k] = match (i, j) {
+                        (4, 4) => d,
+                        (4, _) | (_, 4) => -0.5,
+                        _ if i == j => 4.0,
+                        _ => -1.0,
+                    };
+                }
+            }
+            a
+        };
+        let mut lu = FaerLu::default();
+        for d in [-1e-8, 0.0] {
+            let a = matrix(d);
+            lu.factorize(&a).unwrap();
+            assert!(lu.factor_stats().is_some(), "d = {d}: the static LU is in use");
+            let want = [1.0, -2.0, 0.5, 3.0, 1.5];
+            let mut x = vec![0.0; 5];
+            a.mul_vec(&want, &mut x);
+            lu.solve_in_place(&a, &mut x).unwrap();
+            assert!(x.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-10), "d = {d}: {x:?}");
+        }
+        assert_eq!(lu.symbolic_factorizations(), 2);
     }
 
     /// Pseudo-random value in [-1, 1) from an index (deterministic).

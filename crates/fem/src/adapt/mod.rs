@@ -82,6 +82,16 @@
 //!   counted (`rejected_facets`). Where these rules leave a hole in gamma_f around a closed
 //!   gamma_s that the mesh can close, [`remove_enclosed`] rebuilds it from the sides of gamma_s the cells lie on
 //!   (`cells_by_side`).
+//! * **Cells on both sides** (`two_sided_cells`): a cell whose vertices all lie on a curved
+//!   gamma_s can have facets on gamma_f on both of its sides (it lies on the minus side of some
+//!   and the plus side of others): gamma_f then folds around it, and its fluid is shut in by the
+//!   coupling. Its pressure's mean is then a multiplier of a constraint that the weak coupling
+//!   holds only nearly (no flux of the solid's velocity through the chords around it), and the
+//!   Newton solves stall on it (the 3D valve's sector at t = 0.237: three such cells next to
+//!   each other near the leaflet's free edge, 12 iterations a step with updates of 2e4 Pa at one cell's
+//!   pressure). The facets of the side that lies farther from gamma_s (the mean distance of
+//!   their centroids, weighted by their measure) leave gamma_f, so the cell joins the fluid on
+//!   that side.
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
 //!   feature lines (3D): its vertices share a smooth part and its centroid lies within
 //!   `GAMMA_F_REL_TOL` times its diameter of gamma_s. Without: its vertices lie within that
@@ -110,12 +120,12 @@ pub use background::Background;
 pub use enclosed::remove_enclosed;
 pub use gap::{remove_closed_gaps, GapPlane, CLOSED_GAP};
 pub use surface::{Surface, SurfacePoint};
-pub use transfer::{transfer_p2plus, transfer_p2plus_or, CellLocator};
+pub use transfer::{transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::{verify_adapted, verify_adapted_within};
 
 use crate::element::ReferenceCell;
 use crate::mesh::{BoundaryFacet, Mesh, NO_CELL};
-use geom::{dist2, min_angle2, simplex_measure, simplex_quality, sub};
+use geom::{cross, dist2, dot, min_angle2, pad3, simplex_measure, simplex_quality, sub};
 use intersect::{find_cuts, CutSet, T_SNAP};
 use std::collections::{HashMap, HashSet};
 use thiserror::Error;
@@ -304,6 +314,9 @@ pub struct AdaptStats {
     pub flat_cells: usize,
     /// Facets with all vertices on gamma_s but not lying in it.
     pub rejected_facets: usize,
+    /// Cells with gamma_f facets on both of their sides, whose facets on one side left gamma_f
+    /// (see **Cells on both sides** in the module documentation).
+    pub two_sided_cells: usize,
     /// 3D: edges of the subdivided cells still crossing gamma_s next to a feature line, cut in
     /// further passes (counted in `new_nodes` too).
     pub crossing_cuts: usize,
@@ -436,7 +449,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         let mesh = &out.mesh;
         candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
     }
-    let (gamma_f, rejected) = build_gamma_f(&out.mesh, candidates, &on_surface, surface, &parts);
+    let (gamma_f, rejected, two_sided) = build_gamma_f(&out.mesh, candidates, &on_surface, surface, &parts);
     let stats = &mut out.stats;
     stats.cut_edges = cuts.cuts.len();
     stats.moved_nodes = plan.moved.len();
@@ -460,12 +473,18 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     stats.dropped_second_cuts = plan.dropped_second_cuts;
     stats.flat_cells = split.flat_cells;
     stats.rejected_facets = rejected;
+    stats.two_sided_cells = two_sided;
     stats.min_quality = split.min_quality.min(extra.min_quality);
     stats.passes = passes + extra.passes;
     stats.corner_nodes = moves.len();
     stats.unplaced_corners = unplaced_corners;
-    stats.degenerate_cases =
-        stats.touched_vertices + stats.snapped_cuts + stats.edges_in_surface + stats.multi_cut_edges + stats.flat_cells + stats.rejected_facets;
+    stats.degenerate_cases = stats.touched_vertices
+        + stats.snapped_cuts
+        + stats.edges_in_surface
+        + stats.multi_cut_edges
+        + stats.flat_cells
+        + stats.rejected_facets
+        + stats.two_sided_cells;
     Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, stats: out.stats })
 }
 
@@ -1117,7 +1136,7 @@ fn build_gamma_f<const D: usize>(
     on_surface: &[bool],
     surface: &Surface<D>,
     parts: &[usize],
-) -> (Vec<GammaFacet<D>>, usize) {
+) -> (Vec<GammaFacet<D>>, usize, usize) {
     let ct = mesh.cell_type;
     let has_features = parts.iter().any(|&p| p != 0);
     cells.sort_unstable();
@@ -1181,9 +1200,70 @@ fn build_gamma_f<const D: usize>(
             [other, (c0, j0)]
         };
         let location = verts.map(&mut locate);
-        out_facets.push(GammaFacet { vertices: verts, sides: sides_arr, location });
+        let misfit = Misfit { measure: facet_measure(&pts), distance: sp.distance };
+        out_facets.push((GammaFacet { vertices: verts, sides: sides_arr, location }, misfit));
     }
-    (out_facets, rejected)
+    let (out_facets, two_sided) = one_side_per_cell(out_facets);
+    (out_facets, rejected, two_sided)
+}
+
+/// How far a gamma_f facet lies from gamma_s: its measure, and the distance of its centroid.
+#[derive(Clone, Copy, Debug)]
+struct Misfit {
+    measure: f64,
+    distance: f64,
+}
+
+/// The measure (length, area) of a facet.
+fn facet_measure<const D: usize>(p: &[[f64; D]; D]) -> f64 {
+    let t = pad3(&sub(&p[1], &p[0]));
+    if D == 2 {
+        dot(&t, &t).sqrt()
+    } else {
+        let n = cross(&t, &pad3(&sub(&p[2], &p[0])));
+        0.5 * dot(&n, &n).sqrt()
+    }
+}
+
+/// The **cells on both sides** rule (see the module documentation): where a cell has gamma_f
+/// facets on both of its sides (on the minus side of some, the plus side of others), the facets
+/// of the side farther from gamma_s (mean distance of their centroids, weighted by their
+/// measure; ties: the plus side's) leave gamma_f, cell by cell in increasing order, skipping
+/// cells that a facet dropped before made one-sided. Returns the facets kept and the number of
+/// such cells.
+fn one_side_per_cell<const D: usize>(facets: Vec<(GammaFacet<D>, Misfit)>) -> (Vec<GammaFacet<D>>, usize) {
+    // For each cell, its facets on gamma_f with the side it lies on (0: minus, 1: plus).
+    let mut of_cell: HashMap<usize, Vec<(usize, usize)>> = HashMap::new();
+    for (f, (g, _)) in facets.iter().enumerate() {
+        for (side, &(c, _)) in g.sides.iter().enumerate().filter(|(_, &s)| s != NO_CELL) {
+            of_cell.entry(c).or_default().push((f, side));
+        }
+    }
+    let mut cells: Vec<usize> = of_cell.keys().copied().collect();
+    cells.sort_unstable();
+    let mut dropped = vec![false; facets.len()];
+    let mut two_sided = 0;
+    for c in cells {
+        let kept: Vec<(usize, usize)> = of_cell[&c].iter().copied().filter(|&(f, _)| !dropped[f]).collect();
+        let mean_distance = |side: usize| {
+            let (weighted, measure) = kept
+                .iter()
+                .filter(|&&(_, s)| s == side)
+                .map(|&(f, _)| facets[f].1)
+                .fold((0.0, 0.0), |(w, m), x| (w + x.measure * x.distance, m + x.measure));
+            (measure > 0.0).then(|| weighted / measure)
+        };
+        let (Some(minus), Some(plus)) = (mean_distance(0), mean_distance(1)) else { continue };
+        two_sided += 1;
+        let drop_side = if minus > plus { 0 } else { 1 };
+        for &(f, side) in &kept {
+            if side == drop_side {
+                dropped[f] = true;
+            }
+        }
+    }
+    let kept = facets.into_iter().zip(dropped).filter(|(_, d)| !d).map(|((g, _), _)| g).collect();
+    (kept, two_sided)
 }
 
 #[cfg(test)]
@@ -1199,6 +1279,36 @@ mod tests {
         assert!(matches!(adapt(&m, &s, 0.6), Err(AdaptError::EpsHat(_))));
         let q = crate::generate::rectangle_quads(0.0, 1.0, 0.0, 1.0, 2, 2, crate::mesh::GeometryOrder::Linear);
         assert!(matches!(adapt(&q, &s, 0.2), Err(AdaptError::NotSimplex(_))));
+    }
+
+    /// A cell with gamma_f facets on both of its sides (a sliver along a curved gamma_s) keeps
+    /// those of the side nearer gamma_s; the cells beside it, and a cell on one side only, keep
+    /// theirs.
+    #[test]
+    fn a_cell_on_both_sides_of_gamma_f_keeps_the_side_nearer_gamma_s() {
+        let at = SurfacePoint { piece: 0, bary: [1.0, 0.0, 0.0], x: [0.0; 3], distance: 0.0 };
+        // Cell 0's facets: on its minus side at a mean distance (weighted by measure) of 0.013
+        // from gamma_s, on its plus side 0.033, though one lies on it: the plus side's leave.
+        // Cell 5 lies on one side only.
+        let facet = |k: usize, sides: [(usize, usize); 2], measure: f64, distance: f64| {
+            (GammaFacet { vertices: [k, k + 1, k + 2], sides, location: [at; 3] }, Misfit { measure, distance })
+        };
+        let facets = vec![
+            facet(0, [(0, 0), (1, 0)], 1.0, 0.01),
+            facet(1, [(0, 1), (2, 0)], 0.5, 0.02),
+            facet(2, [(3, 0), (0, 2)], 1.0, 0.05),
+            facet(3, [(4, 0), (0, 3)], 0.5, 0.0),
+            facet(4, [(5, 0), (6, 0)], 1.0, 0.3),
+            facet(5, [(5, 1), NO_CELL], 1.0, 0.3),
+        ];
+        let (kept, two_sided) = one_side_per_cell(facets);
+        assert_eq!(two_sided, 1);
+        let firsts: Vec<usize> = kept.iter().map(|g| g.vertices[0]).collect();
+        assert_eq!(firsts, [0, 1, 4, 5]);
+        // Here the minus side lies farther (0.04 against 0.02): it leaves.
+        let facets = vec![facet(0, [(0, 0), (1, 0)], 1.0, 0.04), facet(1, [(2, 0), (0, 0)], 2.0, 0.02)];
+        let (kept, _) = one_side_per_cell(facets);
+        assert_eq!(kept.iter().map(|g| g.vertices[0]).collect::<Vec<_>>(), [1]);
     }
 
     /// A cell in the wedge of two faces given without shared corners (no feature lines), two of

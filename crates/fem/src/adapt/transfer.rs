@@ -97,6 +97,34 @@ impl<const D: usize> CellLocator<D> {
     }
 }
 
+/// The P1-discontinuous field of `old_mesh` (`D + 1` values per cell: the value at the centroid,
+/// then the gradient; [`crate::values::p1disc_basis`]) on the cells of `new_mesh`, linear
+/// simplices both: each new cell takes the linear function of the old cell that holds its
+/// centroid (or that it is least outside of, up to `extend` outside as in
+/// [`transfer_p2plus_or`]); a cell whose centroid lies farther out of the old mesh takes zero.
+/// The pressure is discontinuous, across gamma_f above all, and a new cell beside gamma_f may
+/// take the function of the old cell on its other side: the result serves as an initial iterate,
+/// not as an interpolant.
+pub fn transfer_p1disc<const D: usize>(old_mesh: &Mesh<D>, old_values: &[f64], new_mesh: &Mesh<D>, extend: f64) -> Result<Vec<f64>, AdaptError> {
+    if old_values.len() != old_mesh.num_cells() * (D + 1) {
+        return Err(AdaptError::Transfer(format!("{} old values for {} cells x {} dofs", old_values.len(), old_mesh.num_cells(), D + 1)));
+    }
+    let centroid = |mesh: &Mesh<D>, c: usize| -> [f64; D] {
+        let v = mesh.cell_vertices(c);
+        std::array::from_fn(|d| v.iter().map(|&n| mesh.points[n][d]).sum::<f64>() / v.len() as f64)
+    };
+    let locator = CellLocator::new(old_mesh);
+    let mut out = vec![0.0; new_mesh.num_cells() * (D + 1)];
+    for (c, values) in out.chunks_exact_mut(D + 1).enumerate() {
+        let x = centroid(new_mesh, c);
+        let Some((old, _)) = locator.locate_within(old_mesh, &x, extend) else { continue };
+        let (x_old, p) = (centroid(old_mesh, old), &old_values[old * (D + 1)..(old + 1) * (D + 1)]);
+        values[0] = p[0] + (0..D).map(|d| p[d + 1] * (x[d] - x_old[d])).sum::<f64>();
+        values[1..].copy_from_slice(&p[1..]);
+    }
+    Ok(out)
+}
+
 /// The P2+ element of dimension `D` (2 or 3).
 fn p2plus<const D: usize>() -> Option<ReferenceElement<D>> {
     let cell = if D == 2 { ReferenceCell::Triangle } else { ReferenceCell::Tetrahedron };

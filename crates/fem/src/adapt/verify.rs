@@ -12,7 +12,8 @@ const MEASURE_TOL: f64 = 1e-12;
 /// facets with one cell are exactly the tagged boundary facets, each tagged once: no hanging
 /// nodes); total measure equal to the original's (`1e-12` relative); children of a parent
 /// without moved vertices add up to the parent's measure; every gamma_f vertex within
-/// `1e-12` times the mesh size of gamma_s, and each gamma_f facet is a facet of its side cells.
+/// `1e-12` times the mesh size of gamma_s, each gamma_f facet is a facet of its side cells, and
+/// no cell lies on both sides of gamma_f.
 /// (An adaptation whose enclosed cells were removed, [`super::remove_enclosed`], no longer fills
 /// the original's measure: it is checked before the removal.)
 pub fn verify_adapted<const D: usize>(original: &Mesh<D>, adapted: &Adapted<D>, surface: &Surface<D>) -> Result<(), String> {
@@ -46,6 +47,20 @@ pub fn verify_adapted_within<const D: usize>(original: &Mesh<D>, adapted: &Adapt
             b.sort_unstable();
             if a != b {
                 return Err(format!("gamma_f facet {i}: side ({c}, {j}) is not that facet"));
+            }
+        }
+    }
+    check_one_side_per_cell(adapted)
+}
+
+/// No cell lies on both sides of gamma_f (see **Cells on both sides** in [`super`]).
+fn check_one_side_per_cell<const D: usize>(adapted: &Adapted<D>) -> Result<(), String> {
+    let mut side_of: HashMap<usize, (usize, usize)> = HashMap::new();
+    for (i, g) in adapted.gamma_f.iter().enumerate() {
+        for (side, &(c, _)) in g.sides.iter().enumerate().filter(|(_, s)| s.0 != usize::MAX) {
+            let (first, facet) = *side_of.entry(c).or_insert((side, i));
+            if first != side {
+                return Err(format!("cell {c} lies on both sides of gamma_f (facets {facet} and {i})"));
             }
         }
     }
