@@ -1906,6 +1906,7 @@ pub struct StepTimings {
     pub adapt: f64,
     /// Fluid discretisation, coupling elements, pattern.
     pub build: f64,
+    /// The velocities (and the pressure) of the last step moved to the new mesh.
     pub transfer: f64,
     pub newton: f64,
     pub update: f64,
@@ -2038,6 +2039,7 @@ impl<const D: usize> StepStart<D> {
             f.map_or_else(|| Ok(disc.flow.initial_state(&model.problem.fluid)), |f| f.transferred_to(model, &disc, solid_v))
         };
         let u_n = transferred(state.fluid.as_ref(), &state.solid_v)?;
+        let p_n = state.fluid.as_ref().map(|f| f.pressure_on(&disc)).transpose()?;
         let u_prev = previous.map(|p| transferred(p.fluid.as_ref(), &p.solid_v)).transpose()?;
         let (a, u_old) = step_history(scheme, dt, omega, &u_n, u_prev.as_deref());
         seconds.transfer = clock.elapsed().as_secs_f64();
@@ -2048,8 +2050,8 @@ impl<const D: usize> StepStart<D> {
         x[..disc.fluid_dofs()].copy_from_slice(&u_n);
         // The last step's pressure: nearer the solution than zero (the pressure loads on the
         // boundaries are balanced from the start).
-        if let Some(f) = &state.fluid {
-            x[disc.flow.pressure_field().range()].copy_from_slice(&f.pressure_on(&disc)?);
+        if let Some(p) = &p_n {
+            x[disc.flow.pressure_field().range()].copy_from_slice(p);
         }
         let nus = model.solid.displacement_field().num_dofs();
         let mut constrained = vec![false; n];

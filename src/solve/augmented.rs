@@ -795,11 +795,12 @@ impl AugmentedLagrangian {
         let ag = CscMatrix { pattern: &s.pattern, values };
         tracing::debug!("augmented block assembled in {:.3} s", t0.elapsed().as_secs_f64());
         let t = std::time::Instant::now();
-        num.factorized = false; // until the LU succeeds: failed factors are never held
-                                // The LU names its unknowns in the `F` numbering; the caller knows the global one.
+        // Until the LU succeeds: failed factors are never held.
+        num.factorized = false;
+        // The LU names its unknowns in the `F` numbering; the caller knows the global one.
         num.lu.factorize(&ag).map_err(|e| match e {
             LinearSolveError::ZeroPivot { pivot, largest, unknown, step } => {
-                LinearSolveError::ZeroPivot { pivot, largest, unknown: s.f_dofs.get(unknown).copied().unwrap_or(unknown), step }
+                LinearSolveError::ZeroPivot { pivot, largest, unknown: s.f_dofs[unknown], step }
             }
             other => other,
         })?;

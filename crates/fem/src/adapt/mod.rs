@@ -89,9 +89,11 @@
 //!   holds only nearly (no flux of the solid's velocity through the chords around it), and the
 //!   Newton solves stall on it (the 3D valve's sector at t = 0.237: three such cells next to
 //!   each other near the leaflet's free edge, 12 iterations a step with updates of 2e4 Pa at one cell's
-//!   pressure). The facets of the side that lies farther from gamma_s (the mean distance of
-//!   their centroids, weighted by their measure) leave gamma_f, so the cell joins the fluid on
-//!   that side.
+//!   pressure). The facets of one side leave gamma_f, so the cell joins the fluid on that side:
+//!   the side whose leaving leaves fewer ridges of gamma_f (edges in 3D, vertices in 2D) on one
+//!   facet only (no hole opens where the two sides do not cover the same part of gamma_s), and
+//!   of two such the one farther from gamma_s (the mean distance of the facets' centroids,
+//!   weighted by their measure).
 //! * **Flat cells**: a cell whose vertices all lie on gamma_s along one smooth part of it. With
 //!   feature lines (3D): its vertices share a smooth part and its centroid lies within
 //!   `GAMMA_F_REL_TOL` times its diameter of gamma_s. Without: its vertices lie within that
@@ -1227,10 +1229,12 @@ fn facet_measure<const D: usize>(p: &[[f64; D]; D]) -> f64 {
 
 /// The **cells on both sides** rule (see the module documentation): where a cell has gamma_f
 /// facets on both of its sides (on the minus side of some, the plus side of others), the facets
-/// of the side farther from gamma_s (mean distance of their centroids, weighted by their
-/// measure; ties: the plus side's) leave gamma_f, cell by cell in increasing order, skipping
-/// cells that a facet dropped before made one-sided. Returns the facets kept and the number of
-/// such cells.
+/// of one side leave gamma_f, cell by cell in increasing order, skipping cells that a facet
+/// dropped before made one-sided. The side dropped is the one that leaves fewer ridges (edges in
+/// 3D, vertices in 2D) of gamma_f on one facet only, so that gamma_f gets no hole where the
+/// sides do not cover the same part of gamma_s; where both leave as many, the side farther from
+/// gamma_s (mean distance of its facets' centroids, weighted by their measure; ties: the plus
+/// side). Returns the facets kept and the number of such cells.
 fn one_side_per_cell<const D: usize>(facets: Vec<(GammaFacet<D>, Misfit)>) -> (Vec<GammaFacet<D>>, usize) {
     // For each cell, its facets on gamma_f with the side it lies on (0: minus, 1: plus).
     let mut of_cell: HashMap<usize, Vec<(usize, usize)>> = HashMap::new();
@@ -1239,26 +1243,53 @@ fn one_side_per_cell<const D: usize>(facets: Vec<(GammaFacet<D>, Misfit)>) -> (V
             of_cell.entry(c).or_default().push((f, side));
         }
     }
+    // How many facets of gamma_f (those kept so far) share each ridge.
+    let ridges = |g: &GammaFacet<D>| -> Vec<Vec<usize>> {
+        (0..D)
+            .map(|skip| {
+                let mut r: Vec<usize> = (0..D).filter(|&k| k != skip).map(|k| g.vertices[k]).collect();
+                r.sort_unstable();
+                r
+            })
+            .collect()
+    };
+    let mut sharing: HashMap<Vec<usize>, usize> = HashMap::new();
+    for (g, _) in &facets {
+        for r in ridges(g) {
+            *sharing.entry(r).or_default() += 1;
+        }
+    }
     let mut cells: Vec<usize> = of_cell.keys().copied().collect();
     cells.sort_unstable();
     let mut dropped = vec![false; facets.len()];
     let mut two_sided = 0;
     for c in cells {
         let kept: Vec<(usize, usize)> = of_cell[&c].iter().copied().filter(|&(f, _)| !dropped[f]).collect();
-        let mean_distance = |side: usize| {
-            let (weighted, measure) = kept
-                .iter()
-                .filter(|&&(_, s)| s == side)
-                .map(|&(f, _)| facets[f].1)
-                .fold((0.0, 0.0), |(w, m), x| (w + x.measure * x.distance, m + x.measure));
-            (measure > 0.0).then(|| weighted / measure)
-        };
-        let (Some(minus), Some(plus)) = (mean_distance(0), mean_distance(1)) else { continue };
+        let side = |s: usize| kept.iter().filter(move |&&(_, k)| k == s).map(|&(f, _)| f);
+        if side(0).next().is_none() || side(1).next().is_none() {
+            continue;
+        }
         two_sided += 1;
-        let drop_side = if minus > plus { 0 } else { 1 };
-        for &(f, side) in &kept {
-            if side == drop_side {
-                dropped[f] = true;
+        // The ridges of side `s` that would be left on one facet without it.
+        let opened = |s: usize| {
+            let mut less: HashMap<Vec<usize>, usize> = HashMap::new();
+            side(s).flat_map(|f| ridges(&facets[f].0)).for_each(|r| *less.entry(r).or_default() += 1);
+            less.iter().filter(|(r, &n)| sharing[*r] - n == 1).count()
+        };
+        let mean_distance = |s: usize| {
+            let (weighted, measure) = side(s).map(|f| facets[f].1).fold((0.0, 0.0), |(w, m), x| (w + x.measure * x.distance, m + x.measure));
+            weighted / measure
+        };
+        let drop_side = match opened(0).cmp(&opened(1)) {
+            std::cmp::Ordering::Less => 0,
+            std::cmp::Ordering::Greater => 1,
+            std::cmp::Ordering::Equal if mean_distance(0) > mean_distance(1) => 0,
+            std::cmp::Ordering::Equal => 1,
+        };
+        for f in side(drop_side).collect::<Vec<_>>() {
+            dropped[f] = true;
+            for r in ridges(&facets[f].0) {
+                *sharing.get_mut(&r).expect("counted above") -= 1;
             }
         }
     }
@@ -1281,34 +1312,53 @@ mod tests {
         assert!(matches!(adapt(&q, &s, 0.2), Err(AdaptError::NotSimplex(_))));
     }
 
-    /// A cell with gamma_f facets on both of its sides (a sliver along a curved gamma_s) keeps
-    /// those of the side nearer gamma_s; the cells beside it, and a cell on one side only, keep
-    /// theirs.
+    /// A cell with gamma_f facets on both of its sides (a sliver along a curved gamma_s, its
+    /// two sides over the same four edges) keeps those of the side nearer gamma_s; the cells
+    /// beside it, and a cell on one side only, keep theirs.
     #[test]
     fn a_cell_on_both_sides_of_gamma_f_keeps_the_side_nearer_gamma_s() {
         let at = SurfacePoint { piece: 0, bary: [1.0, 0.0, 0.0], x: [0.0; 3], distance: 0.0 };
-        // Cell 0's facets: on its minus side at a mean distance (weighted by measure) of 0.013
-        // from gamma_s, on its plus side 0.033, though one lies on it: the plus side's leave.
-        // Cell 5 lies on one side only.
-        let facet = |k: usize, sides: [(usize, usize); 2], measure: f64, distance: f64| {
-            (GammaFacet { vertices: [k, k + 1, k + 2], sides, location: [at; 3] }, Misfit { measure, distance })
+        let facet = |vertices: [usize; 3], sides: [(usize, usize); 2], measure: f64, distance: f64| {
+            (GammaFacet { vertices, sides, location: [at; 3] }, Misfit { measure, distance })
         };
+        // The sliver 0123: on its minus side the facets over the diagonal 1-3, at a mean distance
+        // (weighted by measure) of 0.013 from gamma_s; on its plus side those over 0-2, 0.033,
+        // though one lies on it: the plus side leaves. Cell 5 lies on one side only.
         let facets = vec![
-            facet(0, [(0, 0), (1, 0)], 1.0, 0.01),
-            facet(1, [(0, 1), (2, 0)], 0.5, 0.02),
-            facet(2, [(3, 0), (0, 2)], 1.0, 0.05),
-            facet(3, [(4, 0), (0, 3)], 0.5, 0.0),
-            facet(4, [(5, 0), (6, 0)], 1.0, 0.3),
-            facet(5, [(5, 1), NO_CELL], 1.0, 0.3),
+            facet([0, 1, 3], [(0, 0), (1, 0)], 1.0, 0.01),
+            facet([1, 2, 3], [(0, 1), (2, 0)], 0.5, 0.02),
+            facet([0, 1, 2], [(3, 0), (0, 2)], 1.0, 0.05),
+            facet([0, 2, 3], [(4, 0), (0, 3)], 0.5, 0.0),
+            facet([6, 7, 8], [(5, 0), (6, 0)], 1.0, 0.3),
+            facet([7, 8, 9], [(5, 1), NO_CELL], 1.0, 0.3),
         ];
         let (kept, two_sided) = one_side_per_cell(facets);
         assert_eq!(two_sided, 1);
-        let firsts: Vec<usize> = kept.iter().map(|g| g.vertices[0]).collect();
-        assert_eq!(firsts, [0, 1, 4, 5]);
-        // Here the minus side lies farther (0.04 against 0.02): it leaves.
-        let facets = vec![facet(0, [(0, 0), (1, 0)], 1.0, 0.04), facet(1, [(2, 0), (0, 0)], 2.0, 0.02)];
-        let (kept, _) = one_side_per_cell(facets);
-        assert_eq!(kept.iter().map(|g| g.vertices[0]).collect::<Vec<_>>(), [1]);
+        let kept: Vec<[usize; 3]> = kept.iter().map(|g| g.vertices).collect();
+        assert_eq!(kept, [[0, 1, 3], [1, 2, 3], [6, 7, 8], [7, 8, 9]]);
+    }
+
+    /// Where the two sides of a cell do not cover the same part of gamma_s, the side whose
+    /// leaving opens no hole in gamma_f leaves, though it lies nearer gamma_s (2D: the triangle
+    /// abc along gamma_f x-a-b-c-y whose edge bc was not taken; dropping ac would leave b and c
+    /// each on one facet only).
+    #[test]
+    fn a_cell_on_both_sides_of_gamma_f_leaves_no_hole() {
+        let at = SurfacePoint { piece: 0, bary: [1.0, 0.0, 0.0], x: [0.0; 2], distance: 0.0 };
+        let facet = |vertices: [usize; 2], sides: [(usize, usize); 2], distance: f64| {
+            (GammaFacet { vertices, sides, location: [at; 2] }, Misfit { measure: 1.0, distance })
+        };
+        let (a, b, c, x, y) = (0, 1, 2, 3, 4);
+        let facets = vec![
+            facet([x, a], [(1, 0), (2, 0)], 0.0),
+            facet([a, b], [(0, 0), (3, 0)], 0.0),
+            facet([a, c], [(4, 0), (0, 1)], 0.1),
+            facet([c, y], [(5, 0), (6, 0)], 0.0),
+        ];
+        let (kept, two_sided) = one_side_per_cell(facets);
+        assert_eq!(two_sided, 1);
+        let kept: Vec<[usize; 2]> = kept.iter().map(|g| g.vertices).collect();
+        assert_eq!(kept, [[x, a], [a, c], [c, y]]);
     }
 
     /// A cell in the wedge of two faces given without shared corners (no feature lines), two of

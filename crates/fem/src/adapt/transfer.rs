@@ -106,13 +106,19 @@ impl<const D: usize> CellLocator<D> {
 /// take the function of the old cell on its other side: the result serves as an initial iterate,
 /// not as an interpolant.
 pub fn transfer_p1disc<const D: usize>(old_mesh: &Mesh<D>, old_values: &[f64], new_mesh: &Mesh<D>, extend: f64) -> Result<Vec<f64>, AdaptError> {
+    let want = if D == 2 { ReferenceCell::Triangle } else { ReferenceCell::Tetrahedron };
+    if let Some(m) = [old_mesh, new_mesh].into_iter().find(|m| m.cell_type != want || m.nodes_per_cell() != D + 1) {
+        return Err(AdaptError::Transfer(format!(
+            "the meshes must have linear {want:?} cells, one has {:?} with {} nodes",
+            m.cell_type,
+            m.nodes_per_cell()
+        )));
+    }
     if old_values.len() != old_mesh.num_cells() * (D + 1) {
         return Err(AdaptError::Transfer(format!("{} old values for {} cells x {} dofs", old_values.len(), old_mesh.num_cells(), D + 1)));
     }
-    let centroid = |mesh: &Mesh<D>, c: usize| -> [f64; D] {
-        let v = mesh.cell_vertices(c);
-        std::array::from_fn(|d| v.iter().map(|&n| mesh.points[n][d]).sum::<f64>() / v.len() as f64)
-    };
+    // Of a linear simplex: the vertex mean, the centroid of `p1disc_basis`.
+    let centroid = |mesh: &Mesh<D>, c: usize| super::enclosed::centroid(mesh, mesh.cell_vertices(c));
     let locator = CellLocator::new(old_mesh);
     let mut out = vec![0.0; new_mesh.num_cells() * (D + 1)];
     for (c, values) in out.chunks_exact_mut(D + 1).enumerate() {
