@@ -253,8 +253,7 @@ fn unknowns_are_described_by_field_and_position() {
     let (vel, pres) = (&disc.flow.velocity_field(), &disc.flow.pressure_field());
     let x = disc.flow.velocity_nodes[3];
     assert_eq!(disc.describe_unknown(&model, vel.dof(3, 1)), format!("the fluid velocity y at ({:.6}, {:.6})", x[0], x[1]));
-    let m = &disc.flow.mesh;
-    let c: [f64; 2] = std::array::from_fn(|d| m.cell_vertices(2).iter().map(|&v| m.points[v][d]).sum::<f64>() / 3.0);
+    let c = disc.flow.mesh.vertex_centroid(2);
     assert_eq!(
         disc.describe_unknown(&model, pres.dof(2 * 3 + 1, 0)),
         format!("fluid pressure dof 1 of cell 2 (centroid ({:.6}, {:.6}))", c[0], c[1])

@@ -1575,9 +1575,7 @@ impl<const D: usize> FsiDiscretization<D> {
             Block::FluidPressure => {
                 let (node, _) = node_and_component(self.flow.pressure_field(), i);
                 let cell = node / self.flow.pressure_field().nodes.per_cell;
-                let v = self.flow.mesh.cell_vertices(cell);
-                let centroid: [f64; D] = std::array::from_fn(|d| v.iter().map(|&n| self.flow.mesh.points[n][d]).sum::<f64>() / v.len() as f64);
-                format!("{} (centroid {})", cell_dof(self.flow.pressure_field(), i, "fluid"), at(&centroid))
+                format!("{} (centroid {})", cell_dof(self.flow.pressure_field(), i, "fluid"), at(&self.flow.mesh.vertex_centroid(cell)))
             }
             Block::Windkessel => {
                 let what = if k % 2 == 0 { "flux" } else { "capacitor pressure" };

@@ -89,6 +89,11 @@ impl<const D: usize> Mesh<D> {
     pub fn cell_vertices(&self, c: usize) -> &[usize] {
         &self.cell(c)[..self.cell_type.num_vertices()]
     }
+    /// The mean of the vertices of cell `c` (a linear simplex's centroid).
+    pub fn vertex_centroid(&self, c: usize) -> [f64; D] {
+        let v = self.cell_vertices(c);
+        std::array::from_fn(|d| v.iter().map(|&n| self.points[n][d]).sum::<f64>() / v.len() as f64)
+    }
     /// Coordinates of the geometry nodes of cell `c`, written into `out`.
     pub fn cell_coords_into(&self, c: usize, out: &mut Vec<[f64; D]>) {
         out.clear();

@@ -117,8 +117,8 @@ pub fn transfer_p1disc<const D: usize>(old_mesh: &Mesh<D>, old_values: &[f64], n
     if old_values.len() != old_mesh.num_cells() * (D + 1) {
         return Err(AdaptError::Transfer(format!("{} old values for {} cells x {} dofs", old_values.len(), old_mesh.num_cells(), D + 1)));
     }
-    // Of a linear simplex: the vertex mean, the centroid of `p1disc_basis`.
-    let centroid = |mesh: &Mesh<D>, c: usize| super::enclosed::centroid(mesh, mesh.cell_vertices(c));
+    // Of a linear simplex, the vertex mean is the centroid of `p1disc_basis`.
+    let centroid = |mesh: &Mesh<D>, c: usize| mesh.vertex_centroid(c);
     let locator = CellLocator::new(old_mesh);
     let mut out = vec![0.0; new_mesh.num_cells() * (D + 1)];
     for (c, values) in out.chunks_exact_mut(D + 1).enumerate() {
