@@ -132,10 +132,7 @@ fn p1disc_pressure_moves_to_the_new_cells() {
     let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 9, 7, DiagonalPattern::Alternating);
     let old = adapt(&mesh, &Surface::from_polyline(vec![[0.21, -0.5], [0.33, 0.5], [0.25, 1.5]]).unwrap(), 0.2).unwrap().mesh;
     let new = adapt(&mesh, &Surface::from_polyline(vec![[0.26, -0.5], [0.31, 0.5], [0.22, 1.5]]).unwrap(), 0.2).unwrap().mesh;
-    let centroid = |m: &Mesh<2>, c: usize| -> [f64; 2] {
-        let v = m.cell_vertices(c);
-        std::array::from_fn(|d| v.iter().map(|&n| m.points[n][d]).sum::<f64>() / 3.0)
-    };
+    let centroid = |m: &Mesh<2>, c: usize| m.vertex_centroid(c);
     let p = |x: &[f64; 2]| 3.0 - 2.0 * x[0] + 0.5 * x[1];
     let values: Vec<f64> = (0..old.num_cells()).flat_map(|c| [p(&centroid(&old, c)), -2.0, 0.5]).collect();
     let got = transfer_p1disc(&old, &values, &new, 0.0).unwrap();

@@ -62,7 +62,7 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>
 }
 
 /// The mean of `points` of `mesh`.
-pub(super) fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
+fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
     std::array::from_fn(|d| points.iter().map(|&p| mesh.points[p][d]).sum::<f64>() / points.len() as f64)
 }
 
@@ -90,7 +90,7 @@ fn enclosed_cells<const D: usize>(adapted: &Adapted<D>, topology: &Topology) -> 
             continue;
         }
         if fluid_side.contains(&c) {
-            return Err(AdaptError::NotEnclosed(centroid(mesh, mesh.cell_vertices(c)).to_vec()));
+            return Err(AdaptError::NotEnclosed(mesh.vertex_centroid(c).to_vec()));
         }
         for j in 0..ct.num_facets() {
             if !barrier.contains(&topology.facet(ct, c, j)) {
@@ -209,7 +209,7 @@ fn cells_by_side<const D: usize>(adapted: &Adapted<D>, topology: &Topology, surf
             if is_solid(a.0) || !lies_on_gamma_s(mesh, &vertices, &adapted.on_surface, surface) {
                 continue;
             }
-            let mut into_the_fluid = facing_away_from(mesh, a, &centroid(mesh, mesh.cell_vertices(a.0)));
+            let mut into_the_fluid = facing_away_from(mesh, a, &mesh.vertex_centroid(a.0));
             into_the_fluid.swap(0, 1);
             ([NO_CELL, a], into_the_fluid)
         } else if is_solid(a.0) != is_solid(b.0) {
@@ -217,7 +217,7 @@ fn cells_by_side<const D: usize>(adapted: &Adapted<D>, topology: &Topology, surf
             if !lies_on_gamma_s(mesh, &vertices, &adapted.on_surface, surface) {
                 return None;
             }
-            ([inner, outer], facing_away_from(mesh, inner, &centroid(mesh, mesh.cell_vertices(inner.0))))
+            ([inner, outer], facing_away_from(mesh, inner, &mesh.vertex_centroid(inner.0)))
         } else {
             continue;
         };

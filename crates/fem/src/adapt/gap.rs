@@ -177,7 +177,7 @@ pub fn remove_closed_gaps<const D: usize>(
     let behind = |x: &[f64; D]| surface.side(x).is_some_and(|s| s <= tol);
     let behind_gamma_s = |c: usize| {
         let vertices = mesh.cell_vertices(c);
-        vertices.iter().all(|&v| adapted.on_surface[v] || behind(&mesh.points[v])) && behind(&super::enclosed::centroid(mesh, vertices))
+        vertices.iter().all(|&v| adapted.on_surface[v] || behind(&mesh.points[v])) && behind(&mesh.vertex_centroid(c))
     };
     let mut cut = HashSet::new();
     let mut corners = Vec::new();

@@ -118,13 +118,12 @@ pub fn transfer_p1disc<const D: usize>(old_mesh: &Mesh<D>, old_values: &[f64], n
         return Err(AdaptError::Transfer(format!("{} old values for {} cells x {} dofs", old_values.len(), old_mesh.num_cells(), D + 1)));
     }
     // Of a linear simplex, the vertex mean is the centroid of `p1disc_basis`.
-    let centroid = |mesh: &Mesh<D>, c: usize| mesh.vertex_centroid(c);
     let locator = CellLocator::new(old_mesh);
     let mut out = vec![0.0; new_mesh.num_cells() * (D + 1)];
     for (c, values) in out.chunks_exact_mut(D + 1).enumerate() {
-        let x = centroid(new_mesh, c);
+        let x = new_mesh.vertex_centroid(c);
         let Some((old, _)) = locator.locate_within(old_mesh, &x, extend) else { continue };
-        let (x_old, p) = (centroid(old_mesh, old), &old_values[old * (D + 1)..(old + 1) * (D + 1)]);
+        let (x_old, p) = (old_mesh.vertex_centroid(old), &old_values[old * (D + 1)..(old + 1) * (D + 1)]);
         values[0] = p[0] + (0..D).map(|d| p[d + 1] * (x[d] - x_old[d])).sum::<f64>();
         values[1..].copy_from_slice(&p[1..]);
     }
