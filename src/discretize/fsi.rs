@@ -981,7 +981,7 @@ impl<const D: usize> FsiDiscretization<D> {
             for e in 0..ne {
                 let pts = coupling.point_start[e]..coupling.point_start[e + 1];
                 for (i, &node) in vel.nodes.cell(coupling.fluid_cell[e]).iter().enumerate() {
-                    let on_trace = pts.clone().any(|q| coupling.phi_f[q * nf + i].abs() > 1e-10);
+                    let on_trace = pts.clone().any(|q| coupling.phi_f[q * nf + i].abs() >= ON_TRACE);
                     if on_trace && (0..D).any(|a| tangents.contains_key(&vel.dof(node, a))) {
                         return Err(FsiError::Multiplier(
                             "the trace-mode multiplier where gamma_f meets a symmetry line of inclined normal is not implemented: use p1-discontinuous".into(),
@@ -1642,6 +1642,15 @@ fn connected_pieces<const D: usize>(gamma_f: &[GammaFacet<D>]) -> (Vec<usize>, u
     (piece, count)
 }
 
+/// The smallest value of a fluid basis function at a coupling point of a gamma_f facet that
+/// counts as the function's being on the facet's trace. The points lie on the facet, so the
+/// functions of the nodes off it vanish there but for the rounding of the point's reference
+/// coordinates, which a sliver cell amplifies: up to 9e-14 in the 3D valve's cells flattened
+/// against its plane of coaptation, where, counted as seen, they hid the multipliers that only
+/// held fluid-Dirichlet velocities (a null mode of the system with the leaflet in contact).
+/// The functions on the trace are of order one at some point of every facet.
+const ON_TRACE: f64 = 1e-10;
+
 /// The multipliers the fluid cannot see: the P1-discontinuous `mu` with `<mu, v> = 0` for every
 /// free (non-Dirichlet) fluid velocity `v`, returned as `M z` (see
 /// [`FsiDiscretization::kernel`]), one vector per mode, each supported on a few facets.
@@ -1708,7 +1717,8 @@ pub fn multiplier_kernel<const D: usize>(
         .map(|group| {
             group.iter().any(|&e| {
                 let cell = vel.nodes.cell(c.fluid_cell[e]);
-                let seen = |q: usize| cell.iter().enumerate().any(|(i, &node)| c.phi_f[q * nf + i].abs() >= 1e-14 && node_tangents(node).is_some());
+                let seen =
+                    |q: usize| cell.iter().enumerate().any(|(i, &node)| c.phi_f[q * nf + i].abs() >= ON_TRACE && node_tangents(node).is_some());
                 (c.point_start[e]..c.point_start[e + 1]).any(seen)
             })
         })
@@ -1752,7 +1762,7 @@ fn coupled_modes<const D: usize>(
         for q in c.point_start[e]..c.point_start[e + 1] {
             for (i, &node) in cell.iter().enumerate() {
                 let phi = c.phi_f[q * nf + i];
-                if phi.abs() < 1e-14 {
+                if phi.abs() < ON_TRACE {
                     continue;
                 }
                 for (j, t) in directions(node).iter().enumerate() {
@@ -1821,7 +1831,7 @@ fn component_modes<'g, const D: usize>(
                 for (i, &node) in cell.iter().enumerate() {
                     let phi = c.phi_f[q * nf + i];
                     let dof = vel.dof(node, a);
-                    if phi.abs() < 1e-14 || fixed.contains(&dof) {
+                    if phi.abs() < ON_TRACE || fixed.contains(&dof) {
                         continue;
                     }
                     let row = rows.entry(dof).or_insert_with(|| vec![0.0; ncol]);
@@ -2256,4 +2266,52 @@ pub fn wall_shear_stress(flow: &FlowDiscretization<2>, x: &[f64], gamma_f: &[Gam
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A gamma_f facet on a plane where the fluid's y-velocity is held (a leaflet pressed on a
+    /// symmetry plane), in a cell whose off-facet basis functions are not exactly zero at the
+    /// facet's points (the rounding of a sliver cell's reference coordinates, 5e-14 in the 3D
+    /// valve): the facet's y-multipliers test no free fluid velocity, so all three are removed.
+    #[test]
+    fn multipliers_of_a_held_facet_are_removed_despite_rounding_in_its_cell() {
+        const D: usize = 3;
+        let element = ReferenceElement::<D>::p2plus_tetrahedron();
+        let nf = element.num_dofs();
+        let on_facet = element.facet_nodes(0); // opposite vertex 0: reference vertices 1, 2, 3
+        let (mu_tab, weights, _) = multiplier_rule::<D>();
+        let mut c = CouplingElements::<D> { nf, fluid_cell: vec![0], point_start: vec![0], ..Default::default() };
+        let (mut vals, mut grads) = ([0.0; MAX_DOFS], [[0.0; D]; MAX_DOFS]);
+        for (q, &w) in weights.iter().enumerate() {
+            let mu = &mu_tab[q * D..(q + 1) * D];
+            let xi = [mu[0], mu[1], mu[2]]; // mu_0 (1,0,0) + mu_1 (0,1,0) + mu_2 (0,0,1)
+            element.eval_into(&xi, &mut vals[..nf], &mut grads[..nf]);
+            for (i, v) in vals[..nf].iter_mut().enumerate() {
+                if !on_facet.contains(&i) {
+                    *v = 5e-14;
+                }
+            }
+            c.phi_f.extend_from_slice(&vals[..nf]);
+            c.mu.extend_from_slice(mu);
+            c.weight.push(w);
+            c.x.push(xi);
+        }
+        c.point_start.push(c.weight.len());
+        let vel = fdfsi_fem::dofs::Field {
+            name: "velocity".into(),
+            components: D,
+            nodes: NodeMap { num_nodes: nf, per_cell: nf, cell_nodes: (0..nf).collect() },
+            offset: 0,
+        };
+        let at = fdfsi_fem::adapt::surface::SurfacePoint { piece: 0, bary: [1.0, 0.0, 0.0], x: [0.0; D], distance: 0.0 };
+        let gamma_f = [GammaFacet { vertices: [1, 2, 3], sides: [(0, 0), NO_CELL], location: [at; D] }];
+        let fixed = on_facet.iter().map(|&i| vel.dof(i, 1)).collect();
+        let kernel = multiplier_kernel(&c, &gamma_f, &vel, &fixed, &Default::default());
+        // Multiplier dofs (e * D + k) * D + a: component a = 1 only, at all three nodes k.
+        assert_eq!(kernel.len(), 3, "{kernel:?}");
+        assert!(kernel.iter().flatten().all(|&(i, _)| i % D == 1), "{kernel:?}");
+    }
 }
