@@ -337,6 +337,7 @@ const TOML_TOKENS: &[&str] = &[
     "shear_modulus",
     "eps_hat",
     "min_move_quality",
+    "min_cut_quality",
     "boundary_cuts",
     "\"touch\"",
     "\"split\"",

@@ -253,6 +253,14 @@ pub struct SolidSpec {
     /// attachment).
     #[serde(default, skip_serializing_if = "is_default")]
     pub boundary_cuts: BoundaryCuts,
+    /// A new fluid node on an edge whose other end moved onto gamma_s is dropped (the edge then
+    /// touches gamma_s at the moved node), where the chord between them runs along gamma_s, if a
+    /// cell it makes with the moved node would have a quality below this, in [0, 1); no move is
+    /// refused for it. Default 0: only below `min_move_quality`. Where gamma_s lies within
+    /// hundredths of an edge of the fluid's boundary (a leaflet pressed on its plane of
+    /// coaptation), such nodes make needle cells; 0.05 removes them.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub min_cut_quality: f64,
     /// Placement (2D): rotation in degrees (counter-clockwise) about `pivot`, then `translate`
     /// (finite numbers, one coordinate per dimension). The placed solid must lie inside the fluid
     /// mesh (`fdfsi check` locates every vertex of the solid mesh).
@@ -1264,7 +1272,7 @@ impl Case {
     }
 
     /// The first (or only) solid: with several, the options of the whole solid are its (`model`
-    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `boundary_cuts`, `loading`; validation holds them
+    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `boundary_cuts`, `min_cut_quality`, `loading`; validation holds them
     /// equal).
     pub fn first_solid(&self) -> Option<&SolidSpec> {
         self.solid.first()

@@ -450,13 +450,14 @@ fn solids(c: &Case, p: &mut Problems) {
     }
     // Each option of the whole solid as a text to compare.
     type Spelled = fn(&SolidSpec) -> String;
-    let shared: [(&str, Spelled); 7] = [
+    let shared: [(&str, Spelled); 8] = [
         ("model (fixed or a material law)", |s| (s.model == SolidModel::Fixed).to_string()),
         ("multiplier", |s| spelled(&s.multiplier)),
         ("covered_fluid", |s| spelled(&s.covered_fluid)),
         ("eps_hat", |s| s.eps_hat.to_string()),
         ("min_move_quality", |s| s.min_move_quality.to_string()),
         ("boundary_cuts", |s| spelled(&s.boundary_cuts)),
+        ("min_cut_quality", |s| s.min_cut_quality.to_string()),
         ("loading", |s| format!("{{ steps = {}, mode = {} }}", s.loading.steps, spelled(&s.loading.mode))),
     ];
     // The pressure field is the whole solid's: a mixed law (`neo-hookean`) in every solid or in none.
@@ -534,6 +535,9 @@ fn solid(c: &Case, solid: &SolidSpec, p: &mut Problems) {
     }
     if !(solid.min_move_quality > 0.0 && solid.min_move_quality < 1.0) {
         p.push(format!("solid.min_move_quality must lie in (0, 1), got {}", solid.min_move_quality));
+    }
+    if !(0.0..1.0).contains(&solid.min_cut_quality) {
+        p.push(format!("solid.min_cut_quality must lie in [0, 1), got {}", solid.min_cut_quality));
     }
     solid_mesh(c, solid, p);
     solid_placement(c, solid, p);

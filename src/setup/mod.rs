@@ -232,13 +232,14 @@ pub fn flow_problem<const D: usize>(case: &Case, mesh: &Mesh<D>, case_dir: &Path
     })
 }
 
-/// The adaptation's options of a case's (first) solid: `eps_hat`, `min_move_quality` and
-/// `boundary_cuts`.
+/// The adaptation's options of a case's (first) solid: `eps_hat`, `min_move_quality`,
+/// `boundary_cuts` and `min_cut_quality`.
 pub fn adapt_options(spec: &crate::case::SolidSpec) -> AdaptOptions {
     AdaptOptions {
         eps_hat: spec.eps_hat,
         min_move_quality: spec.min_move_quality,
         touch_fixed_boundary: spec.boundary_cuts == crate::case::BoundaryCuts::Touch,
+        min_cut_quality: spec.min_cut_quality,
     }
 }
 

@@ -312,6 +312,45 @@ fn boundary_vertices_next_to_a_plane_are_touched_when_asked() {
     assert!(worse <= cases / 20, "touches made the worst cell worse in {worse} of {cases} cases");
 }
 
+/// A surface lying within hundredths of an edge of a plane of nodes, tilted and curved a little
+/// (a valve leaflet pressed on its plane of coaptation): it cuts the plane's edges at grazing
+/// angles, and new nodes there, nearly in line with a moved node, make needle cells. With
+/// `min_cut_quality` those cuts are dropped (no move refused for them): every adapted mesh
+/// passes the checks, and the worst cell is never worse and sometimes better. Measured: 11 more
+/// cuts dropped in 120 cases, the worst cell better in 5 and worse in none; the worst of all
+/// 0.041 without, 0.051 with.
+#[test]
+fn cuts_beside_moved_nodes_are_dropped_below_min_cut_quality() {
+    use fdfsi_fem::adapt::{adapt_with, AdaptOptions, Background};
+    let mut rng = Rng(29);
+    let (mut better, mut worse, mut dropped, mut worst) = (0, 0, 0, [1.0f64; 2]);
+    let cases = 120;
+    for case in 0..cases {
+        let n = 3 + rng.below(3);
+        let mesh = box_tetrahedra(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, n, n, n);
+        let h = 1.0 / n as f64;
+        let z0 = (1 + rng.below(n - 1)) as f64 * h;
+        let (a, b, c) = (rng.uniform(-0.03, 0.03) * h, rng.uniform(-0.03, 0.03) * h, rng.uniform(0.0, 0.05) * h);
+        let s = patch(16, |x, y| [1.2 * x - 0.1, 1.2 * y - 0.1, z0 + a * x + b * y + c * ((x - 0.5).powi(2) + (y - 0.5).powi(2))]);
+        let what = format!("case {case}: n {n}, z0 {z0}, tilt {a:.2e} {b:.2e}, bulge {c:.2e}");
+        let bg = Background::new(&mesh).unwrap();
+        let plain = AdaptOptions::new(0.2);
+        let base = adapt_with(&bg, &s, &plain).unwrap_or_else(|e| panic!("{what}: {e}"));
+        let cut = adapt_with(&bg, &s, &AdaptOptions { min_cut_quality: 0.05, ..plain }).unwrap_or_else(|e| panic!("{what}: {e}"));
+        verify_adapted(&mesh, &base, &s).unwrap_or_else(|e| panic!("{what} (plain): {e}"));
+        verify_adapted(&mesh, &cut, &s).unwrap_or_else(|e| panic!("{what} (min_cut_quality): {e}"));
+        let (q0, q1) = (base.stats.min_quality, cut.stats.min_quality);
+        better += (q1 > 1.5 * q0) as usize;
+        worse += (q1 < q0) as usize;
+        dropped += cut.stats.cuts_at_moved_ends.saturating_sub(base.stats.cuts_at_moved_ends);
+        worst = [worst[0].min(q0), worst[1].min(q1)];
+    }
+    println!("min_cut_quality 0.05: {dropped} more cuts dropped; the worst cell better in {better} of {cases} cases, worse in {worse}; worst of all {worst:?}");
+    assert!(dropped > 0 && better > 0, "no cut dropped or no cell bettered: {dropped}, {better}");
+    assert_eq!(worse, 0, "the worst cell worse in {worse} cases");
+    assert!(worst[1] > worst[0], "the worst cell of all: {worst:?}");
+}
+
 /// The distance from `p` to the triangle `t` (Ericson, Real-Time Collision Detection, 5.1.5).
 fn distance_to_triangle(p: &[f64; 3], t: &[[f64; 3]; 3]) -> f64 {
     let sub = |a: &[f64; 3], b: &[f64; 3]| -> [f64; 3] { std::array::from_fn(|k| a[k] - b[k]) };

@@ -32,7 +32,12 @@
 //!   added. Where a new node on an edge with a moved end makes a bad cell (inverted, flat or of
 //!   poor quality, as below), the next pass drops that cut instead of undoing the move: the edge
 //!   touches gamma_s at its moved end, if the chord from the cut to the moved end runs along
-//!   gamma_s (not across a corner: there the move is undone). This happens where gamma_s runs
+//!   gamma_s (not across a corner: there the move is undone). With
+//!   [`AdaptOptions::min_cut_quality`] such a cut is dropped from a higher quality on, with no
+//!   move undone for it: where gamma_s lies within hundredths of an edge of a boundary plane
+//!   (a valve leaflet pressed on its plane of coaptation) it cuts the plane's edges at grazing
+//!   angles, and a new node there, nearly in line with a moved node and another new one, made
+//!   needle cells (quality 0.015) with a facet on gamma_f, where Newton stalled. This happens where gamma_s runs
 //!   nearly parallel to a plane of nodes: the nodes move a little onto gamma_s while the edges
 //!   between them are cut far from their ends. Undoing the moves instead put new nodes next to
 //!   the pinned nodes and refused their neighbours' moves in turn (model problem 4 with nodes at
@@ -241,12 +246,17 @@ pub struct AdaptOptions {
     /// there, next to the vertex; `true` drops the cut and takes the vertex, where it is, to lie
     /// on gamma_s (`boundary_touches`; see the module documentation).
     pub touch_fixed_boundary: bool,
+    /// A new node on an edge whose other end moved onto gamma_s is dropped, where the edge can
+    /// touch gamma_s at its moved end instead (**Cuts at moved ends**), if a cell it makes with
+    /// the moved node has a quality below this, without the move's being refused for it (that
+    /// stays below `min_move_quality`). `0` (the default): only below `min_move_quality`.
+    pub min_cut_quality: f64,
 }
 
 impl AdaptOptions {
-    /// Options with the given `eps_hat` and `min_move_quality = 0.01`.
+    /// Options with the given `eps_hat`, `min_move_quality = 0.01` and `min_cut_quality = 0`.
     pub fn new(eps_hat: f64) -> Self {
-        AdaptOptions { eps_hat, min_move_quality: 0.01, touch_fixed_boundary: false }
+        AdaptOptions { eps_hat, min_move_quality: 0.01, touch_fixed_boundary: false, min_cut_quality: 0.0 }
     }
 }
 
@@ -428,7 +438,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         let parts_at = PartsAt::new(surface, &parts);
         let flat_test = FlatTest { on_surface: &on_surface, corners: &corner_vertices, parts: has_parts.then_some(&parts_at), pos: &pos, surface };
         let split = subdivide_cells(bg, &plan, &flat_test);
-        let bad = refused_by_cells(bg, surface, &plan, &split, opts.min_move_quality, &flat_test);
+        let bad = refused_by_cells(bg, surface, &plan, &split, opts, &flat_test);
         let (np, nd) = (pinned.len(), dropped.len());
         pinned.extend(bad.pin);
         dropped.extend(bad.drop);
@@ -868,11 +878,12 @@ struct Refusals {
     drop: Vec<usize>,
 }
 
-/// The remedies for the children that are inverted, of quality below `min_quality`, or flat (all
-/// vertices on gamma_s) and touch a moved node: where such a child has a new node on an edge with
-/// a moved end, and the chord from the new node to the moved end runs along gamma_s
+/// The remedies for the children that are inverted, of quality below `min_move_quality`, or flat
+/// (all vertices on gamma_s) and touch a moved node: where such a child has a new node on an edge
+/// with a moved end, and the chord from the new node to the moved end runs along gamma_s
 /// ([`chord_along_surface`]), that edge's cut is dropped (the edge touches gamma_s at the moved
-/// end); otherwise the moves of the child's nodes are undone. The chord test keeps a cut whose
+/// end); otherwise the moves of the child's nodes are undone. A child of quality below
+/// `min_cut_quality` only (and not refused) gets the first remedy where it applies, and no other. The chord test keeps a cut whose
 /// moved end went to another side of a corner: near the Turek-Hron bar's tip, an edge cut by the
 /// bottom face had its other end moved onto the tip face; dropping the cut left the bottom face
 /// between that cut and the corner without a facet, and gamma_f open (FSI3 at t = 3.786).
@@ -881,7 +892,7 @@ fn refused_by_cells<const D: usize>(
     surface: &Surface<D>,
     plan: &Plan<D>,
     split: &Split,
-    min_quality: f64,
+    opts: &AdaptOptions,
     flat_test: &FlatTest<D>,
 ) -> Refusals {
     let nv = bg.mesh.points.len();
@@ -897,8 +908,9 @@ fn refused_by_cells<const D: usize>(
                 continue;
             }
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
-            let flat = is_flat(kid, flat_test);
-            if simplex_measure(&v) > 0.0 && simplex_quality(&v) >= min_quality && !flat {
+            let quality = simplex_quality(&v);
+            let refused = simplex_measure(&v) <= 0.0 || quality < opts.min_move_quality || is_flat(kid, flat_test);
+            if !refused && quality >= opts.min_cut_quality {
                 continue;
             }
             let len = r.drop.len();
@@ -909,7 +921,7 @@ fn refused_by_cells<const D: usize>(
                     r.drop.push(e);
                 }
             }
-            if r.drop.len() == len {
+            if refused && r.drop.len() == len {
                 r.pin.extend(moved);
             }
         }
