@@ -257,7 +257,7 @@ pub struct SolidSpec {
     /// touches gamma_s at the moved node), where the chord between them runs along gamma_s, if a
     /// cell it makes with the moved node would have a quality below this, in [0, 1); no move is
     /// refused for it. Default 0: only below `min_move_quality`. Where gamma_s lies within
-    /// hundredths of an edge of the fluid's boundary (a leaflet pressed on its plane of
+    /// hundredths of an edge of a plane of fluid nodes (a leaflet pressed on its plane of
     /// coaptation), such nodes make needle cells; 0.05 removes them.
     #[serde(default, skip_serializing_if = "is_default")]
     pub min_cut_quality: f64,
@@ -1272,7 +1272,8 @@ impl Case {
     }
 
     /// The first (or only) solid: with several, the options of the whole solid are its (`model`
-    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `boundary_cuts`, `min_cut_quality`, `loading`; validation holds them
+    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `boundary_cuts`,
+    /// `min_cut_quality`, `loading`; validation holds them
     /// equal).
     pub fn first_solid(&self) -> Option<&SolidSpec> {
         self.solid.first()

@@ -274,9 +274,9 @@ mod tests {
             adapt_options(case.first_solid().unwrap())
         };
         let defaults = options("");
-        assert_eq!((defaults.eps_hat, defaults.min_move_quality, defaults.touch_fixed_boundary), (0.2, 0.01, false));
-        let given = options("eps_hat = 0.3\nmin_move_quality = 0.001\nboundary_cuts = \"touch\"\n");
-        assert_eq!((given.eps_hat, given.min_move_quality, given.touch_fixed_boundary), (0.3, 0.001, true));
+        assert_eq!((defaults.eps_hat, defaults.min_move_quality, defaults.touch_fixed_boundary, defaults.min_cut_quality), (0.2, 0.01, false, 0.0));
+        let given = options("eps_hat = 0.3\nmin_move_quality = 0.001\nboundary_cuts = \"touch\"\nmin_cut_quality = 0.05\n");
+        assert_eq!((given.eps_hat, given.min_move_quality, given.touch_fixed_boundary, given.min_cut_quality), (0.3, 0.001, true, 0.05));
         assert!(!options("boundary_cuts = \"split\"\n").touch_fixed_boundary);
     }
 

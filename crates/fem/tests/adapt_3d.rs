@@ -342,7 +342,7 @@ fn cuts_beside_moved_nodes_are_dropped_below_min_cut_quality() {
         let (q0, q1) = (base.stats.min_quality, cut.stats.min_quality);
         better += (q1 > 1.5 * q0) as usize;
         worse += (q1 < q0) as usize;
-        dropped += cut.stats.cuts_at_moved_ends.saturating_sub(base.stats.cuts_at_moved_ends);
+        dropped += cut.stats.cuts_at_moved_ends as i64 - base.stats.cuts_at_moved_ends as i64;
         worst = [worst[0].min(q0), worst[1].min(q1)];
     }
     println!("min_cut_quality 0.05: {dropped} more cuts dropped; the worst cell better in {better} of {cases} cases, worse in {worse}; worst of all {worst:?}");

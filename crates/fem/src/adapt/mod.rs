@@ -32,17 +32,18 @@
 //!   added. Where a new node on an edge with a moved end makes a bad cell (inverted, flat or of
 //!   poor quality, as below), the next pass drops that cut instead of undoing the move: the edge
 //!   touches gamma_s at its moved end, if the chord from the cut to the moved end runs along
-//!   gamma_s (not across a corner: there the move is undone). With
-//!   [`AdaptOptions::min_cut_quality`] such a cut is dropped from a higher quality on, with no
-//!   move undone for it: where gamma_s lies within hundredths of an edge of a boundary plane
-//!   (a valve leaflet pressed on its plane of coaptation) it cuts the plane's edges at grazing
-//!   angles, and a new node there, nearly in line with a moved node and another new one, made
-//!   needle cells (quality 0.015) with a facet on gamma_f, where Newton stalled. This happens where gamma_s runs
+//!   gamma_s (not across a corner: there the move is undone). This happens where gamma_s runs
 //!   nearly parallel to a plane of nodes: the nodes move a little onto gamma_s while the edges
 //!   between them are cut far from their ends. Undoing the moves instead put new nodes next to
 //!   the pinned nodes and refused their neighbours' moves in turn (model problem 4 with nodes at
 //!   z = 2: 452 refused moves, cells of quality 3.6e-6, a singular system; now 133 moves, 24
-//!   dropped cuts, 3 new nodes, worst quality 0.018, and the step converges).
+//!   dropped cuts, 3 new nodes, worst quality 0.018, and the step converges). With
+//!   [`AdaptOptions::min_cut_quality`] such a cut is dropped below that higher quality too, and
+//!   no move is undone for that reason: where gamma_s lies within hundredths of an edge of a
+//!   plane of fluid nodes (a valve leaflet pressed on its plane of coaptation) it cuts the
+//!   plane's edges at grazing angles, and a new node there, nearly in line with a moved node and
+//!   another new one, made needle cells (quality 0.015) with a facet on gamma_f, where Newton
+//!   stalled.
 //! * **Refused moves** (`refused_moves`) become a new node at `x_i` instead: a boundary vertex may
 //!   only move within the planes (lines) of all its boundary facets (tolerance `1e-12` relative),
 //!   so the domain never changes; and a move is undone when a cell touching the moved node (or one
@@ -247,9 +248,9 @@ pub struct AdaptOptions {
     /// on gamma_s (`boundary_touches`; see the module documentation).
     pub touch_fixed_boundary: bool,
     /// A new node on an edge whose other end moved onto gamma_s is dropped, where the edge can
-    /// touch gamma_s at its moved end instead (**Cuts at moved ends**), if a cell it makes with
-    /// the moved node has a quality below this, without the move's being refused for it (that
-    /// stays below `min_move_quality`). `0` (the default): only below `min_move_quality`.
+    /// touch gamma_s at its moved end instead (**Cuts at moved ends**), if a cell it is in with a
+    /// moved node has a quality below this; such a cell alone undoes no move (that stays below
+    /// `min_move_quality`). `0` (the default): only below `min_move_quality`.
     pub min_cut_quality: f64,
 }
 
@@ -909,7 +910,8 @@ fn refused_by_cells<const D: usize>(
             }
             let v: Vec<[f64; D]> = kid[..=D].iter().map(|&g| plan.pos(bg, g)).collect();
             let quality = simplex_quality(&v);
-            let refused = simplex_measure(&v) <= 0.0 || quality < opts.min_move_quality || is_flat(kid, flat_test);
+            // Negated comparisons: a NaN measure or quality is refused.
+            let refused = !(simplex_measure(&v) > 0.0) || !(quality >= opts.min_move_quality) || is_flat(kid, flat_test);
             if !refused && quality >= opts.min_cut_quality {
                 continue;
             }
