@@ -132,12 +132,11 @@ fn p1disc_pressure_moves_to_the_new_cells() {
     let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 9, 7, DiagonalPattern::Alternating);
     let old = adapt(&mesh, &Surface::from_polyline(vec![[0.21, -0.5], [0.33, 0.5], [0.25, 1.5]]).unwrap(), 0.2).unwrap().mesh;
     let new = adapt(&mesh, &Surface::from_polyline(vec![[0.26, -0.5], [0.31, 0.5], [0.22, 1.5]]).unwrap(), 0.2).unwrap().mesh;
-    let centroid = |m: &Mesh<2>, c: usize| m.vertex_centroid(c);
     let p = |x: &[f64; 2]| 3.0 - 2.0 * x[0] + 0.5 * x[1];
-    let values: Vec<f64> = (0..old.num_cells()).flat_map(|c| [p(&centroid(&old, c)), -2.0, 0.5]).collect();
+    let values: Vec<f64> = (0..old.num_cells()).flat_map(|c| [p(&old.vertex_centroid(c)), -2.0, 0.5]).collect();
     let got = transfer_p1disc(&old, &values, &new, 0.0).unwrap();
     for c in 0..new.num_cells() {
-        let want = [p(&centroid(&new, c)), -2.0, 0.5];
+        let want = [p(&new.vertex_centroid(c)), -2.0, 0.5];
         for (g, w) in got[3 * c..3 * c + 3].iter().zip(want) {
             assert!((g - w).abs() < 1e-12, "cell {c}: {g} against {w}");
         }
@@ -146,7 +145,7 @@ fn p1disc_pressure_moves_to_the_new_cells() {
     let wider = rectangle_triangles(0.0, 2.0, 0.0, 1.0, 2, 1, DiagonalPattern::Right);
     let got = transfer_p1disc(&old, &values, &wider, 0.0).unwrap();
     for c in 0..wider.num_cells() {
-        let x = centroid(&wider, c);
+        let x = wider.vertex_centroid(c);
         let want = if x[0] < 1.0 { [p(&x), -2.0, 0.5] } else { [0.0; 3] };
         for (g, w) in got[3 * c..3 * c + 3].iter().zip(want) {
             assert!((g - w).abs() < 1e-12, "cell {c} at {x:?}: {g} against {w}");

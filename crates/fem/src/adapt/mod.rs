@@ -884,7 +884,8 @@ struct Refusals {
 /// with a moved end, and the chord from the new node to the moved end runs along gamma_s
 /// ([`chord_along_surface`]), that edge's cut is dropped (the edge touches gamma_s at the moved
 /// end); otherwise the moves of the child's nodes are undone. A child of quality below
-/// `min_cut_quality` only (and not refused) gets the first remedy where it applies, and no other. The chord test keeps a cut whose
+/// `min_cut_quality` only (and not refused) gets the first remedy where it applies, and no
+/// other. The chord test keeps a cut whose
 /// moved end went to another side of a corner: near the Turek-Hron bar's tip, an edge cut by the
 /// bottom face had its other end moved onto the tip face; dropping the cut left the bottom face
 /// between that cut and the corner without a facet, and gamma_f open (FSI3 at t = 3.786).
