@@ -183,6 +183,8 @@ fn axisymmetric_pipe_is_hagen_poiseuille_to_round_off() {
     assert!((dp - 8.0).abs() < 1e-9, "{dp}");
     // The largest speed is the axis velocity, sampled at vertices on the axis.
     assert!((q(&s, "max_speed") - 2.0).abs() < 1e-10, "{}", q(&s, "max_speed"));
+    // Over r >= 0.5 only: the speed at r = 0.5, 2 (1 - 0.25).
+    assert!((q(&s, "max_speed_outer_half") - 1.5).abs() < 1e-10, "{}", q(&s, "max_speed_outer_half"));
 }
 
 #[test]

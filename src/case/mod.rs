@@ -971,7 +971,7 @@ pub struct OutputSpec {
     /// Profiles along a boundary, written at the end of the run to `profiles/NAME.csv`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub profile: Vec<ProfileSpec>,
-    /// Quantities of the whole fluid domain: `max-speed`.
+    /// Quantities of the fluid domain (or of a slab of it): `max-speed`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub domain: Vec<DomainQuantitySpec>,
     /// Linear combinations of other quantities (evaluated after them, in file order).
@@ -1009,8 +1009,8 @@ pub struct OpenAreaSpec {
 /// `[output.cycles]`: the statistics of every whole cycle `K` (1-based) of `period` from `start`
 /// ([`crate::post::cycles`]), written to `summary.json` as `cycle_K_forward_volume`,
 /// `cycle_K_backward_volume`, `cycle_K_leak_volume`, `cycle_K_closing_time`,
-/// `cycle_K_opening_time` (from the cycle's start), `cycle_K_peak_QUANTITY` and
-/// `cycle_K_forward_mean_QUANTITY`.
+/// `cycle_K_opening_time` (from the cycle's start), `cycle_K_peak_QUANTITY`,
+/// `cycle_K_forward_peak_QUANTITY` and `cycle_K_forward_mean_QUANTITY`.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CyclesSpec {
@@ -1028,9 +1028,14 @@ pub struct CyclesSpec {
     /// `[[solid.contact]]`: the leak volume and the closing and opening times need it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub contact_force: Option<String>,
-    /// Quantities whose largest value in each cycle is reported (e.g. `max_speed`: the peak jet).
+    /// Quantities whose largest value in each cycle is reported (e.g. `max_speed`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub peak: Vec<String>,
+    /// Quantities whose largest value over each cycle's forward flow (the steps of its
+    /// forward mean) is reported, e.g. the speed in the root: the peak systolic jet, not the
+    /// leaflets' sweep as they close.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub forward_peak: Vec<String>,
     /// Quantities whose mean over each cycle's forward flow (`flux > 0`) is reported (e.g. the
     /// transvalvular pressure difference: the mean systolic gradient).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -1051,20 +1056,41 @@ pub struct OscillationSpec {
     pub from: f64,
 }
 
-/// A quantity of the whole fluid domain.
+/// A quantity of the fluid domain, or of the part of it in a slab.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DomainQuantitySpec {
     pub name: String,
     pub kind: DomainQuantityKind,
+    /// Only the fluid between two planes normal to an axis (default: all of it), e.g. a valve's
+    /// root downstream of the annulus and short of the outlet, for the jet's speed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slab: Option<SlabSpec>,
+}
+
+/// The slab `from <= x_axis <= to` between two planes normal to a coordinate axis.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlabSpec {
+    pub axis: Axis,
+    pub from: f64,
+    /// `> from`.
+    pub to: f64,
+}
+
+impl SlabSpec {
+    /// Whether the point `x` lies in the slab (its faces included).
+    pub fn contains<const D: usize>(&self, x: &[f64; D]) -> bool {
+        x.get(self.axis.index()).is_some_and(|&v| self.from <= v && v <= self.to)
+    }
 }
 
 /// Kinds of domain quantity.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum DomainQuantityKind {
-    /// `max |u|` over the vertices, edge midpoints and centroids of all fluid cells (the
-    /// points where P2+ is interpolatory plus its bubble point).
+    /// `max |u|` over the vertices, edge midpoints and centroids of the fluid cells (the
+    /// points where P2+ is interpolatory plus its bubble point; with a `slab`, those in it).
     MaxSpeed,
 }
 

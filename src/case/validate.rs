@@ -293,6 +293,14 @@ fn output(c: &Case, p: &mut Problems) {
     }
     fsi_time(c, p);
     let d = c.dim();
+    for (q, slab) in c.output.domain.iter().filter_map(|q| q.slab.map(|s| (q, s))) {
+        if slab.axis.index() >= d {
+            p.push(format!("domain quantity '{}': slab.axis {:?} is not an axis of a {d}D model", q.name, slab.axis));
+        }
+        if !(slab.from.is_finite() && slab.to.is_finite() && slab.from < slab.to) {
+            p.push(format!("domain quantity '{}': slab needs finite from < to, got from = {}, to = {}", q.name, slab.from, slab.to));
+        }
+    }
     for b in &c.output.boundary_integral {
         if b.kind == BoundaryIntegralKind::Force && b.component >= d {
             p.push(format!("boundary_integral '{}': component must be < {d}", b.name));
@@ -397,7 +405,8 @@ fn combinations(c: &Case, p: &mut Problems) {
             p.push("output.cycles: needs a time-dependent run ([time])");
         }
         let named = std::iter::once(("flux", &cycles.flux)).chain(cycles.contact_force.iter().map(|f| ("contact_force", f)));
-        let listed = cycles.peak.iter().map(|q| ("peak", q)).chain(cycles.forward_mean.iter().map(|q| ("forward_mean", q)));
+        let listed = cycles.peak.iter().map(|q| ("peak", q)).chain(cycles.forward_peak.iter().map(|q| ("forward_peak", q)));
+        let listed = listed.chain(cycles.forward_mean.iter().map(|q| ("forward_mean", q)));
         for (key, name) in named.chain(listed) {
             if !known.contains(name.as_str()) {
                 p.push(format!("output.cycles.{key}: unknown quantity '{name}'"));

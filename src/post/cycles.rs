@@ -10,7 +10,9 @@
 //! - closing time: the first sample, from the cycle's start, at which the valve is closed after
 //!   a sample at which it was open; opening time: the first at which it is open after one at
 //!   which it was closed (`NaN` when the valve does not close or open in the cycle);
-//! - the largest value of each peak quantity;
+//! - the largest value of each peak quantity, and of each forward-peak quantity over the
+//!   forward flow (the steps of the forward mean, below): a valve's peak systolic jet, without
+//!   the leaflets' sweep as they close;
 //! - the mean of each forward-mean quantity over the forward flow, `int g [Q > 0] dt / int [Q >
 //!   0] dt` over the steps that start and end with `Q > 0` and the valve open (trapezoidal rule;
 //!   a forward flux while closed, a leaflet ringing after it shut, is not systole): the mean
@@ -31,20 +33,36 @@ pub struct Cycle {
     pub opening_time: f64,
     /// The largest value of each peak quantity, in their order.
     pub peaks: Vec<f64>,
+    /// The largest value of each forward-peak quantity over the cycle's forward flow while
+    /// open, in their order (`NaN` when no step has forward flow throughout).
+    pub forward_peaks: Vec<f64>,
     /// The mean of each forward-mean quantity over the cycle's forward flow while open, in their
     /// order (`NaN` when no step has forward flow throughout).
     pub forward_means: Vec<f64>,
 }
 
+/// The quantities sampled with the flux whose statistics [`cycles`] reports, each a slice of
+/// the same length as the samples.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CycleQuantities<'a> {
+    /// Reported by their largest value in each cycle.
+    pub peaks: &'a [&'a [f64]],
+    /// Reported by their largest value over each cycle's forward flow.
+    pub forward_peaks: &'a [&'a [f64]],
+    /// Reported by their mean over each cycle's forward flow.
+    pub forward_means: &'a [&'a [f64]],
+}
+
 /// The whole cycles of period `period` (cycle `k` spans `[t_0 + (k - 1) T, t_0 + k T]`, `t_0` the
 /// `offset`: e.g. mid-diastole, so that each cycle holds one opening and one closing of a valve
 /// whatever their small shifts from beat to beat) in the samples `t`
-/// (increasing) of the flux `q`, the contact force `force` (if any) and the peak quantities
-/// `peaks` and the forward-mean quantities `means`. A cycle is whole when the samples cover it to a step at its start (a run's history
+/// (increasing) of the flux `q`, the contact force `force` (if any) and the `quantities`: the
+/// peak, forward-peak and forward-mean ones. A cycle is whole when the samples cover it to a step at its start (a run's history
 /// starts at its first step's end) and to half a step at its end; a history that starts later
 /// (a run started from another's state) has no whole cycles before that. A non-finite flux makes
 /// the cycle's volumes `NaN`.
-pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], means: &[&[f64]], period: f64, offset: f64) -> Vec<Cycle> {
+pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, quantities: &CycleQuantities<'_>, period: f64, offset: f64) -> Vec<Cycle> {
+    let CycleQuantities { peaks, forward_peaks, forward_means: means } = *quantities;
     let (Some(&first), Some(&last)) = (t.first(), t.last()) else { return Vec::new() };
     let step = if t.len() > 1 { (last - first) / (t.len() - 1) as f64 } else { 0.0 };
     let whole = ((last - offset + 0.5 * step) / period).floor().max(0.0) as usize;
@@ -76,6 +94,7 @@ pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], mea
             let forward_steps: Vec<usize> = (range.start + 1..range.end).filter(|&i| open(i)).collect();
             let duration: f64 = forward_steps.iter().map(|&i| t[i] - t[i - 1]).sum();
             let forward_mean = |g: &[f64]| forward_steps.iter().map(|&i| 0.5 * (t[i] - t[i - 1]) * (g[i - 1] + g[i])).sum::<f64>() / duration;
+            let forward_peak = |g: &[f64]| forward_steps.iter().map(|&i| g[i - 1].max(g[i])).fold(f64::NAN, f64::max);
             let finite = q[range.clone()].iter().all(|v| v.is_finite());
             let volume = |v: f64| if finite { v } else { f64::NAN };
             Cycle {
@@ -86,6 +105,7 @@ pub fn cycles(t: &[f64], q: &[f64], force: Option<&[f64]>, peaks: &[&[f64]], mea
                 closing_time: change(true),
                 opening_time: change(false),
                 peaks: peaks.iter().map(|p| inside().map(|i| p[i]).fold(f64::NEG_INFINITY, f64::max)).collect(),
+                forward_peaks: forward_peaks.iter().map(|g| forward_peak(g)).collect(),
                 forward_means: means.iter().map(|g| if duration > 0.0 { forward_mean(g) } else { f64::NAN }).collect(),
             }
         })
@@ -116,7 +136,8 @@ mod tests {
             .collect();
         let force: Vec<f64> = t.iter().map(|&t| if phase(t) >= 0.6 || phase(t) < 0.1 { 1.0 } else { 0.0 }).collect();
         let speed: Vec<f64> = t.iter().map(|&t| 2.0 + t).collect();
-        let c = cycles(&t, &q, Some(&force), &[&speed], &[&speed], 1.0, 0.0);
+        let speeds: &[&[f64]] = &[&speed];
+        let c = cycles(&t, &q, Some(&force), &CycleQuantities { peaks: speeds, forward_peaks: speeds, forward_means: speeds }, 1.0, 0.0);
         assert_eq!(c.len(), 2, "2.5 cycles: two whole ones");
         for (k, cycle) in c.iter().enumerate() {
             assert_eq!(cycle.index, k + 1);
@@ -131,6 +152,8 @@ mod tests {
             // k + 0.11 to k + 0.49 (or from k + 0.1, where round-off makes Q(k + 0.1) > 0): the
             // middle, k + 0.3, to half a step.
             assert!((cycle.forward_means[0] - (2.0 + k as f64 + 0.3)).abs() < 0.0051, "{cycle:?}");
+            // Its largest value over the forward flow: at the last forward sample, k + 0.49.
+            assert!((cycle.forward_peaks[0] - (2.0 + k as f64 + 0.49)).abs() < 1e-9, "{cycle:?}");
         }
         // A forward blip while closed (a leaflet ringing after it shut) is not systole: the
         // forward mean of a quantity that is 100 there is unchanged with the contact force.
@@ -140,24 +163,28 @@ mod tests {
             blip[i] = 0.05;
             marked[i] = 100.0;
         }
-        let with_blip = cycles(&t, &blip, Some(&force), &[], &[&marked], 1.0, 0.0);
+        let marks: &[&[f64]] = &[&marked];
+        let with_blip =
+            cycles(&t, &blip, Some(&force), &CycleQuantities { forward_peaks: marks, forward_means: marks, ..Default::default() }, 1.0, 0.0);
         assert!((with_blip[0].forward_means[0] - c[0].forward_means[0]).abs() < 1e-12, "{with_blip:?}");
+        assert_eq!(with_blip[0].forward_peaks[0], c[0].forward_peaks[0], "{with_blip:?}");
         // Without a contact force: no leak, no times.
-        let open = cycles(&t, &q, None, &[], &[], 1.0, 0.0);
+        let open = cycles(&t, &q, None, &CycleQuantities::default(), 1.0, 0.0);
+        assert!(open[0].forward_peaks.is_empty());
         assert!(open[0].leak_volume.is_nan() && open[0].closing_time.is_nan() && open[0].opening_time.is_nan());
-        assert!(cycles(&t[..50], &q[..50], None, &[], &[], 1.0, 0.0).is_empty());
+        assert!(cycles(&t[..50], &q[..50], None, &CycleQuantities::default(), 1.0, 0.0).is_empty());
         // A history from the first step's end (no t = 0 row) still has its first cycle; one
         // that starts at t = 0.6 has only the second.
-        assert_eq!(cycles(&t[1..], &q[1..], None, &[], &[], 1.0, 0.0).len(), 2);
-        let later = cycles(&t[60..], &q[60..], None, &[], &[], 1.0, 0.0);
+        assert_eq!(cycles(&t[1..], &q[1..], None, &CycleQuantities::default(), 1.0, 0.0).len(), 2);
+        let later = cycles(&t[60..], &q[60..], None, &CycleQuantities::default(), 1.0, 0.0);
         assert_eq!(later.iter().map(|c| c.index).collect::<Vec<_>>(), vec![2]);
         // A NaN in the flux: no volumes for its cycle.
         let mut broken = q.clone();
         broken[30] = f64::NAN;
-        let b = cycles(&t, &broken, None, &[], &[], 1.0, 0.0);
+        let b = cycles(&t, &broken, None, &CycleQuantities::default(), 1.0, 0.0);
         assert!(b[0].forward_volume.is_nan() && b[1].forward_volume.is_finite());
         // Cycles from t = 0.8 (closed): [0.8, 1.8] whole, one opening and one closing in it.
-        let shifted = cycles(&t, &q, Some(&force), &[], &[], 1.0, 0.8);
+        let shifted = cycles(&t, &q, Some(&force), &CycleQuantities::default(), 1.0, 0.8);
         assert_eq!(shifted.len(), 1);
         assert!((shifted[0].opening_time - 0.3).abs() < 1e-9 && (shifted[0].closing_time - 0.8).abs() < 1e-9, "{shifted:?}");
         assert!((shifted[0].forward_volume - c[1].forward_volume).abs() < 1e-12);

@@ -10,7 +10,9 @@
 //!   traction or pressure condition puts on the boundary;
 //! - max speed: `max |u|` over the vertices, edge midpoints and centroids of the cells.
 
-use crate::case::{BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec, WINDKESSEL_QUANTITIES};
+use crate::case::{
+    BoundaryIntegralKind, BoundaryIntegralSpec, DomainQuantityKind, DomainQuantitySpec, ProbeField, ProbeSpec, SlabSpec, WINDKESSEL_QUANTITIES,
+};
 use crate::discretize::flow::{FlowDiscretization, FlowError, FlowProblem};
 use fdfsi_fem::element::MAX_DOFS;
 use fdfsi_fem::locate::{cells_containing, locate_point};
@@ -179,16 +181,17 @@ pub fn boundary_integral<const D: usize>(
         })
 }
 
-/// Evaluates a quantity of the whole domain.
+/// Evaluates a quantity of the domain (or of its slab).
 pub fn domain_quantity<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], spec: &DomainQuantitySpec) -> f64 {
     match spec.kind {
-        DomainQuantityKind::MaxSpeed => max_speed(disc, x),
+        DomainQuantityKind::MaxSpeed => max_speed(disc, x, spec.slab.as_ref()),
     }
 }
 
 /// `max |u|` over the vertices, edge midpoints and centroid of every cell (in reference
-/// coordinates, so curved cells are sampled at the images of these points).
-pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64 {
+/// coordinates, so curved cells are sampled at the images of these points), or over those of
+/// them that lie in `slab` (0 where none does).
+pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], slab: Option<&SlabSpec>) -> f64 {
     let cell = disc.velocity_element.cell();
     let verts: Vec<[f64; D]> = cell.vertices().iter().map(|v| std::array::from_fn(|d| v[d])).collect();
     let mut points: Vec<[f64; D]> = verts.clone();
@@ -200,11 +203,22 @@ pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64]) -> f64
     points.push(cell.centroid());
     let tab = disc.velocity_element.tabulate(&points);
     let n = disc.velocity_element.num_dofs();
+    let geometry = disc.mesh.geometry_element();
+    let (geometry_tab, m) = (geometry.tabulate(&points), geometry.num_dofs());
     let vf = &disc.velocity_field();
+    let mut coords = Vec::new();
     (0..disc.mesh.num_cells())
         .map(|c| {
             let nodes = vf.nodes.cell(c);
+            disc.mesh.cell_coords_into(c, &mut coords);
+            let inside = |q: usize| {
+                slab.is_none_or(|slab| {
+                    let phi = &geometry_tab.values[q * m..(q + 1) * m];
+                    slab.contains(&std::array::from_fn::<f64, D, _>(|d| coords.iter().zip(phi).map(|(p, v)| v * p[d]).sum()))
+                })
+            };
             (0..points.len())
+                .filter(|&q| inside(q))
                 .map(|q| {
                     let phi = &tab.values[q * n..(q + 1) * n];
                     (0..D).map(|a| nodes.iter().zip(phi).map(|(&node, v)| v * x[vf.dof(node, a)]).sum::<f64>().powi(2)).sum::<f64>().sqrt()

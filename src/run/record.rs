@@ -10,7 +10,7 @@ use crate::case::Case;
 use crate::io::checkpoint::{Checkpoint, Progress, RestartState, CHECKPOINT_VERSION};
 use crate::io::plot::Table;
 use crate::io::History;
-use crate::post::cycles::cycles;
+use crate::post::cycles::{cycles, CycleQuantities};
 use crate::post::oscillation::last_period;
 use crate::time::march::{march, MarchOptions, Schedule, StepDone, Stepper, Watch};
 use crate::time::Timings;
@@ -298,7 +298,8 @@ fn oscillations(case: &Case, out_dir: &Path, obs: &mut dyn RunObserver) -> Resul
 
 /// The `[output.cycles]` statistics ([`cycles`]) of the run's whole `history.csv`: for each
 /// whole cycle `K`, `cycle_K_forward_volume`, `_backward_volume`, `_leak_volume`,
-/// `_closing_time`, `_opening_time`, `_peak_QUANTITY` and `_forward_mean_QUANTITY`.
+/// `_closing_time`, `_opening_time`, `_peak_QUANTITY`, `_forward_peak_QUANTITY` and
+/// `_forward_mean_QUANTITY`.
 fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, RunError> {
     let Some(spec) = &case.output.cycles else { return Ok(Vec::new()) };
     let table = Table::read(&out_dir.join("history.csv"))?;
@@ -307,10 +308,13 @@ fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, R
     let force = spec.contact_force.as_deref().map(column).transpose()?;
     let peaks = spec.peak.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
     let peak_refs: Vec<&[f64]> = peaks.iter().map(Vec::as_slice).collect();
+    let forward_peaks = spec.forward_peak.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
+    let forward_peak_refs: Vec<&[f64]> = forward_peaks.iter().map(Vec::as_slice).collect();
     let means = spec.forward_mean.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
     let mean_refs: Vec<&[f64]> = means.iter().map(Vec::as_slice).collect();
+    let quantities = CycleQuantities { peaks: &peak_refs, forward_peaks: &forward_peak_refs, forward_means: &mean_refs };
     let mut out = Vec::new();
-    for c in cycles(&t, &q, force.as_deref(), &peak_refs, &mean_refs, spec.period, spec.start) {
+    for c in cycles(&t, &q, force.as_deref(), &quantities, spec.period, spec.start) {
         let k = c.index;
         out.extend([
             (format!("cycle_{k}_forward_volume"), c.forward_volume),
@@ -320,6 +324,7 @@ fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, R
             (format!("cycle_{k}_opening_time"), c.opening_time),
         ]);
         out.extend(spec.peak.iter().zip(&c.peaks).map(|(name, v)| (format!("cycle_{k}_peak_{name}"), *v)));
+        out.extend(spec.forward_peak.iter().zip(&c.forward_peaks).map(|(name, v)| (format!("cycle_{k}_forward_peak_{name}"), *v)));
         out.extend(spec.forward_mean.iter().zip(&c.forward_means).map(|(name, v)| (format!("cycle_{k}_forward_mean_{name}"), *v)));
     }
     Ok(out)
