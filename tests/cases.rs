@@ -1199,7 +1199,8 @@ fn valve_3d_whole_valve_takes_its_first_step_as_its_sector() {
 /// cases/valve-3d-sector.toml over its three cardiac cycles, issue 19's checks (the whole valve's
 /// figures: the case scales the sector's by 6): every step done (3.5 beats, the cycles from
 /// mid-diastole); the valve opens and closes in every cycle with the leaflet in contact; forward
-/// (stroke) volume 60-75 ml, peak jet 1.0-1.7 m/s, geometric open area 2.5-4 cm^2, mean
+/// (stroke) volume 60-75 ml, peak jet 1.0-1.7 m/s (the largest speed beyond the annulus over the
+/// forward flow, `jet_speed`), geometric open area 2.5-4 cm^2, mean
 /// systolic gradient below 10 mmHg, leak below 1 % of the forward volume, cycle 3 within 2 % of
 /// cycle 2. With `FDFSI_LONG_RUNS` (see [`long_run`]) a finished run is checked without running
 /// again; an unfinished one goes on from its checkpoint.
@@ -1214,7 +1215,7 @@ fn valve_3d_sector_opens_and_closes_over_three_cardiac_cycles() {
     let mmhg = 133.322;
     for k in 1..=3 {
         let (forward, leak) = (cycle(k, "forward_volume"), cycle(k, "leak_volume"));
-        let (jet, area, gradient) = (cycle(k, "peak_max_speed"), cycle(k, "peak_open_area"), cycle(k, "forward_mean_transvalvular_gradient"));
+        let (jet, area, gradient) = (cycle(k, "forward_peak_jet_speed"), cycle(k, "peak_open_area"), cycle(k, "forward_mean_transvalvular_gradient"));
         println!(
             "valve-3d-sector cycle {k}: forward {:.2} ml, backward {:.2} ml, leak {:.3} ml; opens at {:.3} s, closes at {:.3} s (from \
              mid-diastole); peak jet {:.2} m/s, peak open area {:.2} cm^2, mean systolic gradient {:.1} mmHg",
