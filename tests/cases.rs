@@ -1174,7 +1174,8 @@ fn valve_3d_sector_opens_on_its_symmetry_planes() {
 /// are boundary nodes of the sector, inner nodes of the whole), hence not round-off. Measured
 /// (session 33): flux 1.0e-3, open area 3.1e-5, tip 2.3e-4, pressures 4e-7 apart; session 34,
 /// with gamma_f whole on the curved leaflets: flux 1.2e-4, open area 3.3e-5, tip 2.2e-4,
-/// pressures 4e-7; held at 3e-3.
+/// pressures 4e-7; session 38, G = 0.3 MPa: flux 1.7e-4, open area 2e-7, tip 5.9e-5, pressures
+/// 6e-8 (450 s beside a long run); held at 3e-3.
 /// Ignored: 372 611 unknowns (6 times the sector's), 11.3 GiB and about 6 minutes here.
 #[test]
 #[ignore = "the whole valve: 372 611 unknowns, for a large machine"]
