@@ -295,7 +295,7 @@ fn output(c: &Case, p: &mut Problems) {
     let d = c.dim();
     for (q, slab) in c.output.domain.iter().filter_map(|q| q.slab.map(|s| (q, s))) {
         if slab.axis.index() >= d {
-            p.push(format!("domain quantity '{}': slab.axis {:?} is not an axis of a {d}D model", q.name, slab.axis));
+            p.push(format!("domain quantity '{}': slab.axis \"{}\" is not an axis of a {d}D model", q.name, ["x", "y", "z"][slab.axis.index()]));
         }
         if !(slab.from.is_finite() && slab.to.is_finite() && slab.from < slab.to) {
             p.push(format!("domain quantity '{}': slab needs finite from < to, got from = {}, to = {}", q.name, slab.from, slab.to));

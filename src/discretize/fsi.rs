@@ -763,6 +763,9 @@ pub struct CouplingElements<const D: usize> {
     pub num_chains: usize,
     /// Largest distance of a coupling point from gamma_s.
     pub max_distance: f64,
+    /// Largest distance of a coupling point from gamma_s over its facet's diameter (at most
+    /// [`COUPLING_REL_TOL`]).
+    pub max_relative_distance: f64,
 }
 
 impl<const D: usize> CouplingElements<D> {
@@ -1148,6 +1151,7 @@ impl<const D: usize> FsiDiscretization<D> {
                     )));
                 }
                 out.max_distance = out.max_distance.max(sp.distance);
+                out.max_relative_distance = out.max_relative_distance.max(sp.distance / diam);
                 let (sc, xi_s) = surface.solid_point(&sp);
                 model.solid.element.eval_into(&xi_s, &mut vals[..ns], &mut grads[..ns]);
                 out.phi_s.extend_from_slice(&vals[..ns]);
@@ -1649,7 +1653,7 @@ fn connected_pieces<const D: usize>(gamma_f: &[GammaFacet<D>]) -> (Vec<usize>, u
 /// without bound in their ratio (the 3D valve's leaflet with G = 0.3 MPa at t = 0.039: 0.103
 /// times the diameter of a facet of 3.2 mm, its centroid within 0.1). Twice the rule's bound
 /// leaves room for those and still refuses a facet across a fold or off gamma_s.
-const COUPLING_REL_TOL: f64 = 2.0 * GAMMA_F_REL_TOL;
+pub const COUPLING_REL_TOL: f64 = 2.0 * GAMMA_F_REL_TOL;
 
 /// The smallest value of a fluid basis function at a coupling point of a gamma_f facet that
 /// counts as the function's being on the facet's trace. The points lie on the facet, so the
@@ -1946,6 +1950,8 @@ pub struct FsiStepReport {
     pub pattern_nnz: usize,
     /// Largest distance of a coupling point from gamma_s.
     pub max_coupling_distance: f64,
+    /// ... over its facet's diameter (at most [`COUPLING_REL_TOL`]).
+    pub max_relative_coupling_distance: f64,
     /// `int_gamma_f lambda ds`: the force of the fluid on the body.
     pub multiplier_force: Vec<f64>,
     /// Largest nodal displacement increment of the solid.
@@ -2203,6 +2209,7 @@ pub fn step_with<const D: usize>(
         coupling_points: disc.coupling.num_points(),
         pattern_nnz: disc.nnz().unwrap_or_default(),
         max_coupling_distance: disc.coupling.max_distance,
+        max_relative_coupling_distance: disc.coupling.max_relative_distance,
         multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
         max_solid_increment,
         seconds,

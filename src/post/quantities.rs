@@ -190,7 +190,7 @@ pub fn domain_quantity<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], 
 
 /// `max |u|` over the vertices, edge midpoints and centroid of every cell (in reference
 /// coordinates, so curved cells are sampled at the images of these points), or over those of
-/// them that lie in `slab` (0 where none does).
+/// them that lie in `slab` (`NaN` where none does: a slab beside the mesh, or in other units).
 pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], slab: Option<&SlabSpec>) -> f64 {
     let cell = disc.velocity_element.cell();
     let verts: Vec<[f64; D]> = cell.vertices().iter().map(|v| std::array::from_fn(|d| v[d])).collect();
@@ -223,9 +223,9 @@ pub fn max_speed<const D: usize>(disc: &FlowDiscretization<D>, x: &[f64], slab: 
                     let phi = &tab.values[q * n..(q + 1) * n];
                     (0..D).map(|a| nodes.iter().zip(phi).map(|(&node, v)| v * x[vf.dof(node, a)]).sum::<f64>().powi(2)).sum::<f64>().sqrt()
                 })
-                .fold(0.0, f64::max)
+                .fold(f64::NAN, f64::max)
         })
-        .fold(0.0, f64::max)
+        .fold(f64::NAN, f64::max)
 }
 
 /// Every flow quantity a case requests, in the order probes, boundary integrals, domain
