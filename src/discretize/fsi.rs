@@ -1494,8 +1494,15 @@ impl<const D: usize> FsiDiscretization<D> {
         match &self.sparsity {
             Sparsity::Whole { pattern, .. } => {
                 let mut previous: Option<Vec<f64>> = None;
+                let mut linearised: Option<Linearisation> = None;
                 newton::solve(x, pattern, solver, options, |x, k, rhs| {
                     self.assemble(model, input, x, constrained, k, rhs)?;
+                    if tracing::enabled!(tracing::Level::TRACE) {
+                        if let Some(last) = &linearised {
+                            self.trace_linearisation(model, input, constrained, last, x, rhs)?;
+                        }
+                        linearised = Some(Linearisation { x: x.to_vec(), k: k.values.clone(), rhs: rhs.to_vec() });
+                    }
                     if tracing::enabled!(tracing::Level::DEBUG) {
                         if let Some(prev) = &previous {
                             let dx: Vec<f64> = x.iter().zip(prev).map(|(a, b)| a - b).collect();
@@ -1520,9 +1527,46 @@ impl<const D: usize> FsiDiscretization<D> {
         }
     }
 
+    /// Logs (at trace level) how well the last Newton iteration's linearisation `last` (its
+    /// point `x_0`, matrix `K` and `rhs = -R(x_0)`) predicted the residual at the new point `x`
+    /// (`rhs` there), along the update `d = x - x_0`: the Jacobian's error along `d`, `-K d`
+    /// against the finite difference `(rhs(x_0 + eps d) - rhs(x_0)) / eps` (one more assembly),
+    /// and the whole step's, `rhs(x) - rhs(x_0) + K d`, which adds the nonlinearity's
+    /// `O(|d|^2)`. A large first names a Jacobian that is not the residual's derivative; a large
+    /// second with a small first, a step too long for the nonlinearity.
+    fn trace_linearisation(
+        &self,
+        model: &FsiModel<D>,
+        input: &StepInput<'_, D>,
+        constrained: &[bool],
+        last: &Linearisation,
+        x: &[f64],
+        rhs: &[f64],
+    ) -> Result<(), FsiAssemblyError> {
+        let Sparsity::Whole { pattern, .. } = &self.sparsity else { return Ok(()) };
+        let d: Vec<f64> = x.iter().zip(&last.x).map(|(a, b)| a - b).collect();
+        let k0 = CscMatrix { pattern, values: last.k.clone() };
+        let mut kd = vec![0.0; d.len()];
+        k0.mul_vec(&d, &mut kd);
+        let eps = 1e-6;
+        let xe: Vec<f64> = last.x.iter().zip(&d).map(|(a, b)| a + eps * b).collect();
+        let (mut ke, mut re) = (CscMatrix::zeros(pattern), vec![0.0; d.len()]);
+        self.assemble(model, input, &xe, constrained, &mut ke, &mut re)?;
+        let jacobian_error: Vec<f64> = (0..d.len()).map(|i| (re[i] - last.rhs[i]) / eps + kd[i]).collect();
+        let step_error: Vec<f64> = (0..d.len()).map(|i| rhs[i] - last.rhs[i] + kd[i]).collect();
+        self.trace_blocks_at(model, tracing::Level::TRACE, "Jacobian along the update, K d less its finite difference", &jacobian_error);
+        self.trace_blocks_at(model, tracing::Level::TRACE, "residual less its linear prediction", &step_error);
+        Ok(())
+    }
+
     /// Logs (at debug level) the norm per block of `v` (a residual, an update) and its largest
     /// entry, named: where a Newton solve stalls.
     fn trace_blocks(&self, model: &FsiModel<D>, what: &str, v: &[f64]) {
+        self.trace_blocks_at(model, tracing::Level::DEBUG, what, v);
+    }
+
+    /// [`Self::trace_blocks`] at `level`.
+    fn trace_blocks_at(&self, model: &FsiModel<D>, level: tracing::Level, what: &str, v: &[f64]) {
         let blocks: Vec<String> = self
             .layout
             .blocks()
@@ -1531,7 +1575,11 @@ impl<const D: usize> FsiDiscretization<D> {
             .collect();
         let worst = (0..v.len()).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()));
         let worst = worst.map_or(String::new(), |i| format!("; largest {:.3e}: {}", v[i], self.describe_unknown(model, i)));
-        tracing::debug!("{what}: {}{worst}", blocks.join(", "));
+        if level == tracing::Level::TRACE {
+            tracing::trace!("{what}: {}{worst}", blocks.join(", "));
+        } else {
+            tracing::debug!("{what}: {}{worst}", blocks.join(", "));
+        }
     }
 
     /// `lambda` at coupling point `q` (of element `e`).
@@ -1644,6 +1692,14 @@ fn connected_pieces<const D: usize>(gamma_f: &[GammaFacet<D>]) -> (Vec<usize>, u
     let piece = connected_components(gamma_f.len(), joined);
     let count = piece.iter().max().map_or(0, |m| m + 1);
     (piece, count)
+}
+
+/// A Newton iteration's point, Jacobian values and `-R` there, kept for the next iteration's
+/// check of the linearisation ([`FsiDiscretization::trace_linearisation`]).
+struct Linearisation {
+    x: Vec<f64>,
+    k: Vec<f64>,
+    rhs: Vec<f64>,
 }
 
 /// A coupling point of a gamma_f facet may lie up to this times the facet's diameter from
