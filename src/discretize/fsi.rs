@@ -1498,7 +1498,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 newton::solve(x, pattern, solver, options, |x, k, rhs| {
                     self.assemble(model, input, x, constrained, k, rhs)?;
                     if tracing::enabled!(tracing::Level::TRACE) {
-                        if let Some(last) = &linearised {
+                        if let Some(last) = linearised.take() {
                             self.trace_linearisation(model, input, constrained, last, x, rhs)?;
                         }
                         linearised = Some(Linearisation { x: x.to_vec(), k: k.values.clone(), rhs: rhs.to_vec() });
@@ -1539,13 +1539,13 @@ impl<const D: usize> FsiDiscretization<D> {
         model: &FsiModel<D>,
         input: &StepInput<'_, D>,
         constrained: &[bool],
-        last: &Linearisation,
+        last: Linearisation,
         x: &[f64],
         rhs: &[f64],
     ) -> Result<(), FsiAssemblyError> {
         let Sparsity::Whole { pattern, .. } = &self.sparsity else { return Ok(()) };
         let d: Vec<f64> = x.iter().zip(&last.x).map(|(a, b)| a - b).collect();
-        let k0 = CscMatrix { pattern, values: last.k.clone() };
+        let k0 = CscMatrix { pattern, values: last.k };
         let mut kd = vec![0.0; d.len()];
         k0.mul_vec(&d, &mut kd);
         let eps = 1e-6;

@@ -306,12 +306,12 @@ fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, R
     let column = |name: &str| table.column(name).ok_or_else(|| RunError::Unsupported(format!("output.cycles: history.csv has no column '{name}'")));
     let (t, q) = (column("time")?, column(&spec.flux)?);
     let force = spec.contact_force.as_deref().map(column).transpose()?;
-    let peaks = spec.peak.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
-    let peak_refs: Vec<&[f64]> = peaks.iter().map(Vec::as_slice).collect();
-    let forward_peaks = spec.forward_peak.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
-    let forward_peak_refs: Vec<&[f64]> = forward_peaks.iter().map(Vec::as_slice).collect();
-    let means = spec.forward_mean.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>()?;
-    let mean_refs: Vec<&[f64]> = means.iter().map(Vec::as_slice).collect();
+    let columns = |names: &[String]| names.iter().map(|p| column(p)).collect::<Result<Vec<_>, _>>();
+    fn slices(columns: &[Vec<f64>]) -> Vec<&[f64]> {
+        columns.iter().map(Vec::as_slice).collect()
+    }
+    let (peaks, forward_peaks, means) = (columns(&spec.peak)?, columns(&spec.forward_peak)?, columns(&spec.forward_mean)?);
+    let (peak_refs, forward_peak_refs, mean_refs) = (slices(&peaks), slices(&forward_peaks), slices(&means));
     let quantities = CycleQuantities { peaks: &peak_refs, forward_peaks: &forward_peak_refs, forward_means: &mean_refs };
     let mut out = Vec::new();
     for c in cycles(&t, &q, force.as_deref(), &quantities, spec.period, spec.start) {
@@ -323,9 +323,13 @@ fn cycle_statistics(case: &Case, out_dir: &Path) -> Result<Vec<(String, f64)>, R
             (format!("cycle_{k}_closing_time"), c.closing_time),
             (format!("cycle_{k}_opening_time"), c.opening_time),
         ]);
-        out.extend(spec.peak.iter().zip(&c.peaks).map(|(name, v)| (format!("cycle_{k}_peak_{name}"), *v)));
-        out.extend(spec.forward_peak.iter().zip(&c.forward_peaks).map(|(name, v)| (format!("cycle_{k}_forward_peak_{name}"), *v)));
-        out.extend(spec.forward_mean.iter().zip(&c.forward_means).map(|(name, v)| (format!("cycle_{k}_forward_mean_{name}"), *v)));
+        for (kind, names, values) in [
+            ("peak", &spec.peak, &c.peaks),
+            ("forward_peak", &spec.forward_peak, &c.forward_peaks),
+            ("forward_mean", &spec.forward_mean, &c.forward_means),
+        ] {
+            out.extend(names.iter().zip(values).map(|(name, v)| (format!("cycle_{k}_{kind}_{name}"), *v)));
+        }
     }
     Ok(out)
 }
