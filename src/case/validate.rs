@@ -765,7 +765,7 @@ fn time(c: &Case, p: &mut Problems) {
         p.push("time.output_every must be >= 1");
     }
     if t.max_cuts > MAX_CUTS {
-        p.push(format!("time.max_cuts = {} is more than {MAX_CUTS} (a step cut into 2^{MAX_CUTS} sub-steps)", t.max_cuts));
+        p.push(format!("time.max_cuts = {} is more than {MAX_CUTS} (sub-steps of dt / 2^{MAX_CUTS})", t.max_cuts));
     }
     let steps = t.end / t.dt;
     if t.dt > 0.0 && t.end > 0.0 && t.end.is_finite() && steps > MAX_STEPS as f64 {

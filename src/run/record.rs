@@ -170,7 +170,7 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
     }
 
     fn step_cut(&mut self, step: usize, cuts: usize, error: &S::Error) {
-        self.obs.log(&format!("step {step}: {error}; trying {} sub-steps", 1usize << cuts));
+        self.obs.log(&format!("step {step}: {error}; trying 2 sub-steps of 1/{} of the step", 1usize << cuts));
     }
 
     fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), RunError> {

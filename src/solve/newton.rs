@@ -19,7 +19,8 @@
 //!
 //! With `line_search`, a step after which `|R|` did not decrease is halved and `R` assembled
 //! again there, until it does (Armijo) or [`MAX_HALVINGS`] halvings found no decrease
-//! ([`NewtonError::LineSearch`]).
+//! ([`NewtonError::LineSearch`]). A step to a point where the assembly fails (an inverted solid
+//! element: `R` is not defined there) is halved alike.
 
 use super::linear::{LinearSolveError, LinearSolver, SolveStats};
 use super::partition::{Partition, RowSolver};
@@ -40,7 +41,8 @@ pub struct NewtonOptions {
     /// module documentation); default false (full Newton).
     pub reuse_factorization: bool,
     /// Backtracking line search: a step after which `|R|` did not decrease (Armijo:
-    /// `|R(x + l dx)| <= (1 - 1e-4 l) |R(x)|`) is halved, up to [`MAX_HALVINGS`] times. Unset
+    /// `|R(x + l dx)| <= (1 - 1e-4 l) |R(x)|`), or to where the assembly fails (an inverted
+    /// element), is halved, up to [`MAX_HALVINGS`] times. Unset
     /// (the default): on for steady flows, off for time steps, where a non-monotone residual is
     /// common on the way to convergence (model problem 1: 3-4 iterations per step without, up to
     /// 8 with) and a failing step is cut instead.
@@ -328,13 +330,21 @@ where
     loop {
         let t = std::time::Instant::now();
         rhs.iter_mut().for_each(|v| *v = 0.0);
-        let assembled = assemble(x, system.zeroed_matrix(), &mut rhs);
-        // Every rank returns an error where any failed (else the others would go on alone).
-        if system.any_failed(assembled.is_err())? {
-            return Err(assembled.err().map_or(NewtonError::AssemblyOnAnotherRank, NewtonError::Assembly));
+        let mut assembled = assemble(x, system.zeroed_matrix(), &mut rhs);
+        // Every rank sees an error where any failed (else the others would go on alone).
+        let failed = system.any_failed(assembled.is_err())?;
+        let assembly_error = |assembled: &mut Result<(), E>| {
+            std::mem::replace(assembled, Ok(())).err().map_or(NewtonError::AssemblyOnAnotherRank, NewtonError::Assembly)
+        };
+        // A trial point of the line search where the residual is not defined (an element
+        // turned inside out) is a step without decrease: halved like one (the domain error of
+        // PETSc's line searches). At the first point, or without the search, the error stands.
+        let searching = options.line_search == Some(true) && last_step.is_some();
+        if failed && !searching {
+            return Err(assembly_error(&mut assembled));
         }
         report.assemble_seconds += t.elapsed().as_secs_f64();
-        let r = system.norm(&rhs)?;
+        let r = if failed { f64::NAN } else { system.norm(&rhs)? };
         if let (Some((dx, l)), Some(&previous), Some(&first)) = (last_step.as_mut(), report.residual_norms.last(), report.residual_norms.first()) {
             let decreased = r <= (1.0 - 1e-4 * *l) * previous; // false for NaN
                                                                // Near the tolerance the residual is round-off: no search there.
@@ -344,16 +354,28 @@ where
                     // No decrease along the Newton direction: more iterations will not help.
                     let back = *l;
                     x.iter_mut().zip(dx.iter()).for_each(|(xi, d)| *xi -= back * d); // x_k again
-                    return Err(NewtonError::LineSearch { iteration: report.iterations, residual: previous });
+                    return Err(match failed {
+                        true => assembly_error(&mut assembled),
+                        false => NewtonError::LineSearch { iteration: report.iterations, residual: previous },
+                    });
                 }
                 // Back from x_k + l dx to x_k + l/2 dx, and assemble there.
                 *l *= 0.5;
                 let back = *l;
                 x.iter_mut().zip(dx.iter()).for_each(|(xi, d)| *xi -= back * d);
                 report.halvings += 1;
-                tracing::debug!("newton {}: |R| = {r:.4e} after {} of the Newton step: back to {back}", report.iterations, 2.0 * back);
+                match &assembled {
+                    Err(e) => {
+                        tracing::debug!("newton {}: assembly failed after {} of the Newton step ({e}): back to {back}", report.iterations, 2.0 * back)
+                    }
+                    Ok(()) => tracing::debug!("newton {}: |R| = {r:.4e} after {} of the Newton step: back to {back}", report.iterations, 2.0 * back),
+                }
                 continue;
             }
+        }
+        if failed {
+            // Near the tolerance, where the search leaves steps alone.
+            return Err(assembly_error(&mut assembled));
         }
         if !r.is_finite() {
             return Err(NewtonError::NonFinite { iteration: report.iterations });
@@ -520,6 +542,36 @@ mod tests {
         let mut x = vec![2.0];
         let report = solve(&mut x, &p, &mut FaerLu::default(), &damped, atan).unwrap();
         assert!(x[0].abs() < 1e-10 && report.halvings > 0, "x = {x:?}, {} halvings", report.halvings);
+    }
+
+    /// `R(x) = ln x` from `x = 3`: the full Newton step lands at `x = -0.30`, where `R` is not
+    /// defined (as an inverted element's stress); the line search halves it like a step without
+    /// decrease, and Newton converges to 1. Without the search, the assembly's error stands.
+    #[test]
+    fn the_line_search_halves_a_step_to_where_the_assembly_fails() {
+        #[derive(Debug, Error)]
+        #[error("ln x at x = {0} <= 0")]
+        struct Domain(f64);
+        let p = Pattern::from_cells(1, 1, |_, b| {
+            b.clear();
+            b.push(0);
+        });
+        let ln = |x: &[f64], k: &mut CscMatrix<'_>, rhs: &mut [f64]| {
+            if x[0] <= 0.0 {
+                return Err(Domain(x[0]));
+            }
+            k.values[0] = 1.0 / x[0];
+            rhs[0] = -x[0].ln();
+            Ok(())
+        };
+        let plain = NewtonOptions { line_search: Some(false), ..Default::default() };
+        let mut x = vec![3.0];
+        let err = solve(&mut x, &p, &mut FaerLu::default(), &plain, ln).unwrap_err();
+        assert!(matches!(err, NewtonError::Assembly(Domain(v)) if v < 0.0), "{err}");
+        let damped = NewtonOptions { line_search: Some(true), ..Default::default() };
+        let mut x = vec![3.0];
+        let report = solve(&mut x, &p, &mut FaerLu::default(), &damped, ln).unwrap();
+        assert!((x[0] - 1.0).abs() < 1e-10 && report.halvings == 1, "x = {x:?}, {} halvings", report.halvings);
     }
 
     #[test]

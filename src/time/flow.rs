@@ -25,7 +25,6 @@ pub struct FlowStepper<'a, const D: usize> {
     /// residual of the step needs, e.g. for consistent boundary forces.
     pub inv_dt: f64,
     pub u_star: Vec<f64>,
-    marked: (Vec<f64>, Option<Vec<f64>>, f64),
     /// Whether the solver has the discretisation's saddle-point split.
     split_given: bool,
 }
@@ -53,7 +52,6 @@ impl<'a, const D: usize> FlowStepper<'a, D> {
             last_dt: level.dt,
             inv_dt: 0.0,
             u_star: Vec::new(),
-            marked: Default::default(),
             split_given: false,
         }
     }
@@ -88,14 +86,6 @@ impl<const D: usize> Stepper for FlowStepper<'_, D> {
         self.last_dt = dt;
         (self.inv_dt, self.u_star) = (inv_dt, u_star);
         Ok(Advance { newton, phases: Timings::default() })
-    }
-
-    fn mark(&mut self) {
-        self.marked = (self.x.clone(), self.x_prev.clone(), self.last_dt);
-    }
-
-    fn rewind(&mut self) {
-        (self.x, self.x_prev, self.last_dt) = self.marked.clone();
     }
 }
 

@@ -19,12 +19,11 @@ pub struct FsiStepper<'a, const D: usize> {
     pub state: FsiState<D>,
     /// The last (sub)step: its discretisation, solution and report (`None` before the first).
     pub last: Option<FsiStep<D>>,
-    marked: Option<FsiState<D>>,
 }
 
 impl<'a, const D: usize> FsiStepper<'a, D> {
     pub fn new(model: &'a FsiModel<D>, solver: &'a mut dyn LinearSolver, newton: NewtonOptions, scheme: TimeScheme, state: FsiState<D>) -> Self {
-        FsiStepper { model, solver, newton, scheme, state, last: None, marked: None }
+        FsiStepper { model, solver, newton, scheme, state, last: None }
     }
 }
 
@@ -45,15 +44,5 @@ impl<const D: usize> Stepper for FsiStepper<'_, D> {
         self.state = next;
         self.last = Some(st);
         Ok(Advance { newton, phases })
-    }
-
-    fn mark(&mut self) {
-        self.marked = Some(self.state.clone());
-    }
-
-    fn rewind(&mut self) {
-        if let Some(m) = &self.marked {
-            self.state = m.clone();
-        }
     }
 }

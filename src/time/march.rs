@@ -3,9 +3,12 @@
 //!
 //! - The schedule: step `k` ends at `t_k = min(k dt, end)`, whether or not the run was resumed,
 //!   so a resumed run repeats the arithmetic of an uninterrupted one.
-//! - Step cuts: a step that fails is retried as `2^c` equal sub-steps (`c = 1, ..., max_cuts`),
-//!   each marked as a sub-step of a cut step (multistep schemes take an Euler step there); a step
-//!   that still fails is [`MarchError::StepFailed`], naming the step and its time.
+//! - Step cuts, by bisection: a step that fails is done as two halves in turn, and a half that
+//!   fails as two quarters, and so on, down to `dt / 2^max_cuts`; the sub-steps done before a
+//!   failing one stand (a failed (sub)step leaves the state at its start), so only the part of
+//!   the step that needs them takes the short sub-steps. Sub-steps are marked as such (multistep
+//!   schemes take an Euler step there); a sub-step of `dt / 2^max_cuts` that fails is
+//!   [`MarchError::StepFailed`], naming the step and its time.
 //! - The Ctrl-C stop and checkpoints: after a step, [`Watch::checkpoint`] is called every
 //!   `checkpoint_every` steps and when a stop was requested; a requested stop then ends the march
 //!   with [`MarchError::Interrupted`].
@@ -39,15 +42,8 @@ pub trait Stepper {
 
     /// Solves the (sub)step from `t0` to `t1` from the current state and makes its solution the
     /// current state. `cut` marks the sub-steps of a cut step. After an `Err` the state is that
-    /// at `t0` again.
+    /// at `t0` again (the step cuts go on from it).
     fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, Self::Error>;
-
-    /// Remembers the current state (the start of a step that failed whole) for
-    /// [`Stepper::rewind`]: only a cut step needs it, so no step pays for a copy it does not use.
-    fn mark(&mut self);
-
-    /// Returns to the state of the last [`Stepper::mark`].
-    fn rewind(&mut self);
 }
 
 /// The steps of a march: size `dt` up to `end`, and how often a failing step may be cut.
@@ -55,7 +51,7 @@ pub trait Stepper {
 pub struct Schedule {
     pub dt: f64,
     pub end: f64,
-    /// A failing step is retried in 2, 4, ..., `2^max_cuts` sub-steps.
+    /// A failing (sub)step is halved, down to sub-steps of `dt / 2^max_cuts`.
     pub max_cuts: usize,
 }
 
@@ -87,7 +83,7 @@ pub struct StepDone {
     pub time: f64,
     /// Size of the step's last (sub)step.
     pub dt: f64,
-    /// How often the step was halved.
+    /// How often its shortest sub-step was halved (0: done whole).
     pub cuts: usize,
     /// The Newton solves of its (sub)steps.
     pub newton: Vec<NewtonReport>,
@@ -127,7 +123,8 @@ pub trait Watch<S: Stepper> {
     /// Called last for a step the march goes on from (not for one it stops after): progress.
     fn step_end(&mut self, _done: &StepDone) {}
 
-    /// Step `step` (or a sub-step of it) failed with `error`; it is retried in `2^cuts` sub-steps.
+    /// Step `step` (or a sub-step of it) failed with `error`; it is done as two sub-steps of
+    /// `1 / 2^cuts` of the step.
     fn step_cut(&mut self, _step: usize, _cuts: usize, _error: &S::Error) {}
 }
 
@@ -202,7 +199,8 @@ pub fn march<S: Stepper, W: Watch<S>>(
     Ok(())
 }
 
-/// Step `step` from `t0` to `t1`: whole, or cut into `2^c` sub-steps when it fails.
+/// Step `step` from `t0` to `t1`: whole, or, where it fails, in two halves, each halved again
+/// where it fails, down to `(t1 - t0) / 2^max_cuts` (see [`advance_part`]).
 fn advance_step<S: Stepper, W: Watch<S>>(
     stepper: &mut S,
     step: usize,
@@ -213,36 +211,43 @@ fn advance_step<S: Stepper, W: Watch<S>>(
     watch: &mut W,
 ) -> Result<StepDone, MarchError<S::Error, W::Error>> {
     let mut done = StepDone { step, total, time: t1, dt: t1 - t0, cuts: 0, newton: Vec::new(), phases: Timings::default() };
-    let mut failure = match stepper.advance(t0, t1, false) {
-        Ok(a) => {
-            done.record(a);
-            return Ok(done);
-        }
-        Err(e) => e,
-    };
-    // The failed attempt left the state at t0: remember it for the sub-steps of every cut level.
-    stepper.mark();
-    'cuts: for cuts in 1..=max_cuts {
-        watch.step_cut(step, cuts, &failure);
-        let parts = 1usize << cuts;
-        let h = (t1 - t0) / parts as f64;
-        (done.cuts, done.dt) = (cuts, h);
-        // Only the level that succeeds is counted, as a step whole.
-        (done.newton, done.phases) = (Vec::new(), Timings::default());
-        stepper.rewind();
-        for k in 1..=parts {
-            let (a, b) = (t0 + (k - 1) as f64 * h, if k == parts { t1 } else { t0 + k as f64 * h });
-            match stepper.advance(a, b, true) {
-                Ok(adv) => done.record(adv),
-                Err(e) => {
-                    failure = e;
-                    continue 'cuts;
-                }
+    let mut part = Part { stepper, watch, step, max_cuts, done: &mut done };
+    part.advance(t0, t1, 0).map_err(|source| MarchError::StepFailed { step, time: t1, cuts: max_cuts, source })?;
+    Ok(done)
+}
+
+/// The (sub)steps of one step as they are done (bisection: a failed (sub)step leaves the state at
+/// its start, and is done as two halves; the sub-steps before it stand).
+struct Part<'a, S, W> {
+    stepper: &'a mut S,
+    watch: &'a mut W,
+    step: usize,
+    max_cuts: usize,
+    done: &'a mut StepDone,
+}
+
+impl<S: Stepper, W: Watch<S>> Part<'_, S, W> {
+    /// Advances from `a` to `b`, a part of the step halved `depth` times: whole, or where that
+    /// fails and `depth < max_cuts`, as two halves in turn. Only the (sub)steps that succeed are
+    /// counted, as the step's.
+    fn advance(&mut self, a: f64, b: f64, depth: usize) -> Result<(), S::Error> {
+        let failure = match self.stepper.advance(a, b, depth > 0) {
+            Ok(adv) => {
+                self.done.dt = b - a;
+                self.done.record(adv);
+                return Ok(());
             }
+            Err(e) => e,
+        };
+        if depth == self.max_cuts {
+            return Err(failure);
         }
-        return Ok(done);
+        self.watch.step_cut(self.step, depth + 1, &failure);
+        self.done.cuts = self.done.cuts.max(depth + 1);
+        let mid = a + 0.5 * (b - a);
+        self.advance(a, mid, depth + 1)?;
+        self.advance(mid, b, depth + 1)
     }
-    Err(MarchError::StepFailed { step, time: t1, cuts: max_cuts, source: failure })
 }
 
 impl StepDone {
@@ -250,5 +255,70 @@ impl StepDone {
         self.phases.add(&a.phases);
         self.phases.add_newton(&a.newton);
         self.newton.push(a.newton);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stepper whose (sub)steps fail while longer than `longest` and across `hard` (a valve
+    /// closing, say); it records the (sub)steps done and whether they were marked as cut.
+    struct Closing {
+        hard: f64,
+        longest: f64,
+        done: Vec<(f64, f64, bool)>,
+    }
+
+    #[derive(Debug, Error)]
+    #[error("too long across the hard point")]
+    struct TooLong;
+
+    impl Stepper for Closing {
+        type Error = TooLong;
+        fn advance(&mut self, t0: f64, t1: f64, cut: bool) -> Result<Advance, TooLong> {
+            if t1 - t0 > self.longest && t0 <= self.hard && self.hard < t1 {
+                return Err(TooLong);
+            }
+            self.done.push((t0, t1, cut));
+            Ok(Advance::default())
+        }
+    }
+
+    #[derive(Default)]
+    struct Cuts(Vec<(usize, usize)>);
+
+    impl Watch<Closing> for Cuts {
+        type Error = TooLong;
+        fn step_done(&mut self, _: &Closing, _: &StepDone, _: &Timings) -> Result<(), TooLong> {
+            Ok(())
+        }
+        fn checkpoint(&mut self, _: &Closing, _: &StepDone, _: &Timings) -> Result<(), TooLong> {
+            Ok(())
+        }
+        fn step_cut(&mut self, step: usize, cuts: usize, _: &TooLong) {
+            self.0.push((step, cuts));
+        }
+    }
+
+    #[test]
+    fn a_failing_step_is_bisected_where_it_fails_and_keeps_the_sub_steps_done() {
+        let mut s = Closing { hard: 0.6, longest: 0.2, done: Vec::new() };
+        let mut cuts = Cuts::default();
+        let done = advance_step(&mut s, 1, 1, 0.0, 1.0, 4, &mut cuts).unwrap();
+        // [0, 1] fails; [0, 1/2] passes; [1/2, 1] and [1/2, 3/4] fail; the rest passes.
+        let expected = [(0.0, 0.5, true), (0.5, 0.625, true), (0.625, 0.75, true), (0.75, 1.0, true)];
+        assert_eq!(s.done, expected);
+        assert_eq!(cuts.0, [(1, 1), (1, 2), (1, 3)]);
+        assert_eq!((done.cuts, done.dt, done.newton.len()), (3, 0.25, 4));
+        // A step that passes whole is not marked as cut.
+        let mut s = Closing { hard: 2.0, ..s };
+        s.done.clear();
+        let done = advance_step(&mut s, 1, 1, 0.0, 1.0, 4, &mut Cuts::default()).unwrap();
+        assert_eq!((s.done.as_slice(), done.cuts), (&[(0.0, 1.0, false)][..], 0));
+        // Two cuts allowed: the quarter across the hard point fails, and with it the step.
+        let mut s = Closing { hard: 0.6, ..s };
+        let err = advance_step(&mut s, 7, 9, 0.0, 1.0, 2, &mut Cuts::default()).unwrap_err();
+        assert!(matches!(err, MarchError::StepFailed { step: 7, cuts: 2, .. }), "{err}");
     }
 }

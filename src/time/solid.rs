@@ -17,7 +17,6 @@ pub struct QuasiStaticStepper<'a, const D: usize> {
     pub newton: NewtonOptions,
     /// The state after the last converged increment.
     pub state: LoadState,
-    marked: Option<LoadState>,
 }
 
 impl<'a, const D: usize> QuasiStaticStepper<'a, D> {
@@ -28,7 +27,7 @@ impl<'a, const D: usize> QuasiStaticStepper<'a, D> {
         newton: NewtonOptions,
         state: LoadState,
     ) -> Self {
-        QuasiStaticStepper { disc, problem, solver, newton, state, marked: None }
+        QuasiStaticStepper { disc, problem, solver, newton, state }
     }
 }
 
@@ -39,16 +38,6 @@ impl<const D: usize> Stepper for QuasiStaticStepper<'_, D> {
         self.state.load = l0;
         let newton = self.disc.solve_increment(self.problem, &mut self.state, l1, true, self.solver, &self.newton)?;
         Ok(Advance { newton, phases: Timings::default() })
-    }
-
-    fn mark(&mut self) {
-        self.marked = Some(self.state.clone());
-    }
-
-    fn rewind(&mut self) {
-        if let Some(m) = &self.marked {
-            self.state = m.clone();
-        }
     }
 }
 
@@ -92,7 +81,6 @@ pub struct DynamicStepper<'a, const D: usize> {
     pub scheme: TimeScheme,
     /// The state after the last completed step.
     pub state: DynamicState,
-    marked: Option<DynamicState>,
 }
 
 impl<'a, const D: usize> DynamicStepper<'a, D> {
@@ -104,7 +92,7 @@ impl<'a, const D: usize> DynamicStepper<'a, D> {
         scheme: TimeScheme,
         state: DynamicState,
     ) -> Self {
-        DynamicStepper { disc, problem, solver, newton, scheme, state, marked: None }
+        DynamicStepper { disc, problem, solver, newton, scheme, state }
     }
 }
 
@@ -124,15 +112,5 @@ impl<const D: usize> Stepper for DynamicStepper<'_, D> {
             self.state.previous = Some((old.x, old.v));
         }
         Ok(Advance { newton, phases: Timings::default() })
-    }
-
-    fn mark(&mut self) {
-        self.marked = Some(self.state.clone());
-    }
-
-    fn rewind(&mut self) {
-        if let Some(m) = &self.marked {
-            self.state = m.clone();
-        }
     }
 }
