@@ -532,8 +532,9 @@ pub struct TimeSpec {
     /// Write the fields every this many steps (>= 1; the last step is always written).
     #[serde(default = "one_usize")]
     pub output_every: usize,
-    /// How often a (sub)step whose Newton solve fails may be halved (bisection: the sub-steps
-    /// done before it stand) before the run stops (at most [`MAX_CUTS`]).
+    /// The most times a step whose Newton solve fails may be halved, from where it failed on
+    /// (the sub-steps done before stand), down to `dt / 2^max_cuts`, before the run stops (at
+    /// most [`MAX_CUTS`]).
     #[serde(default = "four")]
     pub max_cuts: usize,
 }

@@ -169,8 +169,8 @@ impl<S: Stepper, O: RunOutputs<S>> Watch<S> for Recorder<'_, O> {
         self.obs.step(done.step, done.total, done.time);
     }
 
-    fn step_cut(&mut self, step: usize, cuts: usize, error: &S::Error) {
-        self.obs.log(&format!("step {step}: {error}; trying 2 sub-steps of 1/{} of the step", 1usize << cuts));
+    fn step_cut(&mut self, step: usize, cuts: usize, from: f64, error: &S::Error) {
+        self.obs.log(&format!("step {step}: {error}; from t = {from:.6e} on in sub-steps of 1/{} of the step", 1usize << cuts));
     }
 
     fn checkpoint(&mut self, stepper: &S, done: &StepDone, timings: &Timings) -> Result<(), RunError> {

@@ -349,7 +349,8 @@ where
             let decreased = r <= (1.0 - 1e-4 * *l) * previous; // false for NaN
                                                                // Near the tolerance the residual is round-off: no search there.
             let near_tolerance = previous <= LINE_SEARCH_FLOOR * options.abs_tol.max(options.rel_tol * first);
-            if options.line_search == Some(true) && !decreased && !near_tolerance {
+            // A failed assembly is no round-off: halved near the tolerance too.
+            if options.line_search == Some(true) && !decreased && (failed || !near_tolerance) {
                 if *l <= 0.5f64.powi(MAX_HALVINGS as i32) {
                     // No decrease along the Newton direction: more iterations will not help.
                     let back = *l;
@@ -372,10 +373,6 @@ where
                 }
                 continue;
             }
-        }
-        if failed {
-            // Near the tolerance, where the search leaves steps alone.
-            return Err(assembly_error(&mut assembled));
         }
         if !r.is_finite() {
             return Err(NewtonError::NonFinite { iteration: report.iterations });

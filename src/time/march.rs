@@ -3,12 +3,12 @@
 //!
 //! - The schedule: step `k` ends at `t_k = min(k dt, end)`, whether or not the run was resumed,
 //!   so a resumed run repeats the arithmetic of an uninterrupted one.
-//! - Step cuts, by bisection: a step that fails is done as two halves in turn, and a half that
-//!   fails as two quarters, and so on, down to `dt / 2^max_cuts`; the sub-steps done before a
-//!   failing one stand (a failed (sub)step leaves the state at its start), so only the part of
-//!   the step that needs them takes the short sub-steps. Sub-steps are marked as such (multistep
-//!   schemes take an Euler step there); a sub-step of `dt / 2^max_cuts` that fails is
-//!   [`MarchError::StepFailed`], naming the step and its time.
+//! - Step cuts: where a step fails, it goes on from there in halves, and where a half fails, in
+//!   quarters, and so on, down to `dt / 2^max_cuts`; the sub-steps done before a failing one
+//!   stand (a failed (sub)step leaves the state at its start), and the rest of the step keeps the
+//!   shortest length reached. Sub-steps are marked as such (multistep schemes take an Euler step
+//!   there); a sub-step of `dt / 2^max_cuts` that fails is [`MarchError::StepFailed`], naming the
+//!   step and its time.
 //! - The Ctrl-C stop and checkpoints: after a step, [`Watch::checkpoint`] is called every
 //!   `checkpoint_every` steps and when a stop was requested; a requested stop then ends the march
 //!   with [`MarchError::Interrupted`].
@@ -81,9 +81,9 @@ pub struct StepDone {
     pub total: usize,
     /// Time at the end of the step.
     pub time: f64,
-    /// Size of the step's last (sub)step.
+    /// Size of the step's last (sub)step, its shortest.
     pub dt: f64,
-    /// How often its shortest sub-step was halved (0: done whole).
+    /// How often the step was halved (0: done whole; its last sub-steps are `1 / 2^cuts` of it).
     pub cuts: usize,
     /// The Newton solves of its (sub)steps.
     pub newton: Vec<NewtonReport>,
@@ -123,9 +123,9 @@ pub trait Watch<S: Stepper> {
     /// Called last for a step the march goes on from (not for one it stops after): progress.
     fn step_end(&mut self, _done: &StepDone) {}
 
-    /// Step `step` (or a sub-step of it) failed with `error`; it is done as two sub-steps of
-    /// `1 / 2^cuts` of the step.
-    fn step_cut(&mut self, _step: usize, _cuts: usize, _error: &S::Error) {}
+    /// A (sub)step of step `step` from time `from` failed with `error`; the step goes on from
+    /// there in sub-steps of `1 / 2^cuts` of it.
+    fn step_cut(&mut self, _step: usize, _cuts: usize, _from: f64, _error: &S::Error) {}
 }
 
 /// Checkpoints and the stop request of a march.
@@ -199,8 +199,10 @@ pub fn march<S: Stepper, W: Watch<S>>(
     Ok(())
 }
 
-/// Step `step` from `t0` to `t1`: whole, or, where it fails, in two halves, each halved again
-/// where it fails, down to `(t1 - t0) / 2^max_cuts` (see [`advance_part`]).
+/// Step `step` from `t0` to `t1`: whole, or, from where a (sub)step fails, in sub-steps half as
+/// long, down to `(t1 - t0) / 2^max_cuts`. A failed (sub)step leaves the state at its start, so
+/// the sub-steps done before it stand; the rest of the step keeps the shortest length reached
+/// (a step hard all along fails once per halving, `max_cuts` times at most).
 fn advance_step<S: Stepper, W: Watch<S>>(
     stepper: &mut S,
     step: usize,
@@ -211,43 +213,26 @@ fn advance_step<S: Stepper, W: Watch<S>>(
     watch: &mut W,
 ) -> Result<StepDone, MarchError<S::Error, W::Error>> {
     let mut done = StepDone { step, total, time: t1, dt: t1 - t0, cuts: 0, newton: Vec::new(), phases: Timings::default() };
-    let mut part = Part { stepper, watch, step, max_cuts, done: &mut done };
-    part.advance(t0, t1, 0).map_err(|source| MarchError::StepFailed { step, time: t1, cuts: max_cuts, source })?;
-    Ok(done)
-}
-
-/// The (sub)steps of one step as they are done (bisection: a failed (sub)step leaves the state at
-/// its start, and is done as two halves; the sub-steps before it stand).
-struct Part<'a, S, W> {
-    stepper: &'a mut S,
-    watch: &'a mut W,
-    step: usize,
-    max_cuts: usize,
-    done: &'a mut StepDone,
-}
-
-impl<S: Stepper, W: Watch<S>> Part<'_, S, W> {
-    /// Advances from `a` to `b`, a part of the step halved `depth` times: whole, or where that
-    /// fails and `depth < max_cuts`, as two halves in turn. Only the (sub)steps that succeed are
-    /// counted, as the step's.
-    fn advance(&mut self, a: f64, b: f64, depth: usize) -> Result<(), S::Error> {
-        let failure = match self.stepper.advance(a, b, depth > 0) {
+    // Sub-step `k` of `2^cuts` runs from `at(k)` to `at(k + 1)`.
+    let (mut k, mut cuts) = (0usize, 0usize);
+    let at = |k: usize, cuts: usize| if k == 1 << cuts { t1 } else { t0 + k as f64 * (t1 - t0) / (1usize << cuts) as f64 };
+    while k < 1 << cuts {
+        let (a, b) = (at(k, cuts), at(k + 1, cuts));
+        match stepper.advance(a, b, cuts > 0) {
             Ok(adv) => {
-                self.done.dt = b - a;
-                self.done.record(adv);
-                return Ok(());
+                (done.dt, done.cuts) = (b - a, cuts);
+                done.record(adv);
+                k += 1;
             }
-            Err(e) => e,
-        };
-        if depth == self.max_cuts {
-            return Err(failure);
+            Err(source) if cuts == max_cuts => return Err(MarchError::StepFailed { step, time: t1, cuts, source }),
+            Err(e) => {
+                cuts += 1;
+                k *= 2;
+                watch.step_cut(step, cuts, a, &e);
+            }
         }
-        self.watch.step_cut(self.step, depth + 1, &failure);
-        self.done.cuts = self.done.cuts.max(depth + 1);
-        let mid = a + 0.5 * (b - a);
-        self.advance(a, mid, depth + 1)?;
-        self.advance(mid, b, depth + 1)
     }
+    Ok(done)
 }
 
 impl StepDone {
@@ -286,7 +271,7 @@ mod tests {
     }
 
     #[derive(Default)]
-    struct Cuts(Vec<(usize, usize)>);
+    struct Cuts(Vec<(usize, usize, f64)>);
 
     impl Watch<Closing> for Cuts {
         type Error = TooLong;
@@ -296,21 +281,21 @@ mod tests {
         fn checkpoint(&mut self, _: &Closing, _: &StepDone, _: &Timings) -> Result<(), TooLong> {
             Ok(())
         }
-        fn step_cut(&mut self, step: usize, cuts: usize, _: &TooLong) {
-            self.0.push((step, cuts));
+        fn step_cut(&mut self, step: usize, cuts: usize, from: f64, _: &TooLong) {
+            self.0.push((step, cuts, from));
         }
     }
 
     #[test]
-    fn a_failing_step_is_bisected_where_it_fails_and_keeps_the_sub_steps_done() {
+    fn a_failing_step_goes_on_in_shorter_sub_steps_from_where_it_failed() {
         let mut s = Closing { hard: 0.6, longest: 0.2, done: Vec::new() };
         let mut cuts = Cuts::default();
         let done = advance_step(&mut s, 1, 1, 0.0, 1.0, 4, &mut cuts).unwrap();
-        // [0, 1] fails; [0, 1/2] passes; [1/2, 1] and [1/2, 3/4] fail; the rest passes.
-        let expected = [(0.0, 0.5, true), (0.5, 0.625, true), (0.625, 0.75, true), (0.75, 1.0, true)];
+        // [0, 1] fails; [0, 1/2] passes; [1/2, 1] and [1/2, 3/4] fail; eighths from 1/2 on.
+        let expected = [(0.0, 0.5, true), (0.5, 0.625, true), (0.625, 0.75, true), (0.75, 0.875, true), (0.875, 1.0, true)];
         assert_eq!(s.done, expected);
-        assert_eq!(cuts.0, [(1, 1), (1, 2), (1, 3)]);
-        assert_eq!((done.cuts, done.dt, done.newton.len()), (3, 0.25, 4));
+        assert_eq!(cuts.0, [(1, 1, 0.0), (1, 2, 0.5), (1, 3, 0.5)]);
+        assert_eq!((done.cuts, done.dt, done.newton.len()), (3, 0.125, 5));
         // A step that passes whole is not marked as cut.
         let mut s = Closing { hard: 2.0, ..s };
         s.done.clear();
