@@ -457,7 +457,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let mut on_surface = on_surface_flags(bg, &plan, &cuts);
     let mut candidates: Vec<usize> = out.child_index.iter().flatten().copied().collect();
     candidates.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
-    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, &parts, opts)?;
+    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, &parts, opts.min_move_quality)?;
     if extra.passes > 0 {
         let mesh = &out.mesh;
         candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
@@ -537,9 +537,7 @@ impl<const D: usize> Plan<D> {
 /// the edge's length) of it. Nearer cuts made the clusters of tiny cells around such a vertex
 /// (the 3D valve sector's leaflet entering the wall: edges of 0.04 mm of 2 mm cells, Newton
 /// stalling under SUPG); taking the vertex within the whole `eps_hat` left gamma_f with holes
-/// there (28 facets rejected by the gamma_f rule rather than 6, 7 % of its area). A crossing of
-/// `cut_crossings_near_features` within this fraction of `eps_hat` of an end on gamma_s is
-/// dropped alike.
+/// there (28 facets rejected by the gamma_f rule rather than 6, 7 % of its area).
 const TOUCH_FRACTION: f64 = 0.25;
 
 /// Step 2 (see the module documentation for the order and the rules). `pinned` nodes do not
@@ -1019,13 +1017,8 @@ fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
 /// 3D with feature lines: the edges of the adapted mesh that still cross gamma_s within their
 /// length of a feature line, cut at new nodes (no moves), and the mesh subdivided again, pass
 /// after pass (at most [`MAX_CROSSING_PASSES`]) until none is left; edges with both ends on
-/// gamma_s are not cut (a chord along it), nor crossings within `TOUCH_FRACTION * eps_hat` of
-/// their edge of an end on gamma_s (the edge touches gamma_s at that end, as in step 2, where a
-/// cut within `eps_hat` of an end on gamma_s is dropped): a new node there, beside a gamma_f
-/// vertex on another edge, made a needle facet on gamma_f (an edge of 0.038 mm among 1.3 mm
-/// ones, the 3D valve sector's leaflet at its first closure) and a sliver cell beside it, whose
-/// multiplier and pressure gradient Newton could not control; until then only crossings within
-/// 1e-6 of the edge, that end moved off gamma_s by round-off, were dropped. Next to a block's edge a fluid cell can be cut by
+/// gamma_s are not cut (a chord along it), nor crossings within [`CROSSING_AT_END`] of an end on
+/// gamma_s. Next to a block's edge a fluid cell can be cut by
 /// both faces without holding the edge's chain: an edge of it passes through the solid's wedge,
 /// crossing both faces, and keeps one point; the children of the bisection then have edges
 /// between that point and the cell's other vertices that cross the other face, and gamma_f had a
@@ -1038,10 +1031,8 @@ fn cut_crossings_near_features<const D: usize>(
     surface: &Surface<D>,
     lines: &[Vec<[f64; D]>],
     parts: &[usize],
-    opts: &AdaptOptions,
+    min_quality: f64,
 ) -> Result<Extra, AdaptError> {
-    let min_quality = opts.min_move_quality;
-    let at_end = TOUCH_FRACTION * opts.eps_hat;
     let mut extra = Extra { min_quality: 1.0, ..Default::default() };
     if D != 3 || lines.is_empty() {
         return Ok(extra);
@@ -1059,7 +1050,7 @@ fn cut_crossings_near_features<const D: usize>(
             for c in &cuts.cuts {
                 let [u, v] = bg.topology.edges[c.edge];
                 let len2 = dist2(&bg.mesh.points[u], &bg.mesh.points[v]);
-                let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| flags[w] && t <= at_end);
+                let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| flags[w] && t <= CROSSING_AT_END);
                 if !(at_surface_end || flags[u] && flags[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
                     add_node(&mut plan, c.edge, c.x);
                 }
@@ -1134,6 +1125,11 @@ fn refused_kinks<const D: usize>(bg: &Background<D>, plan: &Plan<D>, split: &Spl
     }
     refused
 }
+
+/// A crossing this close (relative to its edge) to an end of the edge on gamma_s is that end
+/// touching gamma_s, moved off it by round-off (`cut_crossings_near_features`): an edge
+/// nearly parallel to a face from a vertex on a feature line.
+const CROSSING_AT_END: f64 = 1e-6;
 
 /// Passes of [`cut_crossings_near_features`] at most.
 const MAX_CROSSING_PASSES: usize = 4;
