@@ -17,7 +17,8 @@
 //! 3. **Subdivide** ([`subdivide`]): every cell with split edges is replaced by the children of
 //!    successive bisection; faces are split consistently, so the mesh stays conforming. In 3D
 //!    with feature lines, the children's edges that still cross gamma_s within their length of a
-//!    line are cut and the cells subdivided again (`cut_crossings_near_features`).
+//!    line are cut and the cells subdivided again (`cut_crossings_near_features`), but for an
+//!    edge that only skims the face of its end on gamma_s (`skims_its_face`).
 //! 4. **gamma_f**: facets of the adapted mesh whose vertices all lie on gamma_s and which lie in
 //!    gamma_s, with the cells on both sides and each vertex's location on gamma_s.
 //!
@@ -170,20 +171,18 @@ impl<'a, const D: usize> PartsAt<'a, D> {
     /// line; one: they lie on one face; two or more: all lie on one feature line.
     fn shared_parts(&self, vertices: &[usize], pos: impl Fn(usize) -> [f64; D]) -> usize {
         let mut found = self.found.borrow_mut();
-        let mut at = |v: usize| {
-            found
-                .entry(v)
-                .or_insert_with(|| {
-                    let x = pos(v);
-                    let tol = PARTS_REL_TOL * (1.0 + x.iter().fold(0.0f64, |m, c| m.max(c.abs())));
-                    features::parts_at(self.surface, self.parts, &x, tol)
-                })
-                .clone()
-        };
+        let mut at = |v: usize| found.entry(v).or_insert_with(|| parts_of_point(self.surface, self.parts, &pos(v))).clone();
         let first = at(vertices[0]);
         let rest: Vec<Vec<usize>> = vertices[1..].iter().map(|&v| at(v)).collect();
         first.iter().filter(|p| rest.iter().all(|r| r.contains(p))).count()
     }
+}
+
+/// The smooth parts of gamma_s ([`features::smooth_parts`]) `x` lies on, within
+/// [`PARTS_REL_TOL`].
+fn parts_of_point<const D: usize>(surface: &Surface<D>, parts: &[usize], x: &[f64; D]) -> Vec<usize> {
+    let tol = PARTS_REL_TOL * (1.0 + x.iter().fold(0.0f64, |m, c| m.max(c.abs())));
+    features::parts_at(surface, parts, x, tol)
 }
 
 /// Name of the boundary [`tag_gamma_f`] gives the facets of gamma_f (seen from one side).
@@ -457,7 +456,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
     let mut on_surface = on_surface_flags(bg, &plan, &cuts);
     let mut candidates: Vec<usize> = out.child_index.iter().flatten().copied().collect();
     candidates.extend(cuts.touched.iter().chain(plan.moved.keys()).flat_map(|&v| bg.vertex_cells.row(v).iter().copied()));
-    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, &parts, opts.min_move_quality)?;
+    let extra = cut_crossings_near_features(&mut out, &mut on_surface, surface, &lines, &parts, opts)?;
     if extra.passes > 0 {
         let mesh = &out.mesh;
         candidates = (0..mesh.num_cells()).filter(|&c| mesh.cell(c).iter().any(|&v| on_surface[v])).collect();
@@ -537,7 +536,9 @@ impl<const D: usize> Plan<D> {
 /// the edge's length) of it. Nearer cuts made the clusters of tiny cells around such a vertex
 /// (the 3D valve sector's leaflet entering the wall: edges of 0.04 mm of 2 mm cells, Newton
 /// stalling under SUPG); taking the vertex within the whole `eps_hat` left gamma_f with holes
-/// there (28 facets rejected by the gamma_f rule rather than 6, 7 % of its area).
+/// there (28 facets rejected by the gamma_f rule rather than 6, 7 % of its area). A crossing of
+/// `cut_crossings_near_features` within this fraction of `eps_hat` of an end on gamma_s that
+/// only skims that end's face is dropped alike.
 const TOUCH_FRACTION: f64 = 0.25;
 
 /// Step 2 (see the module documentation for the order and the rules). `pinned` nodes do not
@@ -1018,21 +1019,29 @@ fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
 /// length of a feature line, cut at new nodes (no moves), and the mesh subdivided again, pass
 /// after pass (at most [`MAX_CROSSING_PASSES`]) until none is left; edges with both ends on
 /// gamma_s are not cut (a chord along it), nor crossings within [`CROSSING_AT_END`] of an end on
-/// gamma_s. Next to a block's edge a fluid cell can be cut by
+/// gamma_s, nor those within `TOUCH_FRACTION * eps_hat` of an end on gamma_s of an edge that
+/// only skims that end's face ([`skims_its_face`]: a new node there, beside the end, made a
+/// needle facet on gamma_f, 0.038 mm among 1.3 mm edges at the 3D valve's first closure, whose
+/// multiplier and the pressure gradient of the sliver cell beside it Newton could not control).
+/// Next to a block's edge a fluid cell can be cut by
 /// both faces without holding the edge's chain: an edge of it passes through the solid's wedge,
 /// crossing both faces, and keeps one point; the children of the bisection then have edges
 /// between that point and the cell's other vertices that cross the other face, and gamma_f had a
-/// hole there. The cut children leave no edge crossing gamma_s near the feature lines, so the
-/// faces there are unions of facets. Modifies `out` (its `child_index` is left as it was) and
-/// `on_surface`.
+/// hole there (those near-end crossings are cut: dropping every crossing within
+/// `TOUCH_FRACTION * eps_hat` of an end on gamma_s left such holes). The cut children leave no
+/// edge crossing gamma_s near the feature lines, so the faces there are unions of facets.
+/// Modifies `out` (its `child_index` is left as it was) and `on_surface`.
 fn cut_crossings_near_features<const D: usize>(
     out: &mut Assembled<D>,
     on_surface: &mut Vec<bool>,
     surface: &Surface<D>,
     lines: &[Vec<[f64; D]>],
     parts: &[usize],
-    min_quality: f64,
+    opts: &AdaptOptions,
 ) -> Result<Extra, AdaptError> {
+    let min_quality = opts.min_move_quality;
+    let near_end = TOUCH_FRACTION * opts.eps_hat;
+    let parts_at = |x: &[f64; D]| parts_of_point(surface, parts, x);
     let mut extra = Extra { min_quality: 1.0, ..Default::default() };
     if D != 3 || lines.is_empty() {
         return Ok(extra);
@@ -1050,7 +1059,9 @@ fn cut_crossings_near_features<const D: usize>(
             for c in &cuts.cuts {
                 let [u, v] = bg.topology.edges[c.edge];
                 let len2 = dist2(&bg.mesh.points[u], &bg.mesh.points[v]);
-                let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| flags[w] && t <= CROSSING_AT_END);
+                let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| {
+                    flags[w] && (t <= CROSSING_AT_END || t <= near_end && skims_its_face(&parts_at(&bg.mesh.points[w]), &parts_at(&c.x)))
+                });
                 if !(at_surface_end || flags[u] && flags[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
                     add_node(&mut plan, c.edge, c.x);
                 }
@@ -1082,6 +1093,16 @@ fn cut_crossings_near_features<const D: usize>(
         extra.passes += 1;
     }
     Ok(extra)
+}
+
+/// Does an edge from a vertex on gamma_s (on the smooth parts `at_vertex`) that crosses it near
+/// that vertex (at a point on the parts `at_crossing`) only skim the vertex's face? Yes where
+/// the vertex lies inside one face (not on a feature line) and the crossing on that face too:
+/// the edge leaves the face at a slant and crosses the faceted face back (its triangles turn
+/// by some degrees), so the edge lies on the side of its far end but for a sliver. A crossing
+/// of another face is the edge passing through the solid's wedge by a block's edge, and is cut.
+fn skims_its_face(at_vertex: &[usize], at_crossing: &[usize]) -> bool {
+    matches!(at_vertex, [p] if at_crossing.contains(p))
 }
 
 /// `cuts` without the cuts (and second cuts) of the edges that take a kink of a feature line
