@@ -330,24 +330,23 @@ where
     loop {
         let t = std::time::Instant::now();
         rhs.iter_mut().for_each(|v| *v = 0.0);
-        let mut assembled = assemble(x, system.zeroed_matrix(), &mut rhs);
+        let assembled = assemble(x, system.zeroed_matrix(), &mut rhs);
         // Every rank sees an error where any failed (else the others would go on alone).
         let failed = system.any_failed(assembled.is_err())?;
-        let assembly_error = |assembled: &mut Result<(), E>| {
-            std::mem::replace(assembled, Ok(())).err().map_or(NewtonError::AssemblyOnAnotherRank, NewtonError::Assembly)
-        };
+        let assembly_error = |assembled: Result<(), E>| assembled.err().map_or(NewtonError::AssemblyOnAnotherRank, NewtonError::Assembly);
         // A trial point of the line search where the residual is not defined (an element
         // turned inside out) is a step without decrease: halved like one (the domain error of
         // PETSc's line searches). At the first point, or without the search, the error stands.
         let searching = options.line_search == Some(true) && last_step.is_some();
         if failed && !searching {
-            return Err(assembly_error(&mut assembled));
+            return Err(assembly_error(assembled));
         }
         report.assemble_seconds += t.elapsed().as_secs_f64();
         let r = if failed { f64::NAN } else { system.norm(&rhs)? };
         if let (Some((dx, l)), Some(&previous), Some(&first)) = (last_step.as_mut(), report.residual_norms.last(), report.residual_norms.first()) {
-            let decreased = r <= (1.0 - 1e-4 * *l) * previous; // false for NaN
-                                                               // Near the tolerance the residual is round-off: no search there.
+            // Sufficient decrease (Armijo, c = 1e-4); false for a failed assembly's NaN.
+            let decreased = r <= (1.0 - 1e-4 * *l) * previous;
+            // Near the tolerance the residual is round-off: no search there.
             let near_tolerance = previous <= LINE_SEARCH_FLOOR * options.abs_tol.max(options.rel_tol * first);
             // A failed assembly is no round-off: halved near the tolerance too.
             if options.line_search == Some(true) && !decreased && (failed || !near_tolerance) {
@@ -355,9 +354,10 @@ where
                     // No decrease along the Newton direction: more iterations will not help.
                     let back = *l;
                     x.iter_mut().zip(dx.iter()).for_each(|(xi, d)| *xi -= back * d); // x_k again
-                    return Err(match failed {
-                        true => assembly_error(&mut assembled),
-                        false => NewtonError::LineSearch { iteration: report.iterations, residual: previous },
+                    return Err(if failed {
+                        assembly_error(assembled)
+                    } else {
+                        NewtonError::LineSearch { iteration: report.iterations, residual: previous }
                     });
                 }
                 // Back from x_k + l dx to x_k + l/2 dx, and assemble there.
