@@ -351,8 +351,9 @@ fn run(request: RunRequest, ranks: &Ranks, quiet: bool, verbose: bool) -> Result
     let t = &summary.timings;
     let memory = summary.peak_memory_mib.map(|m| format!(", peak memory {m:.0} MiB")).unwrap_or_default();
     let on = if ranks.size > 1 { format!(" on {} ranks", ranks.size) } else { String::new() };
+    let failed = if t.failed_attempts > 0.0 { format!(", failed attempts {:.2} s", t.failed_attempts) } else { String::new() };
     log(&format!(
-        "done{on} in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s{memory}); results in {}",
+        "done{on} in {:.2} s (adapt {:.2} s, assemble {:.2} s, factorize {:.2} s, solve {:.2} s, output {:.2} s{failed}{memory}); results in {}",
         t.total,
         t.adapt,
         t.assemble,

@@ -1,7 +1,7 @@
 //! Every kind of run cuts a step whose Newton solve fails: here an FSI step (model problem 2's
 //! first step with Newton limited to three iterations at a tolerance that a step of dt = 1 does
 //! not reach and a step of dt = 1/2 does) fails whole, passes in two halves, and then equals a
-//! run made with half the step.
+//! run made with half the step; the failed attempt's time is reported apart.
 
 use fdfsi::case::builtin::BUILTIN_CASES;
 use fdfsi::case::Case;
@@ -38,10 +38,13 @@ fn an_fsi_step_that_fails_whole_is_cut_and_passes_in_halves() {
     // The failure that caused the cut is logged.
     assert!(log.iter().any(|l| l.starts_with("step 1: ") && l.ends_with("; from t = 0.000000e0 on in sub-steps of 1/2 of the step")), "{log:#?}");
     assert_eq!(cut.steps, 1);
+    // The failed attempt's time is reported apart (a run that is not cut has none).
+    assert!(cut.timings.failed_attempts > 0.0, "{:?}", cut.timings);
     // ...which are the two steps of a run with dt = 1/2.
     let halves = run(&tight_model_problem_2(0.5, 1.0, 0), &dir.path().join("halves"), &mut Vec::new()).unwrap();
     for name in ["plate_force_x", "plate_force_y", "inlet_flux"] {
         let (a, b) = (cut.quantities[name], halves.quantities[name]);
         assert!((a - b).abs() <= 1e-12 * b.abs().max(1e-300), "{name}: {a} after a cut step, {b} in two steps");
     }
+    assert_eq!(halves.timings.failed_attempts, 0.0);
 }

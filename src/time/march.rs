@@ -87,7 +87,8 @@ pub struct StepDone {
     pub cuts: usize,
     /// The Newton solves of its (sub)steps.
     pub newton: Vec<NewtonReport>,
-    /// Its phase times (summed over the sub-steps).
+    /// Its phase times (summed over the sub-steps; those of the attempts that failed in
+    /// `failed_attempts`).
     pub phases: Timings,
 }
 
@@ -218,6 +219,7 @@ fn advance_step<S: Stepper, W: Watch<S>>(
     let at = |k: usize, cuts: usize| if k == 1 << cuts { t1 } else { t0 + k as f64 * (t1 - t0) / (1usize << cuts) as f64 };
     while k < 1 << cuts {
         let (a, b) = (at(k, cuts), at(k + 1, cuts));
+        let clock = Instant::now();
         match stepper.advance(a, b, cuts > 0) {
             Ok(adv) => {
                 (done.dt, done.cuts) = (b - a, cuts);
@@ -226,6 +228,7 @@ fn advance_step<S: Stepper, W: Watch<S>>(
             }
             Err(source) if cuts == max_cuts => return Err(MarchError::StepFailed { step, time: t1, cuts, source }),
             Err(e) => {
+                done.phases.failed_attempts += clock.elapsed().as_secs_f64();
                 cuts += 1;
                 k *= 2;
                 watch.step_cut(step, cuts, a, &e);

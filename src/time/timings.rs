@@ -21,6 +21,10 @@ pub struct Timings {
     pub solve: f64,
     /// Quantities, history, fields and checkpoints.
     pub output: f64,
+    /// The (sub)step attempts that failed and were cut (all their phases; the phases above are
+    /// those of the (sub)steps done).
+    #[serde(default)]
+    pub failed_attempts: f64,
     /// Wall time of the whole run; for a resumed run, of all its parts (each earlier part counted
     /// from the setup of its time loop: its case check and mesh reading, a few seconds, are not
     /// carried). The step phases (adapt, transfer, assemble, factorize, solve, output, and an
@@ -42,6 +46,7 @@ impl Timings {
             factorize: t.factorize * factor,
             solve: t.solve * factor,
             output: t.output * factor,
+            failed_attempts: t.failed_attempts * factor,
             total: t.total * factor,
         }
     }
@@ -56,6 +61,7 @@ impl Timings {
         self.factorize += other.factorize;
         self.solve += other.solve;
         self.output += other.output;
+        self.failed_attempts += other.failed_attempts;
     }
 
     /// Adds the assembly, factorisation and solve times of a Newton solve.
