@@ -185,7 +185,7 @@ fn interrupted_and_resumed_after(
     // checkpoint holds) and at least the phases summed over both parts.
     let (before, t) = (checkpoint.progress.timings.total, &summary.timings);
     assert!(before > 0.0 && t.total > before, "total {} after a first part of {before} s", t.total);
-    let phases = t.mesh + t.adapt + t.discretize + t.transfer + t.assemble + t.factorize + t.solve + t.output;
+    let phases = t.mesh + t.adapt + t.discretize + t.transfer + t.assemble + t.factorize + t.solve + t.output + t.failed_attempts;
     assert!(t.total >= phases, "total {} < phases {phases}", t.total);
     (history(&full), history(&parts), parts)
 }

@@ -5,7 +5,8 @@
 //! `solid.loading.steps` equal increments; where an increment fails it goes on in halves,
 //! quarters, ..., down to 1/64 of it (the sub-increments done stand). With `[time]` it moves in
 //! time from rest ([`DynamicStepper`]: inertia `solid.density`, `time.scheme` implicit Euler or
-//! BDF2), its boundary values and body force evaluated at each step's time. Runs write checkpoints and stop on Ctrl-C like every run.
+//! BDF2), its boundary values and body force evaluated at each step's time. Runs write
+//! checkpoints and stop on Ctrl-C like every run.
 //! Results in `--out DIR`:
 //! - `solution.pvd` + `solution_solid_NNNNNN.vtu`: the deformed solid of the last step
 //!   (quasi-static) or at `t = 0` and every `time.output_every` steps (see

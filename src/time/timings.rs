@@ -27,8 +27,8 @@ pub struct Timings {
     pub failed_attempts: f64,
     /// Wall time of the whole run; for a resumed run, of all its parts (each earlier part counted
     /// from the setup of its time loop: its case check and mesh reading, a few seconds, are not
-    /// carried). The step phases (adapt, transfer, assemble, factorize, solve, output, and an
-    /// FSI run's discretize) are summed over the parts; `mesh` and a flow run's `discretize` are
+    /// carried). The step phases (adapt, transfer, assemble, factorize, solve, output,
+    /// failed_attempts, and an FSI run's discretize) are summed over the parts; `mesh` and a flow run's `discretize` are
     /// the last part's.
     pub total: f64,
 }

@@ -1022,12 +1022,12 @@ fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
 /// gamma_s, nor those within `TOUCH_FRACTION * eps_hat` of an end on gamma_s of an edge that
 /// only skims that end's face ([`skims_its_face`]: a new node there, beside the end, made a
 /// needle facet on gamma_f, 0.038 mm among 1.3 mm edges at the 3D valve's first closure, whose
-/// multiplier and the pressure gradient of the sliver cell beside it Newton could not control).
-/// Next to a block's edge a fluid cell can be cut by
-/// both faces without holding the edge's chain: an edge of it passes through the solid's wedge,
-/// crossing both faces, and keeps one point; the children of the bisection then have edges
-/// between that point and the cell's other vertices that cross the other face, and gamma_f had a
-/// hole there (those near-end crossings are cut: dropping every crossing within
+/// multiplier and the pressure gradient of the sliver cell beside it Newton could not control),
+/// unless the edge crosses gamma_s again (its second cut). Next to a block's edge a fluid cell
+/// can be cut by both faces without holding the edge's chain: an edge of it passes through the
+/// solid's wedge, crossing both faces, and keeps one point; the children of the bisection then
+/// have edges between that point and the cell's other vertices that cross the other face, and
+/// gamma_f had a hole there (those near-end crossings are cut: dropping every crossing within
 /// `TOUCH_FRACTION * eps_hat` of an end on gamma_s left such holes). The cut children leave no
 /// edge crossing gamma_s near the feature lines, so the faces there are unions of facets.
 /// Modifies `out` (its `child_index` is left as it was) and `on_surface`.
@@ -1041,7 +1041,7 @@ fn cut_crossings_near_features<const D: usize>(
 ) -> Result<Extra, AdaptError> {
     let min_quality = opts.min_move_quality;
     let near_end = TOUCH_FRACTION * opts.eps_hat;
-    let parts_at = |x: &[f64; D]| parts_of_point(surface, parts, x);
+    let parts_of = |x: &[f64; D]| parts_of_point(surface, parts, x);
     let mut extra = Extra { min_quality: 1.0, ..Default::default() };
     if D != 3 || lines.is_empty() {
         return Ok(extra);
@@ -1059,8 +1059,10 @@ fn cut_crossings_near_features<const D: usize>(
             for c in &cuts.cuts {
                 let [u, v] = bg.topology.edges[c.edge];
                 let len2 = dist2(&bg.mesh.points[u], &bg.mesh.points[v]);
+                // The kept cut of an edge crossing gamma_s twice is the one farther from its ends.
+                let once = cuts.second_cuts.binary_search_by_key(&c.edge, |s| s.edge).is_err();
                 let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| {
-                    flags[w] && (t <= CROSSING_AT_END || t <= near_end && skims_its_face(&parts_at(&bg.mesh.points[w]), &parts_at(&c.x)))
+                    flags[w] && (t <= CROSSING_AT_END || once && t <= near_end && skims_its_face(&parts_of(&bg.mesh.points[w]), &parts_of(&c.x)))
                 });
                 if !(at_surface_end || flags[u] && flags[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
                     add_node(&mut plan, c.edge, c.x);
@@ -1101,6 +1103,9 @@ fn cut_crossings_near_features<const D: usize>(
 /// the edge leaves the face at a slant and crosses the faceted face back (its triangles turn
 /// by some degrees), so the edge lies on the side of its far end but for a sliver. A crossing
 /// of another face is the edge passing through the solid's wedge by a block's edge, and is cut.
+/// (A solid thinner than that fraction of the edge, with a rounded rim and no feature line
+/// between its faces, would be taken to be skimmed too; the valve's leaflet, 0.5 mm thick in
+/// cells of 2 mm, has its faces apart at its edges.)
 fn skims_its_face(at_vertex: &[usize], at_crossing: &[usize]) -> bool {
     matches!(at_vertex, [p] if at_crossing.contains(p))
 }
