@@ -485,19 +485,9 @@ fn turned_3d_blocks_are_enclosed_with_their_edges_and_corners() {
     }
 }
 
-/// cases/valve-3d-sector.toml's fluid mesh adapted to its soft leaflet (G = 0.3 MPa) where it
-/// first closes (step 282 of the run from rest; gamma_s saved by `fdfsi adapt --at`). The passes
-/// that cut the edges still crossing gamma_s next to the feature lines put a node 0.038 mm from a
-/// gamma_f vertex on the leaflet's face, near the middle of its free edge: an edge from that
-/// vertex, leaving the faceted face at a slant, crossed it back there. Its needle facet (edges
-/// 1.32, 1.33 and 0.038 mm) and the sliver cell beside it took multipliers and pressure gradients
-/// Newton could not control, at every step length down to dt / 64. Such a crossing of the
-/// vertex's own face is dropped now (a crossing of the other face of a block's edge is still cut:
-/// [`turned_3d_blocks_are_enclosed_with_their_edges_and_corners`]). Measured: shortest gamma_f
-/// edge 0.125 mm (at the root's wall; 0.038 before), held at 0.1 mm; gamma_f 179.6286 mm^2 against
-/// 179.6299 before (7e-6 less), held within 1e-4 (relative) of the latter.
-#[test]
-fn the_valve_leaflet_at_its_closure_leaves_no_needle_facet_on_gamma_f() {
+/// The shortest edge of gamma_f and its measure: cases/valve-3d-sector.toml's fluid mesh adapted
+/// (with the case's options) to a saved gamma_s of its leaflet.
+fn valve_gamma_f(gamma_s: &str) -> (f64, [f64; 3], f64) {
     use fdfsi::fem::adapt::{adapt_with, Background};
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let case = Case::read(&root.join("cases/valve-3d-sector.toml")).unwrap();
@@ -505,7 +495,7 @@ fn the_valve_leaflet_at_its_closure_leaves_no_needle_facet_on_gamma_f() {
     let fdfsi::fem::gmsh::AnyMesh::D3(fluid) = fdfsi::fem::gmsh::read_msh(&root.join("meshes/valve-3d-sector-fluid.msh")).unwrap() else {
         panic!("the valve's fluid mesh is 3D")
     };
-    let surface = saved_gamma_s::<3>("valve-3d-sector-gamma-s-step282.csv");
+    let surface = saved_gamma_s::<3>(gamma_s);
     let adapted = adapt_with(&Background::new(&fluid).unwrap(), &surface, &options).unwrap();
     let points = &adapted.mesh.points;
     let length = |a: usize, b: usize| (0..3).map(|d| (points[a][d] - points[b][d]).powi(2)).sum::<f64>().sqrt();
@@ -515,9 +505,44 @@ fn the_valve_leaflet_at_its_closure_leaves_no_needle_facet_on_gamma_f() {
         .flat_map(|f| [(0, 1), (1, 2), (2, 0)].map(|(i, j)| (length(f.vertices[i], f.vertices[j]), points[f.vertices[i]])))
         .fold((f64::INFINITY, [0.0; 3]), |m, e| if e.0 < m.0 { e } else { m });
     let measure = adapted.gamma_f_measure();
-    println!("shortest gamma_f edge {shortest:.4} mm at {at:?}; gamma_f {measure:.4} mm^2; {:?}", adapted.stats);
+    println!("{gamma_s}: shortest gamma_f edge {shortest:.4} mm at {at:?}; gamma_f {measure:.4} mm^2; {:?}", adapted.stats);
+    (shortest, at, measure)
+}
+
+/// cases/valve-3d-sector.toml's fluid mesh adapted to its soft leaflet (G = 0.3 MPa) where it
+/// first closes (step 282 of the run from rest; gamma_s saved by `fdfsi adapt --at`). The passes
+/// that cut the edges still crossing gamma_s next to the feature lines put a node 0.038 mm from a
+/// gamma_f vertex on the leaflet's face, near the middle of its free edge: an edge from that
+/// vertex, leaving the faceted face at a slant, crossed it back there. Its needle facet (edges
+/// 1.32, 1.33 and 0.038 mm) and the sliver cell beside it took multipliers and pressure gradients
+/// Newton could not control, at every step length down to dt / 64. Such a crossing of the
+/// vertex's own face is dropped now (a crossing of the other face of a block's edge is still cut:
+/// [`turned_3d_blocks_are_enclosed_with_their_edges_and_corners`]). Measured: shortest gamma_f
+/// edge 0.125 mm (at the root's wall; 0.038 before), held at 0.1 mm; gamma_f 179.491 mm^2 against
+/// 179.630 before, held within 1e-3 (relative) of the latter: the 0.077 % less is one facet
+/// (0.14 mm^2) with a vertex 0.16 mm from a boundary vertex taken to lie on gamma_s, at the
+/// plane of coaptation (the rule of the next test).
+#[test]
+fn the_valve_leaflet_at_its_closure_leaves_no_needle_facet_on_gamma_f() {
+    let (shortest, at, measure) = valve_gamma_f("valve-3d-sector-gamma-s-step282.csv");
     assert!(shortest > 0.1, "a needle facet on gamma_f: an edge of {shortest} mm at {at:?}");
-    assert!((measure / 179.6299 - 1.0).abs() < 1e-4, "gamma_f {measure} mm^2");
+    assert!((measure / 179.6299 - 1.0).abs() < 1e-3, "gamma_f {measure} mm^2");
+}
+
+/// The same two steps later (step 284), the leaflet on its plane of coaptation (y = 0), 0.03 mm
+/// above a fluid vertex of the plane at (1.73, 0, 14.98). That vertex, which may not leave the
+/// plane, is taken to lie on gamma_s (`boundary_cuts = "touch"`), and step 2 drops the cuts of
+/// its edges within `eps_hat`; but the passes that cut the edges still crossing gamma_s next to
+/// a feature line cut its children's edges 0.03-0.07 mm from it: five gamma_f vertices within
+/// 0.07 mm, gamma_f edges of 0.017 mm, cells of quality 6e-4, and the multiplier there swinging
+/// by 1e6-1e7 Pa from one Newton iteration to the next (the step failed in sub-steps of dt / 64).
+/// Those crossings within `TOUCH_FRACTION * eps_hat` of such a vertex (the distance within which
+/// it is taken to touch gamma_s) are dropped now. Measured: shortest gamma_f edge 0.117 mm (0.017
+/// before), worst cell quality 8.5e-3 (5.8e-4), 1 crossing cut (7); held at 0.1 mm.
+#[test]
+fn the_valve_leaflet_on_its_plane_leaves_no_cluster_of_nodes_on_gamma_f() {
+    let (shortest, at, _) = valve_gamma_f("valve-3d-sector-gamma-s-step284.csv");
+    assert!(shortest > 0.1, "a cluster of gamma_f vertices: an edge of {shortest} mm at {at:?}");
 }
 
 /// [`block_3d`] swinging sideways in its fluid: softer (G = 0.2), with inertia (density 1), its

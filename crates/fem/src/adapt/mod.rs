@@ -1023,7 +1023,9 @@ fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
 /// only skims that end's face ([`skims_its_face`]: a new node there, beside the end, made a
 /// needle facet on gamma_f, 0.038 mm among 1.3 mm edges at the 3D valve's first closure, whose
 /// multiplier and the pressure gradient of the sliver cell beside it Newton could not control),
-/// unless the edge crosses gamma_s again (its second cut). Next to a block's edge a fluid cell
+/// unless the edge crosses gamma_s again (its second cut), and those as near a boundary vertex
+/// taken to lie on gamma_s off it (a boundary touch, on no smooth part: the valve's leaflet 0.03
+/// mm above the plane of coaptation, whose crossings made five gamma_f vertices within 0.07 mm). Next to a block's edge a fluid cell
 /// can be cut by both faces without holding the edge's chain: an edge of it passes through the
 /// solid's wedge, crossing both faces, and keeps one point; the children of the bisection then
 /// have edges between that point and the cell's other vertices that cross the other face, and
@@ -1062,7 +1064,13 @@ fn cut_crossings_near_features<const D: usize>(
                 // The kept cut of an edge crossing gamma_s twice is the one farther from its ends.
                 let once = cuts.second_cuts.binary_search_by_key(&c.edge, |s| s.edge).is_err();
                 let at_surface_end = [(u, c.t), (v, 1.0 - c.t)].iter().any(|&(w, t)| {
-                    flags[w] && (t <= CROSSING_AT_END || once && t <= near_end && skims_its_face(&parts_of(&bg.mesh.points[w]), &parts_of(&c.x)))
+                    if !flags[w] || t > near_end {
+                        return false;
+                    }
+                    let at_w = parts_of(&bg.mesh.points[w]);
+                    // On no part: a boundary touch, off gamma_s by up to `TOUCH_FRACTION *
+                    // eps_hat` of an edge; a crossing as near is that vertex touching it.
+                    t <= CROSSING_AT_END || at_w.is_empty() || once && t <= near_end && skims_its_face(&at_w, &parts_of(&c.x))
                 });
                 if !(at_surface_end || flags[u] && flags[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
                     add_node(&mut plan, c.edge, c.x);
