@@ -18,7 +18,8 @@
 //!    successive bisection; faces are split consistently, so the mesh stays conforming. In 3D
 //!    with feature lines, the children's edges that still cross gamma_s within their length of a
 //!    line are cut and the cells subdivided again (`cut_crossings_near_features`), but for an
-//!    edge that only skims the face of its end on gamma_s (`skims_its_face`).
+//!    edge that only skims the face of its end on gamma_s (`skims_its_face`) or crosses it
+//!    next to a boundary vertex taken to lie on it (a boundary touch).
 //! 4. **gamma_f**: facets of the adapted mesh whose vertices all lie on gamma_s and which lie in
 //!    gamma_s, with the cells on both sides and each vertex's location on gamma_s.
 //!
@@ -1025,14 +1026,15 @@ fn on_surface_flags<const D: usize>(bg: &Background<D>, plan: &Plan<D>, cuts: &C
 /// multiplier and the pressure gradient of the sliver cell beside it Newton could not control),
 /// unless the edge crosses gamma_s again (its second cut), and those as near a boundary vertex
 /// taken to lie on gamma_s off it (a boundary touch, on no smooth part: the valve's leaflet 0.03
-/// mm above the plane of coaptation, whose crossings made five gamma_f vertices within 0.07 mm). Next to a block's edge a fluid cell
-/// can be cut by both faces without holding the edge's chain: an edge of it passes through the
-/// solid's wedge, crossing both faces, and keeps one point; the children of the bisection then
-/// have edges between that point and the cell's other vertices that cross the other face, and
-/// gamma_f had a hole there (those near-end crossings are cut: dropping every crossing within
-/// `TOUCH_FRACTION * eps_hat` of an end on gamma_s left such holes). The cut children leave no
-/// edge crossing gamma_s near the feature lines, so the faces there are unions of facets.
-/// Modifies `out` (its `child_index` is left as it was) and `on_surface`.
+/// mm above the plane of coaptation, whose crossings made five gamma_f vertices within 0.07
+/// mm). Next to a block's edge a fluid cell can be cut by both faces without holding the edge's
+/// chain: an edge of it passes through the solid's wedge, crossing both faces, and keeps one
+/// point; the children of the bisection then have edges between that point and the cell's
+/// other vertices that cross the other face, and gamma_f had a hole there (those near-end
+/// crossings are cut: dropping every crossing within `TOUCH_FRACTION * eps_hat` of an end on
+/// gamma_s left such holes). The cut children leave no edge crossing gamma_s near the feature
+/// lines, so the faces there are unions of facets. Modifies `out` (its `child_index` is left as
+/// it was) and `on_surface`.
 fn cut_crossings_near_features<const D: usize>(
     out: &mut Assembled<D>,
     on_surface: &mut Vec<bool>,
@@ -1070,7 +1072,7 @@ fn cut_crossings_near_features<const D: usize>(
                     let at_w = parts_of(&bg.mesh.points[w]);
                     // On no part: a boundary touch, off gamma_s by up to `TOUCH_FRACTION *
                     // eps_hat` of an edge; a crossing as near is that vertex touching it.
-                    t <= CROSSING_AT_END || at_w.is_empty() || once && t <= near_end && skims_its_face(&at_w, &parts_of(&c.x))
+                    t <= CROSSING_AT_END || at_w.is_empty() || once && skims_its_face(&at_w, &parts_of(&c.x))
                 });
                 if !(at_surface_end || flags[u] && flags[v]) && lines.iter().any(|l| features::project_on_line(l, &c.x).2.powi(2) < len2) {
                     add_node(&mut plan, c.edge, c.x);
