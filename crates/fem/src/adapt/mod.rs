@@ -538,8 +538,8 @@ impl<const D: usize> Plan<D> {
 /// (the 3D valve sector's leaflet entering the wall: edges of 0.04 mm of 2 mm cells, Newton
 /// stalling under SUPG); taking the vertex within the whole `eps_hat` left gamma_f with holes
 /// there (28 facets rejected by the gamma_f rule rather than 6, 7 % of its area). A crossing of
-/// `cut_crossings_near_features` within this fraction of `eps_hat` of an end on gamma_s that
-/// only skims that end's face is dropped alike.
+/// `cut_crossings_near_features` within this fraction of `eps_hat` of an end on gamma_s is
+/// dropped alike where the edge only skims that end's face, or where that end is such a vertex.
 const TOUCH_FRACTION: f64 = 0.25;
 
 /// Step 2 (see the module documentation for the order and the rules). `pinned` nodes do not
