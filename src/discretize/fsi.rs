@@ -83,6 +83,10 @@ use thiserror::Error;
 /// pieces), so a few more points.
 const COUPLING_DEGREE: usize = 7;
 
+/// The tracing target of [`FsiDiscretization::trace_blocks`]'s entry per block: each block's
+/// largest entry of a residual or an update, named.
+const BLOCKS_TARGET: &str = "fdfsi::discretize::fsi::blocks";
+
 /// An error inside the monolithic assembly (reported through Newton).
 #[derive(Debug, Error)]
 pub enum FsiAssemblyError {
@@ -1560,7 +1564,8 @@ impl<const D: usize> FsiDiscretization<D> {
     }
 
     /// Logs (at debug level) the norm per block of `v` (a residual, an update) and its largest
-    /// entry, named: where a Newton solve stalls.
+    /// entry, named: where a Newton solve stalls; with the target [`BLOCKS_TARGET`] at trace
+    /// level, each block's largest entry too.
     fn trace_blocks(&self, model: &FsiModel<D>, what: &str, v: &[f64]) {
         self.trace_blocks_at(model, tracing::Level::DEBUG, what, v);
     }
@@ -1573,8 +1578,17 @@ impl<const D: usize> FsiDiscretization<D> {
             .filter(|(_, r)| !r.is_empty())
             .map(|(b, r)| format!("{} {:.3e}", b.name(), v[r].iter().map(|v| v * v).sum::<f64>().sqrt()))
             .collect();
-        let worst = (0..v.len()).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()));
-        let worst = worst.map_or(String::new(), |i| format!("; largest {:.3e}: {}", v[i], self.describe_unknown(model, i)));
+        let largest = |r: std::ops::Range<usize>| r.max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()));
+        let worst = largest(0..v.len()).map_or(String::new(), |i| format!("; largest {:.3e}: {}", v[i], self.describe_unknown(model, i)));
+        // Each block's largest entry, named, at trace level of its own target (`FDFSI_LOG=
+        // fdfsi::discretize::fsi::blocks=trace`): where a stalled solve's updates are wild.
+        if tracing::enabled!(target: BLOCKS_TARGET, tracing::Level::TRACE) {
+            for (b, r) in self.layout.blocks().filter(|(_, r)| !r.is_empty()) {
+                if let Some(i) = largest(r) {
+                    tracing::trace!(target: BLOCKS_TARGET, "{what}: {} largest {:.3e}: {}", b.name(), v[i], self.describe_unknown(model, i));
+                }
+            }
+        }
         if level == tracing::Level::TRACE {
             tracing::trace!("{what}: {}{worst}", blocks.join(", "));
         } else {
