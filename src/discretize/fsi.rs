@@ -1507,7 +1507,10 @@ impl<const D: usize> FsiDiscretization<D> {
                         }
                         linearised = Some(Linearisation { x: x.to_vec(), k: k.values.clone(), rhs: rhs.to_vec() });
                     }
-                    if tracing::enabled!(tracing::Level::DEBUG) {
+                    // The blocks' norms at this module's debug level, or each block's largest
+                    // entry alone at trace level of its own target (`FDFSI_LOG=
+                    // fdfsi::discretize::fsi::blocks=trace`).
+                    if tracing::enabled!(tracing::Level::DEBUG) || tracing::enabled!(target: BLOCKS_TARGET, tracing::Level::TRACE) {
                         if let Some(prev) = &previous {
                             let dx: Vec<f64> = x.iter().zip(prev).map(|(a, b)| a - b).collect();
                             self.trace_blocks(model, "change since the last assembly", &dx);

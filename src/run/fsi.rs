@@ -200,8 +200,8 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let r = &last_step(s).report;
         let (a, sec) = (&r.adapt, &r.seconds);
         obs.detail(&format!(
-            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} corner nodes, {} covered cells removed, {} cut off in closed gaps; worst cell quality {:.1e} ({} moves refused); {} coupling points, max distance to gamma_s {:.2e} ({:.3} of its facet's size)",
-            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, a.corner_nodes, a.removed_cells, a.closed_gap_cells, a.min_quality, a.refused_moves, r.coupling_points, r.max_coupling_distance,
+            "  adapt: {} cut edges, {} moved and {} new nodes, {} new cells, {} corner nodes, {} covered cells removed, {} cut off in closed gaps ({} pieces of the solid's surface); worst cell quality {:.1e} ({} moves refused); {} coupling points, max distance to gamma_s {:.2e} ({:.3} of its facet's size)",
+            a.cut_edges, a.moved_nodes, a.new_nodes, a.new_cells, a.corner_nodes, a.removed_cells, a.closed_gap_cells, a.closed_gap_pieces, a.min_quality, a.refused_moves, r.coupling_points, r.max_coupling_distance,
             r.max_relative_coupling_distance
         ));
         if a.cells_by_side > 0 {

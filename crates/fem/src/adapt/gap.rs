@@ -161,7 +161,8 @@ pub fn cell_height_at<const D: usize>(mesh: &Mesh<D>, plane: &GapPlane<D>) -> f6
 /// `open`) are cut off too. Cells renumbered in their old order, gamma_f seen from the kept cells
 /// only (facets with no kept cell on either side dropped), the facets between kept and removed
 /// cells off gamma_f tagged [`CLOSED_GAP`] (the name is added even when there are none, so a
-/// condition on it always finds its boundary), [`super::AdaptStats::closed_gap_cells`] set.
+/// condition on it always finds its boundary), [`super::AdaptStats::closed_gap_cells`] and
+/// [`super::AdaptStats::closed_gap_pieces`] set.
 pub fn remove_closed_gaps<const D: usize>(
     adapted: Adapted<D>,
     layers: &[Vec<[f64; D]>],
@@ -200,6 +201,7 @@ pub fn remove_closed_gaps<const D: usize>(
     let count = cut.len();
     let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
     out.stats.closed_gap_cells = count;
+    out.stats.closed_gap_pieces = layers.len() + pressed.len();
     out.stats.coupling_facets = out.gamma_f.len();
     out
 }
@@ -448,6 +450,7 @@ mod tests {
         let cut = remove_closed_gaps(adapted, cut_both, pressed, &surface, &[]);
         let removed = before - cut.mesh.num_cells();
         assert_eq!(cut.stats.closed_gap_cells, removed);
+        assert_eq!(cut.stats.closed_gap_pieces, 1, "the one piece of gamma_s makes the layer");
         assert!(removed > 0);
         assert!(!cut.mesh.boundary_facets(CLOSED_GAP).unwrap().is_empty(), "walls bound the hole");
         // The kept mesh and the hole tile the square.

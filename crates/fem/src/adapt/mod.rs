@@ -295,6 +295,9 @@ pub struct AdaptStats {
     /// Cells cut off where the solid closes on a rigid plane or on another body
     /// ([`remove_closed_gaps`]).
     pub closed_gap_cells: usize,
+    /// Pieces of the solid's surfaces (segments, triangles) whose gap layers cut them off: how
+    /// much of the contact the cut covers, apart from the adapted mesh's cells.
+    pub closed_gap_pieces: usize,
     /// Cells told inside or outside the solid by the side of gamma_s they lie on, where the
     /// facet rules left gamma_f open and [`remove_enclosed`] rebuilt it between the two sides
     /// (0 where gamma_f enclosed the solid; `rejected_facets` and `degenerate_cases` still
