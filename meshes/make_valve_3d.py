@@ -36,12 +36,13 @@ The half leaflet (in its unloaded, half-open shape; see `leaflet_point`) is a ru
     the rigid root, so that its ventricular face crosses the fluid's faceted wall and gamma_f
     seals along the attachment;
   - the free edge, from 3 mm inside the wall at the commissure (theta = 3, z = H_C) to the
-    middle of the leaflet at R_M = 4 from the axis (theta = 60, z = Z_M), bowed towards the
-    axis, and by BOW = 2 more and RISE = 3 up between its ends (sin^2: level at both), so that
-    the leaflet can close: its free edge (12.3 long) reaches from the commissure along the plane
-    theta = 0 to the axis (11.7), and every ruling from the attachment reaches that line with a
-    band of 1 mm to coapt; the leaflet's middle line, nadir to free edge, is 18 long (0.72 of the
-    annulus diameter; 16, the 2D valve's leaflet, until session 35);
+    middle of the leaflet at R_M = 3 from the axis (theta = 60, z = Z_M = 17.6), bowed towards
+    the axis, and by BOW = 1 more and RISE = 3 up between its ends (sin^2: level at both), so
+    that the leaflet can close: its free edge (12.0 long) reaches from the commissure along the
+    plane theta = 0 to the axis (11.7); the leaflet's middle line, nadir to free edge, is 20 long
+    (0.8 of the annulus diameter; 16, the 2D valve's leaflet, until session 35; 18 with R_M = 4
+    and BOW = 2 until session 44, which left a hole at the axis: see BOW below), its highest
+    point at rest z = 20.7, at the sino-tubular junction;
     the 3 degrees leave the commissure open at rest (the ventricular face 0.56 mm from the
     plane theta = 0 at the free edge's corner, 0.69 at the wall), so that the leaflet touches
     its neighbour (that plane) only when it closes;
@@ -77,13 +78,28 @@ THETA_C = math.radians(3.0)
 E_WALL = 0.5
 D_WALL = 0.5
 L_COMMISSURE = 3.0
-R_M = 4.0
-MIDLINE = 18.0
+R_M = 3.0
+MIDLINE = 20.0
 # Until session 35 the middle line was 16 and the free edge 10.3 long with neither BOW nor RISE:
 # the leaflet closed on its plane from the commissure but could not reach the axis (a hole of
 # about 4 mm radius stayed there, 20 ml/s of regurgitation at 83 mmHg): the way from the
 # commissure corner along the plane to the axis was 13.0, and the rulings up to 0.8 short of it.
-BOW, RISE = 2.0, 3.0
+BOW, RISE = 1.0, 3.0
+# Until session 44 R_M was 4, MIDLINE 18 and BOW 2: the leaflet closed on its plane but not at the
+# centre. Under the diastolic load (80 mmHg) the hoop tension of its fibres kept the sheet straight
+# across the corner between the plane and the mirror plane: the free edge's middle stopped at
+# r = 1.05 mm and the face lay on the plane only from r = 1.47, and 10 ml/s leaked down the axis
+# (runs/valve-3d-sector/NOTES.md). A solid-only closure under 80 mmHg (session 44's helper; the
+# same leaflet there stopped at 0.96 and 1.32) showed that length alone does not close it (MIDLINE
+# 22: 0.42 mm): bringing the free edge's middle nearer the axis at rest (R_M 3) and bowing the edge
+# less (BOW 1, which also opens the leaflet wider at rest) does, with MIDLINE 20: the face 0.08 mm
+# from the axis, 0.055 mm^2 left open at the centre (whole valve), the open area at rest 125.1
+# mm^2 (127.4 before).
+# MIRROR_BLEND: over the last MIRROR_BLEND of s, the thickness offset's component across the
+# mirror plane is faded out (by w = (1 - (1 - s) / MIRROR_BLEND)^2), so that a leaflet meeting its
+# mirror plane obliquely (R_M 3 with BOW 1 here) does not put its aortic face across the plane and
+# turn the cells next to it inside out. The ventricular face is unchanged.
+MIRROR_BLEND = 0.4
 N_S, N_XI = 12, 11
 XI_GRADING = 1.4
 
@@ -270,6 +286,13 @@ def leaflet_point(i, j, k):
         xi = b(cell) if mid == 0 else 0.5 * (b(cell) + b(cell + 1))
     x = mid_surface(s, xi)
     n = unit_normal(s, xi)
+    if 1.0 - s < MIRROR_BLEND:
+        w = (1.0 - (1.0 - s) / MIRROR_BLEND) ** 2
+        m = (-math.sin(SECTOR), math.cos(SECTOR), 0.0)
+        across = sum(n[d] * m[d] for d in range(3))
+        n = [n[d] - w * across * m[d] for d in range(3)]
+        norm = math.sqrt(sum(c * c for c in n))
+        n = [c / norm for c in n]
     t = THICKNESS * k / 2.0
     p = [x[d] + t * n[d] for d in range(3)]
     if i == 2 * N_S:
