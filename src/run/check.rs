@@ -19,7 +19,7 @@ use crate::case::{name_of, BoundaryNames, Case, CaseError, ProbeField, RunKind, 
 use crate::discretize::flow::{Entries, FlowDiscretization};
 use crate::discretize::fsi::FsiDiscretization;
 use crate::discretize::solid::SolidDiscretization;
-use crate::setup::{adapt_fluid, build_mesh, flow_problem, fsi_model, solid_problem, SetupError, SolidMesh};
+use crate::setup::{adapt_fluid, build_mesh, displacement_probes, flow_problem, fsi_model, solid_problem, SetupError, SolidMesh};
 use crate::time::num_steps;
 use fdfsi_fem::adapt::{CellLocator, GAMMA_F, GAMMA_F_MINUS, GAMMA_F_PLUS};
 use fdfsi_fem::element::ReferenceCell;
@@ -204,6 +204,8 @@ impl Ctx<'_> {
         let problem = solid_problem::<D>(case, cell_body, case.time.is_none())?;
         let disc = SolidDiscretization::build_for(mesh, &problem)?;
         disc.check_problem(&problem)?;
+        // Each displacement probe at a node of the solid mesh, as the run requires.
+        displacement_probes(case, &disc)?;
         let lagrangian = if case.time.is_some() { crate::discretize::solid::Lagrangian::Total } else { spec.loading.mode };
         let description = format!(
             "{}: solid-only ({}), {D}D mesh of {cells} cells; {}; nnz {}; {:?} Lagrangian",
@@ -267,6 +269,7 @@ impl Ctx<'_> {
             let material = model.problem.solid.material_names();
             let disc = FsiDiscretization::build_with(&model, &vec![0.0; model.solid.num_dofs()], &Default::default(), Entries::Counted)?;
             self.probes_inside(&disc.flow.mesh)?;
+            displacement_probes(case, &model.solid)?;
             let dofs = disc.layout.dofs_per_part();
             let ts = case.time.as_ref().ok_or_else(|| self.invalid("an FSI run needs a [time] table".into()))?;
             let steps = num_steps(ts.dt, ts.end);
