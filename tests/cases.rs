@@ -1177,9 +1177,9 @@ fn valve_3d_sector_opens_on_its_symmetry_planes() {
 /// with gamma_f whole on the curved leaflets: flux 1.2e-4, open area 3.3e-5, tip 2.2e-4,
 /// pressures 4e-7; session 38, G = 0.3 MPa: flux 1.7e-4, open area 2e-7, tip 5.9e-5, pressures
 /// 6e-8 (450 s beside a long run); held at 3e-3.
-/// Ignored: 381 212 unknowns (6 times the sector's; 372 611 with the leaflet before session 44), 11.3 GiB and about 6 minutes here.
+/// Ignored: 380 810 unknowns (6 times the sector's; 372 611 with the leaflet before session 44), 11.3 GiB and about 6 minutes here.
 #[test]
-#[ignore = "the whole valve: 381 212 unknowns, for a large machine"]
+#[ignore = "the whole valve: 380 810 unknowns, for a large machine"]
 fn valve_3d_whole_valve_takes_its_first_step_as_its_sector() {
     let one_step = |c: &mut Case| {
         let time = c.time.as_mut().unwrap();

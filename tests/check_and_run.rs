@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The fine mesh of model problem 4 (its first step alone takes about three minutes here) and the
-/// whole 3D valve (381 212 unknowns, for a large machine).
+/// whole 3D valve (380 810 unknowns, for a large machine).
 const SLOW: [&str; 2] = ["model-problem-4-fine", "valve-3d"];
 
 /// Checks and runs the first step of each case in `names`; asserts both report the same dofs.
