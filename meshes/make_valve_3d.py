@@ -47,10 +47,10 @@ The half leaflet (in its unloaded, half-open shape; see `leaflet_point`) is a ru
     plane theta = 0 at the free edge's corner, 0.69 at the wall), so that the leaflet touches
     its neighbour (that plane) only when it closes;
 and is 0.5 thick, towards the aorta from its ventricular face (gamma_s, and the contact
-boundary). Q2 hexahedra (27 nodes): N_S = 12 along the attachment, N_XI = 11 from the wall to
-the free edge (the first the band in the wall; the others graded towards the hinge: in the
-leaflet's middle the first free one 0.6 mm, the last 2.1 mm; a tenth of that at the
-commissure), one through the thickness.
+boundary). Q2 hexahedra (27 nodes): N_S = 12 along the attachment (graded towards the
+commissure, S_GRADING), N_XI = 11 from the wall to the free edge (the first the band in the
+wall; the others graded towards the hinge: in the leaflet's middle the first free one 0.6 mm,
+the last 2.1 mm; a tenth of that at the commissure), one through the thickness.
 
 Files:
   valve-3d-sector-fluid.msh: linear tetrahedra, size H_VALVE (default 2) for z in [-4, 24]
