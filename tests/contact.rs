@@ -470,3 +470,99 @@ fn two_blocks_with_non_matching_meshes_carry_a_uniform_contact_pressure() {
         assert!(worst < 1e-12, "{lambda:?}");
     }
 }
+
+/// A film where a closed gap cuts the fluid off (`fdfsi_fem::adapt::gap::CutSide`,
+/// `fdfsi::discretize::fsi::FilmLoad`): a stiff strip in a channel of fluid at a uniform
+/// pressure `p0`, coupled on its lower face, which is also its contact boundary and touches the
+/// symmetry line y = 0 at its left end, rising from it at a slope of 1/2 (as a 3D leaflet rises
+/// from its plane of coaptation). The fluid in the wedge below it, within `fluid_cut_off` of the
+/// line, is cut off from the first step; the fluid behind the strip keeps its pressure. In step 1
+/// (from rest: no last pressure to give the films) the cut-off sides carry nothing, so the
+/// pressure behind presses the strip onto the line with the force `p0 L n` (L the wedge's length
+/// along the strip, `n` its lower face's normal), which the contact takes. From step 2 the films
+/// carry the last step's pressure at the wedge's mouth, `p0`, and the fluid's force on the strip
+/// (the multiplier's and the films') falls by more than 5 times a step, to below 1e-5 `p0 L` by
+/// step 5, and the contact force with it: the strip is loaded as with the fluid on both sides.
+#[test]
+fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let text = r#"
+title = "a strip touching the symmetry line in fluid at a uniform pressure"
+[mesh]
+kind = "channel"
+length = 1.0
+height = 0.5
+n = [32, 16]
+[physics]
+formulation = "plane"
+model = "stokes"
+[fluid]
+density = 1.0
+viscosity = 1.0
+[solid]
+mesh = { kind = "quadrilateral", corners = [[0.3, 0.0], [0.7, 0.2], [0.68, 0.24], [0.28, 0.04]], n = [16, 2] }
+surface = "bottom"
+model = "neo-hookean"
+shear_modulus = 1e6
+[[solid.boundary]]
+name = "right"
+type = "displacement"
+value = [0.0, 0.0]
+[[solid.contact]]
+boundary = "bottom"
+point = [0.0, 0.0]
+normal = [0.0, 1.0]
+fluid_cut_off = 0.1
+[time]
+dt = 0.1
+end = 0.5
+[solver.linear]
+method = "direct"
+[solver.newton]
+abs_tol = 1e-8
+[[boundary]]
+name = "inlet"
+type = "pressure"
+value = [1.0]
+[[boundary]]
+name = "outlet"
+type = "pressure"
+value = [1.0]
+[[boundary]]
+name = "bottom"
+type = "symmetry"
+normal_axis = 1
+[[boundary]]
+name = "top"
+type = "no-slip"
+[output]
+animation = false
+"#;
+    let case = Case::from_toml_str(text, "film.toml").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    run_case(&case, &RunOptions::new(&out, dir.path()), &mut |_: &str| {}).unwrap();
+    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 5);
+    let col = |name: &str| {
+        let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));
+        rows.iter().map(|r| r[i]).collect::<Vec<_>>()
+    };
+    let (fx, fy, contact, cut) = (col("coupling_force_x"), col("coupling_force_y"), col("bottom_contact_force"), col("closed_gap_cells"));
+    let force: Vec<f64> = fx.iter().zip(&fy).map(|(x, y)| x.hypot(*y)).collect();
+    // The wedge within the cut-off (0.1) of the line: 0.2 along x at the slope 1/2, its length
+    // along the strip 0.1 sqrt(5); the lower face's normal (1, -2) / sqrt(5).
+    let (p0, length) = (1.0, 0.1 * 5f64.sqrt());
+    let n = [1.0 / 5f64.sqrt(), -2.0 / 5f64.sqrt()];
+    println!("film: fluid force on the strip {force:?} (step 1: [{:.4}, {:.4}]), contact force {contact:?}; p0 L = {:.4}", fx[0], fy[0], p0 * length);
+    assert!(cut.iter().all(|&c| c > 0.0), "the wedge is cut off every step");
+    let off = (fx[0] - p0 * length * n[0]).hypot(fy[0] - p0 * length * n[1]);
+    assert!(off < 0.1 * p0 * length, "step 1, no film: the pressure behind presses the strip with p0 L n: [{}, {}]", fx[0], fy[0]);
+    assert!(contact[0] > 0.5 * p0 * length);
+    assert!(force.windows(2).all(|f| f[1] < 0.2 * f[0]), "the films balance the pressure behind: {force:?}");
+    assert!(force[4] < 1e-5 * p0 * length && contact[4] < 1e-5 * p0 * length, "step 5: {} {}", force[4], contact[4]);
+}

@@ -20,7 +20,8 @@
 //!    up to a cell into the old mesh's hole and the solid's velocity farther in, or zero in a
 //!    closed gap, `FluidSnapshot::transferred_to`), and the previous pressure to the new cells
 //!    (`FluidSnapshot::pressure_on`, [`transfer_p1disc`]): both start Newton, with the solid's
-//!    increment and the multipliers at zero;
+//!    increment and the multipliers at zero; the sides of gamma_f a closed gap cut off get the
+//!    previous pressure at the gap's mouth as a film's load ([`FilmLoad`]);
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
 //!    discretisations ([`FlowDiscretization::assemble_into`],
 //!    [`SolidDiscretization::assemble_into`], updated Lagrangian) into block matrices and
@@ -62,8 +63,8 @@ use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
 use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards};
 use fdfsi_fem::adapt::{
-    adapt_with, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet,
-    GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
+    adapt_with, p1disc_at, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background,
+    GammaFacet, GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
 };
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
@@ -299,7 +300,7 @@ impl<const D: usize> FsiModel<D> {
             return Ok(adapted);
         }
         let mesh = self.current_solid_mesh(solid_x);
-        let (mut layers, mut pressed) = (Vec::new(), Vec::new());
+        let (mut layers, mut pressed, mut pressed_on) = (Vec::new(), Vec::new(), Vec::new());
         for (k, (gap, contact)) in self.closed_gaps.iter().zip(&self.problem.solid.contact).enumerate() {
             if gap.cut_off() <= 0.0 {
                 continue;
@@ -310,6 +311,7 @@ impl<const D: usize> FsiModel<D> {
                     if self.is_part_of_gamma_s(&contact.boundary)? {
                         // gamma_s itself pressed on the plane: the fluid behind it stays.
                         pressed.extend(plane.layer(surface));
+                        pressed_on.push(*plane);
                     } else {
                         layers.extend(plane.layer(surface));
                         layers.extend(plane.layer(&boundary));
@@ -325,7 +327,7 @@ impl<const D: usize> FsiModel<D> {
             }
         }
         let open = self.open_boundaries(&adapted.mesh);
-        Ok(remove_closed_gaps(adapted, &layers, &pressed, surface, &open))
+        Ok(remove_closed_gaps(adapted, &layers, &pressed, &pressed_on, surface, &open))
     }
 
     /// Whether every facet of the solid's boundary `name` is a facet of gamma_s.
@@ -854,6 +856,23 @@ pub struct FsiDiscretization<const D: usize> {
     sparsity: Sparsity,
     /// Seconds spent on gamma_s and the adaptation in [`Self::build`].
     pub adapt_seconds: f64,
+    /// The loads of the thin films on the sides of gamma_f a closed gap cut off ([`FilmLoad`]):
+    /// none when built, set by [`StepStart`] from the last step's pressure.
+    pub films: Vec<FilmLoad<D>>,
+}
+
+/// The load of a thin film of fluid on a side of a gamma_f facet whose fluid a closed gap cut off
+/// ([`fdfsi_fem::adapt::gap::CutSide`]): the traction `t = -p n` on the solid, `n` the facet's
+/// normal into the film, `p` the pressure at the gap's mouth, a given load of the step
+/// (`R_s -= int_e t . w ds` over the facet's coupling points).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FilmLoad<const D: usize> {
+    /// The coupling element (gamma_f facet).
+    pub element: usize,
+    /// The film's pressure.
+    pub pressure: f64,
+    /// The traction on the solid, `-p n`.
+    pub traction: [f64; D],
 }
 
 /// Where an [`FsiDiscretization`]'s systems are assembled.
@@ -1097,6 +1116,7 @@ impl<const D: usize> FsiDiscretization<D> {
             normal_constraints,
             sparsity,
             adapt_seconds,
+            films: Vec::new(),
         })
     }
 
@@ -1464,6 +1484,20 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
+        // The films' loads on the solid (given, so no Jacobian).
+        for film in &self.films {
+            let e = film.element;
+            for q in c.point_start[e]..c.point_start[e + 1] {
+                for (i, &node) in sf.nodes.cell(c.solid_cell[q]).iter().enumerate() {
+                    for a in 0..D {
+                        let row = os + sf.dof(node, a);
+                        if !constrained[row] && target.holds(row) {
+                            target.add_rhs(row, c.weight[q] * c.phi_s[q * ns + i] * film.traction[a]);
+                        }
+                    }
+                }
+            }
+        }
         // The kernel of the multiplier space (see `kernel`).
         let first = self.kernel_dof(0);
         for (j, y) in self.kernel.iter().enumerate() {
@@ -1676,6 +1710,53 @@ impl<const D: usize> FsiDiscretization<D> {
                 None => format!("the unknown removing multiplier mode {k}"),
             },
         }
+    }
+
+    /// Sets the loads of the thin films on the sides of gamma_f the closed gaps cut off
+    /// ([`FilmLoad`], [`Adapted::cut_sides`]): each side's film has the pressure of `previous`
+    /// (the fluid's last state, on its own mesh) at the centroid of the kept cell at its gap's
+    /// mouth ([`fdfsi_fem::adapt::gap::CutSide::mouth`]), held through the step. A side with no
+    /// mouth, or whose mouth lies outside the last mesh, has no film. A pressure of the last
+    /// step rather than an unknown of this one: the mouth may lie anywhere, and an unknown would
+    /// couple the solid there to a fluid cell far off in the system's pattern; the film's
+    /// pressure lags by one step (the ventricle's pressure rises by about 1.3 mmHg a step in the
+    /// 3D valve's upstroke).
+    fn set_films(&mut self, previous: &FluidSnapshot<D>) {
+        let sides: Vec<_> = self.adapted.cut_sides.iter().filter_map(|side| side.mouth.map(|m| (side, m))).collect();
+        self.films.clear();
+        if sides.is_empty() || previous.pressure.is_empty() {
+            return;
+        }
+        let mesh = &self.adapted.mesh;
+        let points: Vec<[f64; D]> = sides.iter().map(|&(_, m)| mesh.vertex_centroid(m)).collect();
+        let pressures = p1disc_at(&previous.mesh, &previous.pressure, &points);
+        self.films = sides
+            .iter()
+            .zip(pressures)
+            .filter_map(|(&(side, _), p)| p.map(|p| FilmLoad { element: side.facet, pressure: p, traction: side.normal.map(|n| -p * n) }))
+            .collect();
+        if let (Some(lo), Some(hi)) = (self.films.iter().map(|f| f.pressure).reduce(f64::min), self.films.iter().map(|f| f.pressure).reduce(f64::max))
+        {
+            tracing::debug!(
+                "films on {} of {} cut-off sides of gamma_f, pressures {lo:.4e} to {hi:.4e}",
+                self.films.len(),
+                self.adapted.cut_sides.len()
+            );
+        }
+    }
+
+    /// Force of the films on the body, `int t ds` over their facets ([`FilmLoad`];
+    /// axisymmetric: times `2 pi`).
+    pub fn film_force(&self, formulation: crate::physics::fluid::Formulation) -> [f64; D] {
+        let c = &self.coupling;
+        let mut f = [0.0; D];
+        for film in &self.films {
+            let area: f64 = c.weight[c.point_start[film.element]..c.point_start[film.element + 1]].iter().sum();
+            for a in 0..D {
+                f[a] += area * film.traction[a];
+            }
+        }
+        f.map(|v| v * formulation.around())
     }
 
     /// Force of the fluid on the body, `int_gamma_f lambda ds` (axisymmetric: times `2 pi`).
@@ -2025,11 +2106,23 @@ pub struct FsiStepReport {
     pub max_coupling_distance: f64,
     /// ... over its facet's diameter (at most [`COUPLING_REL_TOL`]).
     pub max_relative_coupling_distance: f64,
-    /// `int_gamma_f lambda ds`: the force of the fluid on the body.
+    /// `int_gamma_f lambda ds`: the force of the fluid on the body (but for the films').
     pub multiplier_force: Vec<f64>,
+    /// The force of the thin films on the sides of gamma_f the closed gaps cut off
+    /// ([`FsiDiscretization::film_force`]; zero without them).
+    pub film_force: Vec<f64>,
+    /// The number of films ([`FilmLoad`]).
+    pub films: usize,
     /// Largest nodal displacement increment of the solid.
     pub max_solid_increment: f64,
     pub seconds: StepTimings,
+}
+
+impl FsiStepReport {
+    /// The force of the fluid on the body: the multiplier's and the films'.
+    pub fn fluid_force(&self) -> Vec<f64> {
+        self.multiplier_force.iter().zip(&self.film_force).map(|(m, f)| m + f).collect()
+    }
 }
 
 /// A completed step: its discretisation, the converged global vector and the transferred fluid
@@ -2124,7 +2217,10 @@ impl<const D: usize> StepStart<D> {
         let omega = step_ratio(dt, state.dt);
         let geometry = step_geometry(&state.solid_x, previous.map(|p| p.solid_x.as_slice()), omega);
         let clock = Instant::now();
-        let disc = FsiDiscretization::build_with(model, &geometry, &state.coupling_pattern, entries)?;
+        let mut disc = FsiDiscretization::build_with(model, &geometry, &state.coupling_pattern, entries)?;
+        if let Some(f) = &state.fluid {
+            disc.set_films(f);
+        }
         let build = clock.elapsed().as_secs_f64();
         let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
         let time = state.time + dt;
@@ -2284,6 +2380,8 @@ pub fn step_with<const D: usize>(
         max_coupling_distance: disc.coupling.max_distance,
         max_relative_coupling_distance: disc.coupling.max_relative_distance,
         multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
+        film_force: disc.film_force(fluid.formulation).to_vec(),
+        films: disc.films.len(),
         max_solid_increment,
         seconds,
     };

@@ -9,7 +9,8 @@
 //!   solid: see [`crate::io::fields::gamma_f_grid`]);
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
-//!   integral of the multiplier over gamma_f, plus `coupling_facets` (and `closed_gap_cells`
+//!   integral of the multiplier over gamma_f and the load of the thin films where a closed gap
+//!   cut the fluid off ([`crate::discretize::fsi::FilmLoad`]), plus `coupling_facets` (and `closed_gap_cells`
 //!   with contacts, `open_area` with `[output.open_area]`);
 //! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
 //!   gamma_f);
@@ -163,7 +164,7 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
             self.solid_probes.iter().map(|(name, node, a)| (name.clone(), self.model.solid.displacement(&s.state.solid_x, *node)[*a])).collect();
         let open_area = self.open_area(&s.state.solid_x)?;
         let closed_gap = self.case.solid.iter().any(|s| !s.contact.is_empty()).then_some(r.adapt.closed_gap_cells as f64);
-        let builtin = r.multiplier_force.iter().copied().chain([r.coupling_elements as f64]).chain(closed_gap).chain(open_area);
+        let builtin = r.fluid_force().into_iter().chain([r.coupling_elements as f64]).chain(closed_gap).chain(open_area);
         let (names, values): (Vec<String>, Vec<f64>) = (self.case.builtin_quantities(), builtin.collect());
         debug_assert_eq!(names.len(), values.len(), "a value for every built-in quantity: {names:?}");
         known.extend(names.into_iter().zip(values));
@@ -221,12 +222,13 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
             sec.adapt, sec.build, sec.transfer, sec.newton, sec.update
         ));
         format!(
-            "; {} coupling facets, dofs {} + {} + {}; force [{}]",
+            "; {} coupling facets, dofs {} + {} + {}; force [{}]{}",
             r.coupling_elements,
             r.fluid_dofs,
             r.solid_dofs,
             r.multiplier_dofs,
-            r.multiplier_force.iter().map(|f| format!("{f:.6e}")).collect::<Vec<_>>().join(", ")
+            r.fluid_force().iter().map(|f| format!("{f:.6e}")).collect::<Vec<_>>().join(", "),
+            if r.films > 0 { format!(" ({} films)", r.films) } else { String::new() }
         )
     }
 

@@ -22,6 +22,12 @@
 //! * the facets between kept and removed cells that are not on gamma_f become the boundary
 //!   [`CLOSED_GAP`], where the fluid is held at rest like the plane (its Dirichlet condition is
 //!   the caller's);
+//! * the sides of gamma_f facets whose fluid was cut off (the other side's kept), and where
+//!   gamma_s is pressed on a plane the sides of the facets lying on it, are listed with the kept
+//!   cell at the gap's mouth nearest each ([`CutSide`], [`Adapted::cut_sides`]): a gap this thin
+//!   still holds a film of blood at the pressure of the fluid it opens to, which the caller puts
+//!   on them as a load (without it a leaflet pressed on its plane by the pressure behind it could
+//!   not be lifted off by the pressure in front);
 //! * each step adapts the original mesh again, so the cells come back in the first step after
 //!   the contact boundary has left the plane.
 //!
@@ -37,10 +43,33 @@
 
 use super::{Adapted, GammaFacet, Surface};
 use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
+use rstar::primitives::GeomWithData;
+use rstar::RTree;
 use std::collections::HashSet;
 
 /// Name of the boundary [`remove_closed_gaps`] gives the facets between kept and cut-off cells.
 pub const CLOSED_GAP: &str = "closed_gap";
+
+/// A side of a gamma_f facet whose fluid a closed gap cut off, the other side's kept, or, where
+/// gamma_s lies on a plane it is pressed on, the side beyond the plane ([`remove_closed_gaps`]).
+/// A real gap this thin still holds a film of blood, open to the fluid at the gap's mouth, which
+/// loads the solid with its pressure; cut off, the side would carry no load at all, and a leaflet
+/// pressed on its plane by the pressure behind it could not be lifted off by the ventricle's
+/// (`runs/valve-3d-sector/NOTES.md`, session 46). The caller loads these sides with the pressure
+/// of `mouth`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CutSide<const D: usize> {
+    /// The facet: its index in [`Adapted::gamma_f`].
+    pub facet: usize,
+    /// The facet's unit normal pointing into the side cut off (out of the solid where gamma_s is
+    /// its boundary).
+    pub normal: [f64; D],
+    /// The kept cell at the gap's mouth nearest the facet: the one across the [`CLOSED_GAP`]
+    /// facet whose centroid is nearest the facet's, among the kept cells with no vertex on
+    /// gamma_s (a cell touching gamma_s may take its pressure from the solid's other side when
+    /// the step's pressure is carried over from the last mesh); `None` where there are none.
+    pub mouth: Option<usize>,
+}
 
 /// A rigid plane and the gap below which the fluid between it and the solid is cut off.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,11 +191,14 @@ pub fn cell_height_at<const D: usize>(mesh: &Mesh<D>, plane: &GapPlane<D>) -> f6
 /// only (facets with no kept cell on either side dropped), the facets between kept and removed
 /// cells off gamma_f tagged [`CLOSED_GAP`] (the name is added even when there are none, so a
 /// condition on it always finds its boundary), [`super::AdaptStats::closed_gap_cells`] and
-/// [`super::AdaptStats::closed_gap_pieces`] set.
+/// [`super::AdaptStats::closed_gap_pieces`] set. The sides of gamma_f the cut takes, and those of
+/// the facets lying on one of `pressed_on` (the planes of `pressed`) beyond them, become
+/// [`Adapted::cut_sides`].
 pub fn remove_closed_gaps<const D: usize>(
     adapted: Adapted<D>,
     layers: &[Vec<[f64; D]>],
     pressed: &[Vec<[f64; D]>],
+    pressed_on: &[GapPlane<D>],
     surface: &Surface<D>,
     open: &[u32],
 ) -> Adapted<D> {
@@ -199,11 +231,69 @@ pub fn remove_closed_gaps<const D: usize>(
         cut.extend(pockets(&adapted, &cut, open));
     }
     let count = cut.len();
+    let lost_sides = lost_sides(&adapted, &cut, pressed_on);
     let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
+    out.cut_sides = cut_sides(&out, &lost_sides);
     out.stats.closed_gap_cells = count;
     out.stats.closed_gap_pieces = layers.len() + pressed.len();
     out.stats.coupling_facets = out.gamma_f.len();
     out
+}
+
+/// For each facet of gamma_f in `adapted` that keeps a cell (as [`without_cells`] keeps them, in
+/// order), the side whose cell is in `cut` while the other side's is kept, or, for a facet lying
+/// on one of the planes `pressed_on` (its corners within `1e-6 cut_off`, as
+/// [`GapPlane::is_closed`] tells touching), the side beyond the plane: gamma_s pressed on it, with
+/// no fluid between them in the mesh but a film in the blood.
+fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, pressed_on: &[GapPlane<D>]) -> Vec<Option<usize>> {
+    let kept = |s: (usize, usize)| s != NO_CELL && !cut.contains(&s.0);
+    let on_plane = |g: &GammaFacet<D>| {
+        pressed_on.iter().any(|plane| g.vertices.iter().all(|&v| plane.distance(&adapted.mesh.points[v]).abs() <= 1e-6 * plane.cut_off))
+    };
+    adapted
+        .gamma_f
+        .iter()
+        .filter(|g| g.sides.iter().any(|&s| kept(s)))
+        .map(|g| {
+            let lost = |i: usize| match g.sides[i] {
+                NO_CELL => on_plane(g),
+                (c, _) => cut.contains(&c),
+            };
+            (0..2).find(|&i| lost(i) && kept(g.sides[1 - i]))
+        })
+        .collect()
+}
+
+/// The [`CutSide`]s of `out` (the kept cells, its boundary [`CLOSED_GAP`] set), from the side
+/// each of its gamma_f facets lost ([`lost_sides`]).
+fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<usize>]) -> Vec<CutSide<D>> {
+    debug_assert_eq!(lost.len(), out.gamma_f.len());
+    let mesh = &out.mesh;
+    let centroid = |corners: &[[f64; D]]| -> [f64; D] { std::array::from_fn(|d| corners.iter().map(|x| x[d]).sum::<f64>() / corners.len() as f64) };
+    let mouths: Vec<GeomWithData<[f64; D], usize>> = mesh
+        .boundary_facets(CLOSED_GAP)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|b| mesh.cell_vertices(b.cell).iter().all(|&v| !out.on_surface[v]))
+        .map(|b| {
+            let nodes = mesh.cell(b.cell);
+            let corners: Vec<[f64; D]> = mesh.facet_local_nodes(b.facet)[..D].iter().map(|&k| mesh.points[nodes[k]]).collect();
+            GeomWithData::new(centroid(&corners), b.cell)
+        })
+        .collect();
+    let mouths = RTree::bulk_load(mouths);
+    out.gamma_f
+        .iter()
+        .zip(lost)
+        .enumerate()
+        .filter_map(|(facet, (g, side))| {
+            let corners = g.vertices.map(|v| mesh.points[v]);
+            let n = super::surface::piece_normal(&corners);
+            let sign = if (*side)? == 1 { 1.0 } else { -1.0 };
+            let mouth = mouths.nearest_neighbor(centroid(&corners)).map(|m| m.data);
+            Some(CutSide { facet, normal: n.map(|c| sign * c), mouth })
+        })
+        .collect()
 }
 
 /// A region of kept fluid cells joined across facets off gamma_f ([`pockets`]).
@@ -315,9 +405,10 @@ pub fn convex_hulls_meet<const D: usize>(a: &[[f64; D]], b: &[[f64; D]], tol: f6
 /// `adapted` without the cells `removed`: cells, vertices and boundary facets renumbered in
 /// their old order, gamma_f seen from the kept cells only (a side whose cell is removed becomes
 /// [`NO_CELL`]; facets with no kept cell left dropped). With `walls`, the facets between a kept
-/// and a removed cell that are not on gamma_f are added to the boundary under that name.
+/// and a removed cell that are not on gamma_f are added to the boundary under that name. No
+/// [`Adapted::cut_sides`]: they are found after it ([`remove_closed_gaps`]).
 pub(super) fn without_cells<const D: usize>(adapted: Adapted<D>, removed: &HashSet<usize>, walls: Option<&str>) -> Adapted<D> {
-    let Adapted { mesh, new_to_old_cell, on_surface, gamma_f, stats } = adapted;
+    let Adapted { mesh, new_to_old_cell, on_surface, gamma_f, stats, .. } = adapted;
     let nc = mesh.num_cells();
     let npc = mesh.nodes_per_cell();
     let mut new_cell = vec![usize::MAX; nc];
@@ -378,7 +469,7 @@ pub(super) fn without_cells<const D: usize>(adapted: Adapted<D>, removed: &HashS
         .collect::<Vec<_>>();
     let on_surface = (0..mesh.points.len()).filter(|&p| new_point[p] != usize::MAX).map(|p| on_surface[p]).collect();
     let new_to_old_cell = (0..nc).filter(|&c| new_cell[c] != usize::MAX).map(|c| new_to_old_cell[c]).collect();
-    Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, stats }
+    Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, cut_sides: Vec::new(), stats }
 }
 
 #[cfg(test)]
@@ -447,7 +538,7 @@ mod tests {
         let (before, gamma_f_before) = (adapted.mesh.num_cells(), adapted.gamma_f_measure());
         assert!(gamma_f_before > 0.3);
         let (cut_both, pressed) = if both_sides { (&layer[..], &[][..]) } else { (&[][..], &layer[..]) };
-        let cut = remove_closed_gaps(adapted, cut_both, pressed, &surface, &[]);
+        let cut = remove_closed_gaps(adapted, cut_both, pressed, &[], &surface, &[]);
         let removed = before - cut.mesh.num_cells();
         assert_eq!(cut.stats.closed_gap_cells, removed);
         assert_eq!(cut.stats.closed_gap_pieces, 1, "the one piece of gamma_s makes the layer");
@@ -469,6 +560,7 @@ mod tests {
         let (cut, meeting, _) = cut_below_a_flat_piece(true);
         assert!(meeting.is_empty(), "{meeting:?}");
         assert!(cut.gamma_f.is_empty(), "both sides of the piece cut off");
+        assert!(cut.cut_sides.is_empty(), "no facet left to carry a film");
     }
 
     /// Where gamma_s itself is pressed on the plane, the cells above it (behind gamma_s) stay,
@@ -482,6 +574,51 @@ mod tests {
         }
         assert!((cut.gamma_f_measure() - gamma_f_before).abs() < 1e-12, "gamma_f {} of {gamma_f_before}", cut.gamma_f_measure());
         assert!(cut.gamma_f.iter().all(|g| g.sides.iter().filter(|&&s| s != NO_CELL).count() == 1));
+    }
+
+    /// The sides cut off below gamma_s pressed on the plane: one per facet of gamma_f (each lost
+    /// the side below it), its normal down into the gap, its mouth a kept cell beside the gap on
+    /// the facet's side of the piece's middle (x = 0.5), clear of gamma_s, below the cells behind
+    /// it: where the gap opens to the fluid that would fill it.
+    #[test]
+    fn each_facet_over_the_gap_has_its_cut_side_and_the_mouth_nearest_it() {
+        let (cut, _, _) = cut_below_a_flat_piece(false);
+        let mut facets: Vec<usize> = cut.cut_sides.iter().map(|s| s.facet).collect();
+        facets.dedup();
+        assert_eq!(facets, (0..cut.gamma_f.len()).collect::<Vec<_>>());
+        let mesh = &cut.mesh;
+        for side in &cut.cut_sides {
+            assert!((side.normal[0]).abs() < 1e-12 && (side.normal[1] + 1.0).abs() < 1e-12, "{:?}", side.normal);
+            let g = &cut.gamma_f[side.facet];
+            assert_eq!(g.sides[1], NO_CELL, "the plus side, below gamma_s, is cut off");
+            let x = 0.5 * (mesh.points[g.vertices[0]][0] + mesh.points[g.vertices[1]][0]);
+            let mouth = side.mouth.expect("the gap has a mouth");
+            let m = mesh.vertex_centroid(mouth);
+            assert!(mesh.cell_vertices(mouth).iter().all(|&v| !cut.on_surface[v]));
+            assert!((m[0] - 0.5) * (x - 0.5) > 0.0 && !(0.3..=0.7).contains(&m[0]) && m[1] < 0.125, "facet at x = {x}: mouth at {m:?}");
+        }
+    }
+
+    /// gamma_s pressed flat on the plane y = 0 (the bottom of the unit square) over [0.3, 0.7]:
+    /// gamma_f lies on the boundary, seen from above only, and each of its facets has the side
+    /// beyond the plane as its cut side, the normal down; not so when the plane is not given as
+    /// one gamma_s is pressed on.
+    #[test]
+    fn facets_on_the_plane_gamma_s_is_pressed_on_have_the_side_beyond_it_cut() {
+        use crate::generate::{rectangle_triangles, DiagonalPattern};
+        let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, 8, 8, DiagonalPattern::Right);
+        let surface = Surface::from_pieces(vec![[0.3, 0.0], [0.7, 0.0]], vec![[0, 1]]).unwrap();
+        let adapted = super::super::adapt(&mesh, &surface, 0.2).unwrap();
+        assert!(!adapted.gamma_f.is_empty() && adapted.gamma_f.iter().all(|g| g.sides[1] == NO_CELL), "on the boundary, seen from above");
+        let plane = GapPlane { point: [0.0, 0.0], normal: [0.0, 1.0], cut_off: 0.1 };
+        assert!(plane.is_closed(&surface));
+        let layer = plane.layer(&surface);
+        let cut = remove_closed_gaps(adapted.clone(), &[], &layer, &[plane], &surface, &[]);
+        assert_eq!(cut.gamma_f.len(), adapted.gamma_f.len());
+        assert_eq!(cut.cut_sides.len(), cut.gamma_f.len());
+        assert!(cut.cut_sides.iter().all(|s| s.normal[0].abs() < 1e-12 && (s.normal[1] + 1.0).abs() < 1e-12));
+        let unpressed = remove_closed_gaps(adapted, &[], &layer, &[], &surface, &[]);
+        assert!(unpressed.cut_sides.is_empty());
     }
 
     /// A layer across the unit square at x = 0.5 cuts it in two; gamma_s is a short piece in the
@@ -501,12 +638,12 @@ mod tests {
             (0..a.mesh.num_cells()).filter(|&c| of_side(c)).map(|c| a.mesh.signed_vertex_measure(c)).sum()
         };
         let (gamma_f, right_area) = (adapted.gamma_f_measure(), area(&adapted, 1.0));
-        let sealed = remove_closed_gaps(adapted.clone(), &layer, &[], &surface, &[right]);
+        let sealed = remove_closed_gaps(adapted.clone(), &layer, &[], &[], &surface, &[right]);
         assert_eq!(area(&sealed, -1.0), 0.0, "the left half has no open boundary and no gamma_f");
         let strip = 0.125 + 1e-12; // a column of cells each side
         assert!(area(&sealed, 1.0) >= right_area - strip, "the right half stays but for the strip's cells");
         assert!((sealed.gamma_f_measure() - gamma_f).abs() < 1e-12);
-        let open = remove_closed_gaps(adapted, &layer, &[], &surface, &[left, right]);
+        let open = remove_closed_gaps(adapted, &layer, &[], &[], &surface, &[left, right]);
         assert!(area(&open, -1.0) > 0.5 - 0.125 - 1e-12, "only the strip's cells leave");
         assert!(open.stats.closed_gap_cells < sealed.stats.closed_gap_cells);
     }

@@ -130,7 +130,7 @@ pub use background::Background;
 pub use enclosed::remove_enclosed;
 pub use gap::{remove_closed_gaps, GapPlane, CLOSED_GAP};
 pub use surface::{Surface, SurfacePoint};
-pub use transfer::{transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
+pub use transfer::{p1disc_at, transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::{verify_adapted, verify_adapted_within};
 
 use crate::element::ReferenceCell;
@@ -379,6 +379,9 @@ pub struct Adapted<const D: usize> {
     pub on_surface: Vec<bool>,
     /// The coupling facets.
     pub gamma_f: Vec<GammaFacet<D>>,
+    /// The sides of gamma_f facets whose fluid a closed gap cut off ([`remove_closed_gaps`]);
+    /// empty before that.
+    pub cut_sides: Vec<gap::CutSide<D>>,
     pub stats: AdaptStats,
 }
 
@@ -501,7 +504,7 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         + stats.flat_cells
         + stats.rejected_facets
         + stats.two_sided_cells;
-    Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, stats: out.stats })
+    Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, cut_sides: Vec::new(), stats: out.stats })
 }
 
 /// Step 2's decisions: moved nodes and new nodes.
