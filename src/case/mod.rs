@@ -1263,7 +1263,8 @@ impl Case {
     /// The quantities every run of this kind writes besides the case's own (they may appear in
     /// `[[output.combination]]`): in FSI runs `coupling_force_x`, `_y` (`_z`), the force of the
     /// fluid on the solid, and `coupling_facets`; with contacts also `closed_gap_cells`, the
-    /// fluid cells cut off where the solid has closed on a plane or on another body; with
+    /// fluid cells cut off where the solid has closed on a plane or on another body, and
+    /// `film_force_x`, `_y` (`_z`), the part of the force the films in those gaps carry; with
     /// `[output.open_area]` also `open_area` (in this order).
     pub fn builtin_quantities(&self) -> Vec<String> {
         if self.kind() != RunKind::Fsi {
@@ -1273,6 +1274,7 @@ impl Case {
         names.push("coupling_facets".into());
         if self.solid.iter().any(|s| !s.contact.is_empty()) {
             names.push("closed_gap_cells".into());
+            names.extend(["x", "y", "z"][..self.dim()].iter().map(|c| format!("film_force_{c}")));
         }
         if self.output.open_area.is_some() {
             names.push("open_area".into());

@@ -20,13 +20,13 @@
 //!    up to a cell into the old mesh's hole and the solid's velocity farther in, or zero in a
 //!    closed gap, `FluidSnapshot::transferred_to`), and the previous pressure to the new cells
 //!    (`FluidSnapshot::pressure_on`, [`transfer_p1disc`]): both start Newton, with the solid's
-//!    increment and the multipliers at zero; the sides of gamma_f a closed gap cut off get the
-//!    previous pressure at the gap's mouth as a film's load ([`FilmLoad`]);
+//!    increment and the multipliers at zero;
 //! 5. Newton on the monolithic residual: the fluid and solid blocks are assembled by their own
 //!    discretisations ([`FlowDiscretization::assemble_into`],
 //!    [`SolidDiscretization::assemble_into`], updated Lagrangian) into block matrices and
 //!    scattered into the global one through position maps precomputed with the pattern; the
-//!    coupling kernel ([`crate::physics::coupling`]) is assembled directly. With a solver of each
+//!    coupling kernel ([`crate::physics::coupling`]) is assembled directly, and so is the load
+//!    of the films on the sides of gamma_f a closed gap cut off ([`FilmLoad`]). With a solver of each
 //!    MPI rank's rows, each rank assembles its own rows of the system instead, straight from the
 //!    cells that touch them ([`FsiDiscretization::assemble_rows`], [`FsiRows`]);
 //! 6. the solid is updated: `x_{n+1} = x_n + Delta u`, `F_{n+1} = (I + grad_n Delta u) F_n`.
@@ -63,8 +63,8 @@ use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
 use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards};
 use fdfsi_fem::adapt::{
-    adapt_with, p1disc_at, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background,
-    GammaFacet, GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
+    adapt_with, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet,
+    GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
 };
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
@@ -731,6 +731,23 @@ impl<const D: usize> FluidSnapshot<D> {
     }
 }
 
+/// The films on the sides of gamma_f the closed gaps of `adapted` cut off that have a mouth
+/// ([`Adapted::cut_sides`]), with the unknown of the mouth cell's pressure at its centroid in
+/// `pressure` (the fluid's P1-discontinuous field, whose first unknown of a cell is that value).
+fn film_loads<const D: usize>(adapted: &Adapted<D>, pressure: &fdfsi_fem::dofs::Field) -> Vec<FilmLoad<D>> {
+    let films: Vec<FilmLoad<D>> = adapted
+        .cut_sides
+        .iter()
+        .filter_map(|side| {
+            side.mouth.map(|m| FilmLoad { element: side.facet, normal: side.normal, pressure_dof: pressure.dof(pressure.nodes.cell(m)[0], 0) })
+        })
+        .collect();
+    if !adapted.cut_sides.is_empty() {
+        tracing::debug!("films on {} of the {} sides of gamma_f cut off", films.len(), adapted.cut_sides.len());
+    }
+    films
+}
+
 /// The connected part of each cell of `mesh` (cells sharing a vertex are connected): the bodies
 /// of a solid of several. The parts are numbers to compare, not counted from the first cell.
 fn connected_parts<const D: usize>(mesh: &Mesh<D>) -> Vec<usize> {
@@ -856,23 +873,27 @@ pub struct FsiDiscretization<const D: usize> {
     sparsity: Sparsity,
     /// Seconds spent on gamma_s and the adaptation in [`Self::build`].
     pub adapt_seconds: f64,
-    /// The loads of the thin films on the sides of gamma_f a closed gap cut off ([`FilmLoad`]):
-    /// none when built, set by [`StepStart`] from the last step's pressure.
+    /// The loads of the thin films on the sides of gamma_f a closed gap cut off ([`FilmLoad`]).
     pub films: Vec<FilmLoad<D>>,
 }
 
 /// The load of a thin film of fluid on a side of a gamma_f facet whose fluid a closed gap cut off
 /// ([`fdfsi_fem::adapt::gap::CutSide`]): the traction `t = -p n` on the solid, `n` the facet's
-/// normal into the film, `p` the pressure at the gap's mouth, a given load of the step
-/// (`R_s -= int_e t . w ds` over the facet's coupling points).
+/// normal into the film and `p` the pressure of the kept cell at the gap's mouth, its value at
+/// the cell's centroid (the first of its P1-discontinuous unknowns):
+/// `R_s -= int_e t . w ds = int_e p n . w ds` over the facet's coupling points, with its Jacobian
+/// `int_e (n . w) ds` in the column of `p` (the coupling element's unknowns include it). An
+/// unknown of the step, not the last step's pressure: lagged by a step, the film's load was an
+/// explicit coupling of the leaflet to the fluid at the mouth, whose pressure swung by up to
+/// 1e4 Pa from one sub-step to the next as the 3D valve's gap opened (session 47).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FilmLoad<const D: usize> {
     /// The coupling element (gamma_f facet).
     pub element: usize,
-    /// The film's pressure.
-    pub pressure: f64,
-    /// The traction on the solid, `-p n`.
-    pub traction: [f64; D],
+    /// The facet's unit normal into the film.
+    pub normal: [f64; D],
+    /// The unknown of the film's pressure (the mouth cell's pressure at its centroid).
+    pub pressure_dof: usize,
 }
 
 /// Where an [`FsiDiscretization`]'s systems are assembled.
@@ -1040,6 +1061,7 @@ impl<const D: usize> FsiDiscretization<D> {
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
         // displacement of every solid cell its points land in (and of the carried ones).
         let sf = model.solid.displacement_field();
+        let films = film_loads(&adapted, flow.pressure_field());
         let coupling_pattern = coupling_pattern(&flow.mesh, &coupling, carried);
         let coupling_dofs: Vec<Vec<usize>> = (0..ne)
             .map(|e| {
@@ -1062,6 +1084,14 @@ impl<const D: usize> FsiDiscretization<D> {
                 d
             })
             .collect();
+        // A film's pressure unknown joins its element's.
+        let mut coupling_dofs = coupling_dofs;
+        for film in &films {
+            let d = &mut coupling_dofs[film.element];
+            if let Err(at) = d.binary_search(&film.pressure_dof) {
+                d.insert(at, film.pressure_dof);
+            }
+        }
         // The system's "cells", whose unknowns are coupled: the fluid's (its cells and Windkessel
         // outlets), the solid cells, the coupling elements and the kernel's columns (each kernel
         // unknown with its multipliers).
@@ -1116,7 +1146,7 @@ impl<const D: usize> FsiDiscretization<D> {
             normal_constraints,
             sparsity,
             adapt_seconds,
-            films: Vec::new(),
+            films,
         })
     }
 
@@ -1484,15 +1514,17 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
-        // The films' loads on the solid (given, so no Jacobian).
+        // The films' loads on the solid: `R_s += int p n . w ds`, linear in the mouth's `p`.
         for film in &self.films {
-            let e = film.element;
+            let (e, p) = (film.element, x[film.pressure_dof]);
             for q in c.point_start[e]..c.point_start[e + 1] {
                 for (i, &node) in sf.nodes.cell(c.solid_cell[q]).iter().enumerate() {
                     for a in 0..D {
                         let row = os + sf.dof(node, a);
                         if !constrained[row] && target.holds(row) {
-                            target.add_rhs(row, c.weight[q] * c.phi_s[q * ns + i] * film.traction[a]);
+                            let v = c.weight[q] * c.phi_s[q * ns + i] * film.normal[a];
+                            target.add_rhs(row, -v * p);
+                            target.add_matrix(row, film.pressure_dof, v);
                         }
                     }
                 }
@@ -1712,48 +1744,15 @@ impl<const D: usize> FsiDiscretization<D> {
         }
     }
 
-    /// Sets the loads of the thin films on the sides of gamma_f the closed gaps cut off
-    /// ([`FilmLoad`], [`Adapted::cut_sides`]): each side's film has the pressure of `previous`
-    /// (the fluid's last state, on its own mesh) at the centroid of the kept cell at its gap's
-    /// mouth ([`fdfsi_fem::adapt::gap::CutSide::mouth`]), held through the step. A side with no
-    /// mouth, or whose mouth lies outside the last mesh, has no film. A pressure of the last
-    /// step rather than an unknown of this one: the mouth may lie anywhere, and an unknown would
-    /// couple the solid there to a fluid cell far off in the system's pattern; the film's
-    /// pressure lags by one step (the ventricle's pressure rises by about 1.3 mmHg a step in the
-    /// 3D valve's upstroke).
-    fn set_films(&mut self, previous: &FluidSnapshot<D>) {
-        let sides: Vec<_> = self.adapted.cut_sides.iter().filter_map(|side| side.mouth.map(|m| (side, m))).collect();
-        self.films.clear();
-        if sides.is_empty() || previous.pressure.is_empty() {
-            return;
-        }
-        let mesh = &self.adapted.mesh;
-        let points: Vec<[f64; D]> = sides.iter().map(|&(_, m)| mesh.vertex_centroid(m)).collect();
-        let pressures = p1disc_at(&previous.mesh, &previous.pressure, &points);
-        self.films = sides
-            .iter()
-            .zip(pressures)
-            .filter_map(|(&(side, _), p)| p.map(|p| FilmLoad { element: side.facet, pressure: p, traction: side.normal.map(|n| -p * n) }))
-            .collect();
-        if let (Some(lo), Some(hi)) = (self.films.iter().map(|f| f.pressure).reduce(f64::min), self.films.iter().map(|f| f.pressure).reduce(f64::max))
-        {
-            tracing::debug!(
-                "films on {} of {} cut-off sides of gamma_f, pressures {lo:.4e} to {hi:.4e}",
-                self.films.len(),
-                self.adapted.cut_sides.len()
-            );
-        }
-    }
-
-    /// Force of the films on the body, `int t ds` over their facets ([`FilmLoad`];
+    /// Force of the films on the body at `x`, `int -p n ds` over their facets ([`FilmLoad`];
     /// axisymmetric: times `2 pi`).
-    pub fn film_force(&self, formulation: crate::physics::fluid::Formulation) -> [f64; D] {
+    pub fn film_force(&self, x: &[f64], formulation: crate::physics::fluid::Formulation) -> [f64; D] {
         let c = &self.coupling;
         let mut f = [0.0; D];
         for film in &self.films {
             let area: f64 = c.weight[c.point_start[film.element]..c.point_start[film.element + 1]].iter().sum();
             for a in 0..D {
-                f[a] += area * film.traction[a];
+                f[a] -= area * x[film.pressure_dof] * film.normal[a];
             }
         }
         f.map(|v| v * formulation.around())
@@ -2217,10 +2216,7 @@ impl<const D: usize> StepStart<D> {
         let omega = step_ratio(dt, state.dt);
         let geometry = step_geometry(&state.solid_x, previous.map(|p| p.solid_x.as_slice()), omega);
         let clock = Instant::now();
-        let mut disc = FsiDiscretization::build_with(model, &geometry, &state.coupling_pattern, entries)?;
-        if let Some(f) = &state.fluid {
-            disc.set_films(f);
-        }
+        let disc = FsiDiscretization::build_with(model, &geometry, &state.coupling_pattern, entries)?;
         let build = clock.elapsed().as_secs_f64();
         let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
         let time = state.time + dt;
@@ -2380,7 +2376,7 @@ pub fn step_with<const D: usize>(
         max_coupling_distance: disc.coupling.max_distance,
         max_relative_coupling_distance: disc.coupling.max_relative_distance,
         multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
-        film_force: disc.film_force(fluid.formulation).to_vec(),
+        film_force: disc.film_force(&x, fluid.formulation).to_vec(),
         films: disc.films.len(),
         max_solid_increment,
         seconds,

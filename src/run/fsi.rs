@@ -10,8 +10,9 @@
 //! - `history.csv`: one row per step with the requested quantities and the built-in
 //!   `coupling_force_x`, `coupling_force_y` (`_z`): the force of the fluid on the solid, the
 //!   integral of the multiplier over gamma_f and the load of the thin films where a closed gap
-//!   cut the fluid off ([`crate::discretize::fsi::FilmLoad`]), plus `coupling_facets` (and `closed_gap_cells`
-//!   with contacts, `open_area` with `[output.open_area]`);
+//!   cut the fluid off ([`crate::discretize::fsi::FilmLoad`]), plus `coupling_facets` (and
+//!   `closed_gap_cells` and the films' part of the force, `film_force_x`, `_y` (`_z`), with
+//!   contacts, `open_area` with `[output.open_area]`);
 //! - `profiles/NAME.csv` of the last step (`gamma_f_minus` / `gamma_f_plus` name the two sides of
 //!   gamma_f);
 //! - `summary.json` as for every run.
@@ -163,7 +164,9 @@ impl<const D: usize> RunOutputs<FsiStepper<'_, D>> for FsiOutputs<'_, D> {
         let mut known: Vec<(String, f64)> =
             self.solid_probes.iter().map(|(name, node, a)| (name.clone(), self.model.solid.displacement(&s.state.solid_x, *node)[*a])).collect();
         let open_area = self.open_area(&s.state.solid_x)?;
-        let closed_gap = self.case.solid.iter().any(|s| !s.contact.is_empty()).then_some(r.adapt.closed_gap_cells as f64);
+        let with_contacts = self.case.solid.iter().any(|s| !s.contact.is_empty());
+        let closed_gap =
+            with_contacts.then(|| std::iter::once(r.adapt.closed_gap_cells as f64).chain(r.film_force.iter().copied())).into_iter().flatten();
         let builtin = r.fluid_force().into_iter().chain([r.coupling_elements as f64]).chain(closed_gap).chain(open_area);
         let (names, values): (Vec<String>, Vec<f64>) = (self.case.builtin_quantities(), builtin.collect());
         debug_assert_eq!(names.len(), values.len(), "a value for every built-in quantity: {names:?}");

@@ -130,7 +130,7 @@ pub use background::Background;
 pub use enclosed::remove_enclosed;
 pub use gap::{remove_closed_gaps, GapPlane, CLOSED_GAP};
 pub use surface::{Surface, SurfacePoint};
-pub use transfer::{p1disc_at, transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
+pub use transfer::{transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::{verify_adapted, verify_adapted_within};
 
 use crate::element::ReferenceCell;

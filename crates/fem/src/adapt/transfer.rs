@@ -97,25 +97,6 @@ impl<const D: usize> CellLocator<D> {
     }
 }
 
-/// The values at `points` of the P1-discontinuous field `values` of `mesh` (`D + 1` values per
-/// cell: the value at the vertex centroid, then the gradient; linear simplices): each point's
-/// from the cell that holds it ([`CellLocator::locate`]), `None` for a point outside the mesh.
-pub fn p1disc_at<const D: usize>(mesh: &Mesh<D>, values: &[f64], points: &[[f64; D]]) -> Vec<Option<f64>> {
-    debug_assert_eq!(values.len(), mesh.num_cells() * (D + 1));
-    if points.is_empty() {
-        return Vec::new();
-    }
-    let locator = CellLocator::new(mesh);
-    points
-        .iter()
-        .map(|x| {
-            let (c, _) = locator.locate(mesh, x)?;
-            let (centroid, p) = (mesh.vertex_centroid(c), &values[c * (D + 1)..(c + 1) * (D + 1)]);
-            Some(p[0] + (0..D).map(|d| p[d + 1] * (x[d] - centroid[d])).sum::<f64>())
-        })
-        .collect()
-}
-
 /// The P1-discontinuous field of `old_mesh` (`D + 1` values per cell: the value at the centroid,
 /// then the gradient; [`crate::values::p1disc_basis`]) on the cells of `new_mesh`, linear
 /// simplices both: each new cell takes the linear function of the old cell that holds its
