@@ -304,8 +304,6 @@ fn a_slab_in_flow_comes_to_rest_on_a_stop() {
 /// pressure spike above 10 % of the jump.
 #[test]
 fn a_leaflet_closes_on_the_symmetry_line_seals_and_reopens() {
-    use fdfsi::case::Case;
-    use fdfsi::run::{run_case, RunOptions};
     let text = r#"
 title = "a leaflet closing on the symmetry line and reopening"
 [mesh]
@@ -373,14 +371,7 @@ name = "p_down"
 field = "pressure"
 point = [4.5, 0.5]
 "#;
-    let case = Case::from_toml_str(text, "leaflet.toml").unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    run_case(&case, &RunOptions::new(&out, dir.path()), &mut |_: &str| {}).unwrap();
-    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    let (header, rows) = run_history(text, "leaflet.toml");
     assert_eq!(rows.len(), 300, "every step done, none cut");
     let col = |name: &str| {
         let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));
@@ -420,6 +411,22 @@ point = [4.5, 0.5]
     assert!(settled_flux < 1e-6, "the flux through the closed valve once settled: {settled_flux}");
     assert!(!closed(15.0) && at(&gap, 15.0) > 0.0 && at(&cut, 15.0) == 0.0, "reopened, the cells back");
     assert!(spike < 0.1, "reopening overshoot {spike}");
+}
+
+/// Runs the FSI case `text` (named `name`, its files relative to a temporary folder) and reads
+/// its `history.csv`: the header and the rows.
+fn run_history(text: &str, name: &str) -> (Vec<String>, Vec<Vec<f64>>) {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let case = Case::from_toml_str(text, name).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    run_case(&case, &RunOptions::new(&out, dir.path()), &mut |_: &str| {}).unwrap();
+    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    (header, rows)
 }
 
 /// Two meshes as one solid mesh of two bodies: the boundaries of `a` named `A/NAME`, those of
@@ -484,8 +491,6 @@ fn two_blocks_with_non_matching_meshes_carry_a_uniform_contact_pressure() {
 /// the strip is loaded as with the fluid on both sides.
 #[test]
 fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
-    use fdfsi::case::Case;
-    use fdfsi::run::{run_case, RunOptions};
     let text = r#"
 title = "a strip touching the symmetry line in fluid at a uniform pressure"
 [mesh]
@@ -538,14 +543,7 @@ type = "no-slip"
 [output]
 animation = false
 "#;
-    let case = Case::from_toml_str(text, "film.toml").unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out");
-    run_case(&case, &RunOptions::new(&out, dir.path()), &mut |_: &str| {}).unwrap();
-    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
-    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    let (header, rows) = run_history(text, "film.toml");
     assert_eq!(rows.len(), 3);
     let col = |name: &str| {
         let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));
