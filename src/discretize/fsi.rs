@@ -880,8 +880,8 @@ pub struct FsiDiscretization<const D: usize> {
 /// The load of a thin film of fluid on a side of a gamma_f facet whose fluid a closed gap cut off
 /// ([`fdfsi_fem::adapt::gap::CutSide`]): the traction `t = -p n` on the solid, `n` the facet's
 /// normal into the film and `p` the pressure of the kept cell at the gap's mouth, its value at
-/// the cell's centroid (the first of its P1-discontinuous unknowns):
-/// `R_s -= int_e t . w ds = int_e p n . w ds` over the facet's coupling points, with its Jacobian
+/// the cell's centroid (the first of its P1-discontinuous unknowns): `R_s -= int_e t . w ds`,
+/// that is `R_s += int_e p n . w ds`, over the facet's coupling points, with its Jacobian
 /// `int_e (n . w) ds` in the column of `p` (the coupling element's unknowns include it). An
 /// unknown of the step, not the last step's pressure: lagged by a step, the film's load was an
 /// explicit coupling of the leaflet to the fluid at the mouth, whose pressure swung by up to
