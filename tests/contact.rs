@@ -261,27 +261,14 @@ rel_tol = 1e-14
 /// block of the monolithic FSI system, solved with the fluid, the solid and the multiplier.
 #[test]
 fn a_slab_in_flow_comes_to_rest_on_a_stop() {
-    use fdfsi::case::Case;
-    use fdfsi::run::{run_case, RunOptions};
     let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let text = std::fs::read_to_string(cases.join("model-problem-1.toml")).unwrap();
     let text = text.replace("n = [80, 20]", "n = [40, 10]").replace("end = 18.0", "end = 2.0").replace("dt = 0.05", "dt = 0.1");
     let stop = "[[solid.contact]]\nboundary = \"right\"\npoint = [10.125, 0.0]\nnormal = [-1.0, 0.0]\n\n[time]";
     let stopped = text.replace("[time]", stop);
     assert!(stopped.contains("solid.contact") && text.contains("end = 2.0"));
-    let run = |text: &str| {
-        let case = Case::from_toml_str(text, "slab.toml").unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("out");
-        let summary = run_case(&case, &RunOptions::new(&out, &cases), &mut |_: &str| {}).unwrap();
-        let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
-        let mut lines = csv.lines();
-        let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
-        let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
-        (summary, header, rows)
-    };
-    let (free, _, _) = run(&text);
-    let (stopped, header, rows) = run(&stopped);
+    let (free, _, _) = run_history(&text, "slab.toml");
+    let (stopped, header, rows) = run_history(&stopped, "slab.toml");
     let (tip_free, tip) = (free.quantities["tip_displacement_x"], stopped.quantities["tip_displacement_x"]);
     println!("tip x displacement: free {tip_free:.5}, stopped {tip:.5}; contact force {:.4}", stopped.quantities["right_contact_force"]);
     assert!(tip_free > 0.3, "the free slab swings past the stop: {tip_free}");
@@ -371,7 +358,7 @@ name = "p_down"
 field = "pressure"
 point = [4.5, 0.5]
 "#;
-    let (header, rows) = run_history(text, "leaflet.toml");
+    let (_, header, rows) = run_history(text, "leaflet.toml");
     assert_eq!(rows.len(), 300, "every step done, none cut");
     let col = |name: &str| {
         let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));
@@ -413,20 +400,21 @@ point = [4.5, 0.5]
     assert!(spike < 0.1, "reopening overshoot {spike}");
 }
 
-/// Runs the FSI case `text` (named `name`, its files relative to a temporary folder) and reads
-/// its `history.csv`: the header and the rows.
-fn run_history(text: &str, name: &str) -> (Vec<String>, Vec<Vec<f64>>) {
+/// Runs the case `text` (named `name`, its files relative to the repository's `cases/`) into a
+/// temporary folder and reads its `history.csv`: the run's summary, the header and the rows.
+fn run_history(text: &str, name: &str) -> (fdfsi::run::RunSummary, Vec<String>, Vec<Vec<f64>>) {
     use fdfsi::case::Case;
     use fdfsi::run::{run_case, RunOptions};
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let case = Case::from_toml_str(text, name).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    run_case(&case, &RunOptions::new(&out, dir.path()), &mut |_: &str| {}).unwrap();
+    let summary = run_case(&case, &RunOptions::new(&out, &cases), &mut |_: &str| {}).unwrap();
     let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
-    (header, rows)
+    (summary, header, rows)
 }
 
 /// Two meshes as one solid mesh of two bodies: the boundaries of `a` named `A/NAME`, those of
@@ -543,7 +531,7 @@ type = "no-slip"
 [output]
 animation = false
 "#;
-    let (header, rows) = run_history(text, "film.toml");
+    let (_, header, rows) = run_history(text, "film.toml");
     assert_eq!(rows.len(), 3);
     let col = |name: &str| {
         let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));

@@ -1063,7 +1063,7 @@ impl<const D: usize> FsiDiscretization<D> {
         let sf = model.solid.displacement_field();
         let films = film_loads(&adapted, flow.pressure_field());
         let coupling_pattern = coupling_pattern(&flow.mesh, &coupling, carried);
-        let coupling_dofs: Vec<Vec<usize>> = (0..ne)
+        let mut coupling_dofs: Vec<Vec<usize>> = (0..ne)
             .map(|e| {
                 let mut d: Vec<usize> = (0..D * D).map(|k| ol + e * D * D + k).collect();
                 if let Some(&ch) = coupling.chain.get(e) {
@@ -1085,7 +1085,6 @@ impl<const D: usize> FsiDiscretization<D> {
             })
             .collect();
         // A film's pressure unknown joins its element's.
-        let mut coupling_dofs = coupling_dofs;
         for film in &films {
             let d = &mut coupling_dofs[film.element];
             if let Err(at) = d.binary_search(&film.pressure_dof) {

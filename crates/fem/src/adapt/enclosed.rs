@@ -62,7 +62,7 @@ pub fn remove_enclosed<const D: usize>(adapted: Adapted<D>, surface: &Surface<D>
 }
 
 /// The mean of `points` of `mesh`.
-fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
+pub(super) fn centroid<const D: usize>(mesh: &Mesh<D>, points: &[usize]) -> [f64; D] {
     std::array::from_fn(|d| points.iter().map(|&p| mesh.points[p][d]).sum::<f64>() / points.len() as f64)
 }
 

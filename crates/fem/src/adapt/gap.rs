@@ -41,6 +41,7 @@
 //! left with fluid on one side only, the flux the solid sweeps through it). What is lost is the
 //! fluid in the cut cells, which the closed contact has pinched off.
 
+use super::enclosed::centroid;
 use super::{Adapted, GammaFacet, Surface};
 use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
 use rstar::primitives::GeomWithData;
@@ -266,16 +267,18 @@ fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, presse
 /// each of its gamma_f facets lost ([`lost_sides`]).
 fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<usize>]) -> Vec<CutSide<D>> {
     debug_assert_eq!(lost.len(), out.gamma_f.len());
+    if lost.iter().all(Option::is_none) {
+        return Vec::new();
+    }
     let mesh = &out.mesh;
-    let centroid = |corners: &[[f64; D]]| -> [f64; D] { std::array::from_fn(|d| corners.iter().map(|x| x[d]).sum::<f64>() / corners.len() as f64) };
     let mouths: Vec<GeomWithData<[f64; D], usize>> = mesh
         .boundary_facets(CLOSED_GAP)
         .unwrap_or_default()
         .into_iter()
         .map(|b| {
             let nodes = mesh.cell(b.cell);
-            let corners: Vec<[f64; D]> = mesh.facet_local_nodes(b.facet)[..D].iter().map(|&k| mesh.points[nodes[k]]).collect();
-            GeomWithData::new(centroid(&corners), b.cell)
+            let corners: Vec<usize> = mesh.facet_local_nodes(b.facet)[..D].iter().map(|&k| nodes[k]).collect();
+            GeomWithData::new(centroid(mesh, &corners), b.cell)
         })
         .collect();
     let mouths = RTree::bulk_load(mouths);
@@ -284,10 +287,9 @@ fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<usize>]) -> Vec<Cu
         .zip(lost)
         .enumerate()
         .filter_map(|(facet, (g, side))| {
-            let corners = g.vertices.map(|v| mesh.points[v]);
-            let n = super::surface::piece_normal(&corners);
+            let n = super::surface::piece_normal(&g.vertices.map(|v| mesh.points[v]));
             let sign = if (*side)? == 1 { 1.0 } else { -1.0 };
-            let mouth = mouths.nearest_neighbor(centroid(&corners)).map(|m| m.data);
+            let mouth = mouths.nearest_neighbor(centroid(mesh, &g.vertices)).map(|m| m.data);
             Some(CutSide { facet, normal: n.map(|c| sign * c), mouth })
         })
         .collect()
