@@ -466,20 +466,9 @@ fn two_blocks_with_non_matching_meshes_carry_a_uniform_contact_pressure() {
     }
 }
 
-/// A film where a closed gap cuts the fluid off (`fdfsi_fem::adapt::gap::CutSide`,
-/// `fdfsi::discretize::fsi::FilmLoad`): a stiff strip in a channel of fluid at a uniform
-/// pressure `p0`, coupled on its lower face, which is also its contact boundary and touches the
-/// symmetry line y = 0 at its left end, rising from it at a slope of 1/2 (as a 3D leaflet rises
-/// from its plane of coaptation). The fluid in the wedge below it, within `fluid_cut_off` of the
-/// line, is cut off; the fluid behind the strip keeps its pressure, which on the wedge presses
-/// the strip onto the line with the force `p0 L n` (L the wedge's length along the strip, `n` its
-/// lower face's normal). The films carry the pressure at the wedge's mouth, `p0`: their force is
-/// `-p0 L n` to 10 % (the cut cells cover the wedge up to a cell), the fluid's force on the strip
-/// (the multiplier's and the films') is zero to round-off every step, and so is the contact force:
-/// the strip is loaded as with the fluid on both sides.
-#[test]
-fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
-    let text = r#"
+/// A stiff strip touching the symmetry line y = 0 in fluid at a uniform pressure 1, the wedge
+/// below it within the cut-off (0.1) of the line cut off: the case of the films' tests.
+const FILM_CASE: &str = r#"
 title = "a strip touching the symmetry line in fluid at a uniform pressure"
 [mesh]
 kind = "channel"
@@ -531,7 +520,21 @@ type = "no-slip"
 [output]
 animation = false
 "#;
-    let (_, header, rows) = run_history(text, "film.toml");
+
+/// A film where a closed gap cuts the fluid off (`fdfsi_fem::adapt::gap::CutSide`,
+/// `fdfsi::discretize::fsi::FilmLoad`): a stiff strip in a channel of fluid at a uniform
+/// pressure `p0`, coupled on its lower face, which is also its contact boundary and touches the
+/// symmetry line y = 0 at its left end, rising from it at a slope of 1/2 (as a 3D leaflet rises
+/// from its plane of coaptation). The fluid in the wedge below it, within `fluid_cut_off` of the
+/// line, is cut off; the fluid behind the strip keeps its pressure, which on the wedge presses
+/// the strip onto the line with the force `p0 L n` (L the wedge's length along the strip, `n` its
+/// lower face's normal). The films carry the pressure at the wedge's mouth, `p0`: their force is
+/// `-p0 L n` to 10 % (the cut cells cover the wedge up to a cell), the fluid's force on the strip
+/// (the multiplier's and the films') is zero to round-off every step, and so is the contact force:
+/// the strip is loaded as with the fluid on both sides.
+#[test]
+fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
+    let (_, header, rows) = run_history(FILM_CASE, "film.toml");
     assert_eq!(rows.len(), 3);
     let col = |name: &str| {
         let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));
@@ -556,5 +559,31 @@ animation = false
         let off = (film_x[k] + p0 * length * n[0]).hypot(film_y[k] + p0 * length * n[1]);
         assert!(off < 0.1 * p0 * length, "step {}: the films carry -p0 L n: [{}, {}]", k + 1, film_x[k], film_y[k]);
         assert!(force[k] < 1e-12 * p0 * length && contact[k].abs() < 1e-12 * p0 * length, "step {}: {} {}", k + 1, force[k], contact[k]);
+    }
+}
+
+/// `fdfsi adapt --at` a checkpoint of [`FILM_CASE`] writes `films.vtu`: the facets of gamma_f
+/// over the cut wedge and on the line, each with its normal into the film (below the strip:
+/// a unit normal with y < 0) and its mouth, the centroid of a kept cell just beyond the wedge's
+/// end (x above the wedge, within a cell of 1/32 of the cut-off's reach on the line).
+#[test]
+fn adapt_at_a_checkpoint_writes_each_film_with_its_mouth() {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let case = Case::from_toml_str(&FILM_CASE.replace("end = 0.3", "end = 0.1"), "film.toml").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
+    fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
+    let films = fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap();
+    let (normals, mouths) = (&films.cell_array("normal").unwrap().values, &films.cell_array("mouth").unwrap().values);
+    let cells = normals.len() / 3;
+    assert!(cells > 0 && mouths.len() == 3 * cells, "{cells} films");
+    // The wedge: the strip's lower face y = (x - 0.3) / 2 within y < 0.1, so x < 0.5.
+    for k in 0..cells {
+        let (n, m) = (&normals[3 * k..3 * k + 3], &mouths[3 * k..3 * k + 3]);
+        assert!(((n[0] * n[0] + n[1] * n[1]).sqrt() - 1.0).abs() < 1e-12 && n[1] < 0.0, "film {k}: normal {n:?}");
+        assert!(m[0] > 0.45 && m[0] < 0.55 && m[1] > 0.0 && m[1] < 0.2, "film {k}: mouth {m:?}");
     }
 }

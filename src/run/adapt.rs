@@ -4,7 +4,10 @@
 //! `fdfsi adapt CASE --out DIR` writes `original.vtu` and `adapted.vtu` (the fluid mesh before and
 //! after, as linear cells), `gamma_s.vtu`, `gamma_f.vtu` and `summary.json` (the counts of
 //! [`AdaptStats`] and the measures of gamma_s and gamma_f). With `--at RUN_DIR`, the mesh of the
-//! next step of an FSI run from its checkpoint. Where the covered fluid is to be removed and
+//! next step of an FSI run from its checkpoint; where a closed gap's cells are cut off there,
+//! also `films.vtu`: the facets of gamma_f that carry a film ([`fdfsi_fem::adapt::gap::CutSide`]),
+//! with the facet's normal into the film and the centroid of the kept cell at the gap's mouth
+//! whose pressure the film carries (NaN where there is none). Where the covered fluid is to be removed and
 //! gamma_f does not enclose it, the files show the adaptation with it kept, and the command fails.
 
 use super::{RunError, RunOptions};
@@ -146,6 +149,23 @@ fn piece_grid<const D: usize>(points: &[[f64; D]], pieces: &[[usize; D]]) -> Res
     Ok(grid)
 }
 
+/// The facets of gamma_f that carry a film in a closed gap, with cell data `normal` (into the
+/// film) and `mouth` (the centroid of the kept cell whose pressure the film carries; NaN where
+/// there is none).
+fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>) -> Result<UnstructuredGrid, VtkError> {
+    let facets: Vec<[usize; D]> = a.cut_sides.iter().map(|s| a.gamma_f[s.facet].vertices).collect();
+    let mut grid = piece_grid(&a.mesh.points, &facets)?;
+    let padded = |v: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| if d < D { v[d] } else { 0.0 }) };
+    let mouth = |cell: usize| -> [f64; D] {
+        let vertices = a.mesh.cell_vertices(cell);
+        std::array::from_fn(|d| vertices.iter().map(|&v| a.mesh.points[v][d]).sum::<f64>() / vertices.len() as f64)
+    };
+    grid.add_cell_data("normal", 3, a.cut_sides.iter().flat_map(|s| padded(s.normal)).collect())?;
+    let mouths = a.cut_sides.iter().flat_map(|s| s.mouth.map_or([f64::NAN; 3], |c| padded(mouth(c))));
+    grid.add_cell_data("mouth", 3, mouths.collect())?;
+    Ok(grid)
+}
+
 /// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the files listed in the
 /// module documentation.
 pub fn write_adapt_report<const D: usize>(a: &AdaptedFluid<D>, out_dir: &Path) -> Result<AdaptSummary, RunError> {
@@ -155,6 +175,9 @@ pub fn write_adapt_report<const D: usize>(a: &AdaptedFluid<D>, out_dir: &Path) -
     write_vtu(&out_dir.join("gamma_s.vtu"), &piece_grid(&a.surface.points, &a.surface.pieces)?)?;
     let gf: Vec<[usize; D]> = a.adapted.gamma_f.iter().map(|g| g.vertices).collect();
     write_vtu(&out_dir.join("gamma_f.vtu"), &piece_grid(&a.adapted.mesh.points, &gf)?)?;
+    if !a.adapted.cut_sides.is_empty() {
+        write_vtu(&out_dir.join("films.vtu"), &film_grid(&a.adapted)?)?;
+    }
     let summary = AdaptSummary {
         original_cells: a.original.num_cells(),
         adapted_cells: a.adapted.mesh.num_cells(),
