@@ -563,9 +563,10 @@ fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
 }
 
 /// `fdfsi adapt --at` a checkpoint of [`FILM_CASE`] writes `films.vtu`: the facets of gamma_f
-/// over the cut wedge and on the line, each with its normal into the film (below the strip:
-/// a unit normal with y < 0) and its mouth, the centroid of a kept cell just beyond the wedge's
-/// end (x above the wedge, within a cell of 1/32 of the cut-off's reach on the line).
+/// over the cut wedge, each with its normal into the film (below the strip: a unit normal with
+/// y < 0) and its mouth, the centroid of a kept cell beside the wedge's open end (x = 0.5, where
+/// the strip's lower face rises to the cut-off, 0.1 above the line): within 0.05 of it along x
+/// (the cells are 1/32 wide), below y = 0.2.
 #[test]
 fn adapt_at_a_checkpoint_writes_each_film_with_its_mouth() {
     use fdfsi::case::Case;

@@ -156,12 +156,8 @@ fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>) -> Result<Unstruc
     let facets: Vec<[usize; D]> = a.cut_sides.iter().map(|s| a.gamma_f[s.facet].vertices).collect();
     let mut grid = piece_grid(&a.mesh.points, &facets)?;
     let padded = |v: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| if d < D { v[d] } else { 0.0 }) };
-    let mouth = |cell: usize| -> [f64; D] {
-        let vertices = a.mesh.cell_vertices(cell);
-        std::array::from_fn(|d| vertices.iter().map(|&v| a.mesh.points[v][d]).sum::<f64>() / vertices.len() as f64)
-    };
     grid.add_cell_data("normal", 3, a.cut_sides.iter().flat_map(|s| padded(s.normal)).collect())?;
-    let mouths = a.cut_sides.iter().flat_map(|s| s.mouth.map_or([f64::NAN; 3], |c| padded(mouth(c))));
+    let mouths = a.cut_sides.iter().flat_map(|s| s.mouth.map_or([f64::NAN; 3], |c| padded(a.mesh.vertex_centroid(c))));
     grid.add_cell_data("mouth", 3, mouths.collect())?;
     Ok(grid)
 }
