@@ -5,10 +5,11 @@
 //! after, as linear cells), `gamma_s.vtu`, `gamma_f.vtu` and `summary.json` (the counts of
 //! [`AdaptStats`] and the measures of gamma_s and gamma_f). With `--at RUN_DIR`, the mesh of the
 //! next step of an FSI run from its checkpoint; where a closed gap's cells are cut off there,
-//! also `films.vtu`: the facets of gamma_f that carry a film ([`fdfsi_fem::adapt::gap::CutSide`]),
-//! with the facet's normal into the film and the centroid of the kept cell at the gap's mouth
-//! whose pressure the film carries (NaN where there is none). Where the covered fluid is to be removed and
-//! gamma_f does not enclose it, the files show the adaptation with it kept, and the command fails.
+//! also `films.vtu`: the facets of gamma_f that carry a film
+//! ([`fdfsi_fem::adapt::gap::CutSide`]), with the facet's normal into the film and the centroid
+//! of the kept cell at the gap's mouth whose pressure the film carries (NaN where there is none).
+//! Where the covered fluid is to be removed and gamma_f does not enclose it, the files show the
+//! adaptation with it kept, and the command fails.
 
 use super::{RunError, RunOptions};
 use crate::adapt::{AdaptedFluid, CoveredFluid};
@@ -136,7 +137,12 @@ fn linear_grid<const D: usize>(mesh: &Mesh<D>) -> Result<UnstructuredGrid, VtkEr
 }
 
 fn pad<const D: usize>(points: &[[f64; D]]) -> Vec<[f64; 3]> {
-    points.iter().map(|p| std::array::from_fn(|d| if d < D { p[d] } else { 0.0 })).collect()
+    points.iter().map(|&p| padded(p)).collect()
+}
+
+/// `v` in 3D (zero beyond its `D` components).
+fn padded<const D: usize>(v: [f64; D]) -> [f64; 3] {
+    std::array::from_fn(|d| if d < D { v[d] } else { 0.0 })
 }
 
 /// Segments (2D) or triangles (3D) as a VTK grid.
@@ -155,7 +161,6 @@ fn piece_grid<const D: usize>(points: &[[f64; D]], pieces: &[[usize; D]]) -> Res
 fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>) -> Result<UnstructuredGrid, VtkError> {
     let facets: Vec<[usize; D]> = a.cut_sides.iter().map(|s| a.gamma_f[s.facet].vertices).collect();
     let mut grid = piece_grid(&a.mesh.points, &facets)?;
-    let padded = |v: [f64; D]| -> [f64; 3] { std::array::from_fn(|d| if d < D { v[d] } else { 0.0 }) };
     grid.add_cell_data("normal", 3, a.cut_sides.iter().flat_map(|s| padded(s.normal)).collect())?;
     let mouths = a.cut_sides.iter().flat_map(|s| s.mouth.map_or([f64::NAN; 3], |c| padded(a.mesh.vertex_centroid(c))));
     grid.add_cell_data("mouth", 3, mouths.collect())?;
