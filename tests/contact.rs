@@ -562,6 +562,107 @@ fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
     }
 }
 
+/// [`FILM_CASE`]'s strip lowered flat onto a stop at y = 0.02 (a contact plane inside the fluid,
+/// with the cut-off given) over x = 0.3-0.7, its films at the mouths `film_pressure` says.
+fn flat_film_case(film_pressure: &str) -> String {
+    FILM_CASE
+        .replace("[[0.3, 0.0], [0.7, 0.2], [0.68, 0.24], [0.28, 0.04]]", "[[0.3, 0.02], [0.7, 0.02], [0.7, 0.06], [0.3, 0.06]]")
+        .replace("point = [0.0, 0.0]", "point = [0.0, 0.02]")
+        .replace("surface = \"bottom\"", &format!("surface = \"bottom\"\nfilm_pressure = \"{film_pressure}\""))
+}
+
+/// The films of a gap at its lowest mouth (`[solid] film_pressure = "lowest-mouth"`,
+/// `fdfsi::discretize::fsi::FilmPressure`). [`FILM_CASE`]'s strip lowered flat onto a stop at y =
+/// 0.02 (a contact plane inside the fluid, with the cut-off given) over x = 0.3-0.7: the fluid
+/// below it is cut off, one gap open at both ends of the strip. The first step from a last step
+/// whose pressure is `p = s x` takes every film to the mouth of the gap (`Adapted::gap_mouths`)
+/// whose centroid has the least (`s = 1`) or the greatest (`s = -1`) x, within a cell (1/32) of
+/// the strip's left or right end, and the film's pressure unknown is that cell's. With
+/// `nearest-mouth` the films keep the mouths nearest them, at both ends, whatever the pressure.
+#[test]
+fn films_take_the_lowest_mouth_of_their_gap_from_the_last_pressure() {
+    use fdfsi::case::Case;
+    use fdfsi::discretize::fsi::{FluidSnapshot, FsiState, StepStart};
+    use fdfsi::fem::gmsh::AnyMesh;
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    // (mouth, gap, the mouth nearest) of each film, the gaps' mouths and the mesh.
+    let chosen = |rule: &str, s: f64| {
+        let text = flat_film_case(rule);
+        let case = Case::from_toml_str(&text, "film.toml").unwrap();
+        let AnyMesh::D2(mesh) = fdfsi::setup::build_mesh(&case, &cases).unwrap() else { panic!("a 2D mesh") };
+        let model = fdfsi::setup::fsi_model::<2>(&case, &mesh, &cases).unwrap();
+        let rest = StepStart::new(&model, &FsiState::at_rest(&model), 0.1).unwrap();
+        // The last step's fluid: at rest on the same mesh, its pressure s x (centroid value, gradient).
+        let m = &rest.disc.flow.mesh;
+        let pressure = (0..m.num_cells()).flat_map(|c| [s * m.vertex_centroid(c)[0], s, 0.0]).collect();
+        let vel = rest.disc.flow.velocity_field();
+        let fluid = FluidSnapshot {
+            solid_base: vec![0.0; model.solid.num_dofs()],
+            mesh: m.clone(),
+            nodes: vel.nodes.clone(),
+            velocity: vec![0.0; vel.num_dofs()],
+            lumped: Vec::new(),
+            pressure,
+        };
+        let state = FsiState { fluid: Some(fluid), ..FsiState::at_rest(&model) };
+        let start = StepStart::new(&model, &state, 0.1).unwrap();
+        let (disc, pf) = (&start.disc, start.disc.flow.pressure_field());
+        assert_eq!(disc.films.len(), disc.adapted.cut_sides.len());
+        let films: Vec<(usize, usize, usize)> = disc
+            .films
+            .iter()
+            .zip(&disc.adapted.cut_sides)
+            .map(|(film, side)| {
+                let m = side.mouth.expect("a mouth");
+                assert_eq!(film.pressure_dof, pf.dof(pf.nodes.cell(m)[0], 0), "the film carries its mouth's pressure");
+                let nearest = rest.disc.adapted.cut_sides.iter().find(|r| r.facet == side.facet).and_then(|r| r.mouth).unwrap();
+                (m, side.gap.expect("in a gap"), nearest)
+            })
+            .collect();
+        (films, disc.adapted.gap_mouths.clone(), disc.adapted.mesh.clone())
+    };
+    for s in [1.0, -1.0] {
+        let (films, gaps, mesh) = chosen("lowest-mouth", s);
+        assert_eq!(gaps.len(), 1, "one gap under the strip");
+        assert!(films.len() > 8, "{} films", films.len());
+        let x = |c: usize| mesh.vertex_centroid(c)[0];
+        let lowest = gaps[0].iter().copied().min_by(|a, b| (s * x(*a)).total_cmp(&(s * x(*b)))).unwrap();
+        let end = if s > 0.0 { 0.3 } else { 0.7 };
+        assert!((x(lowest) - end).abs() < 1.0 / 32.0, "s = {s}: the gap's lowest mouth at x = {}", x(lowest));
+        assert!(films.iter().all(|&(m, _, _)| m == lowest), "s = {s}: every film at the lowest mouth");
+        let (nearest, _, _) = chosen("nearest-mouth", s);
+        assert!(nearest.iter().all(|&(m, _, first)| m == first), "nearest-mouth keeps the nearest");
+        let ends = nearest.iter().map(|&(m, _, _)| x(m) < 0.5);
+        assert!(ends.clone().any(|left| left) && ends.clone().any(|left| !left), "the nearest mouths at both ends");
+    }
+}
+
+/// `fdfsi adapt --at` chooses the films' mouths as the run's next step would: with
+/// [`flat_film_case`]'s strip in a flow from the inlet's pressure 2 (x = 0) to the outlet's 1 (x =
+/// 1), after one step the gap's lowest mouth is by the strip's downstream end (x = 0.7), and
+/// `films.vtu` puts every film's mouth there (within 0.1 along x); at the nearest mouths the films
+/// split between the two ends.
+#[test]
+fn adapt_at_a_checkpoint_puts_the_films_at_the_lowest_mouth() {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let mouths_x = |rule: &str| {
+        let text = flat_film_case(rule).replace("end = 0.3", "end = 0.1").replacen("value = [1.0]", "value = [2.0]", 1);
+        let case = Case::from_toml_str(&text, "film.toml").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
+        fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
+        let films = fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap();
+        films.cell_array("mouth").unwrap().values.chunks(3).map(|m| m[0]).collect::<Vec<f64>>()
+    };
+    let lowest = mouths_x("lowest-mouth");
+    assert!(lowest.len() > 8 && lowest.iter().all(|x| (x - 0.7).abs() < 0.1), "lowest-mouth: the mouths at x = {lowest:?}");
+    let nearest = mouths_x("nearest-mouth");
+    assert!(nearest.iter().any(|x| (x - 0.3).abs() < 0.1) && nearest.iter().any(|x| (x - 0.7).abs() < 0.1), "nearest-mouth: {nearest:?}");
+}
+
 /// `fdfsi adapt --at` a checkpoint of [`FILM_CASE`] writes `films.vtu`: the facets of gamma_f
 /// over the cut wedge, each with its normal into the film (below the strip: a unit normal with
 /// y < 0) and its mouth, the centroid of a kept cell beside the wedge's open end (x = 0.5, where

@@ -234,6 +234,12 @@ pub struct SolidSpec {
     /// [`crate::adapt::CoveredFluid`]).
     #[serde(default, skip_serializing_if = "is_default")]
     pub covered_fluid: crate::adapt::CoveredFluid,
+    /// Whose pressure the film of blood in a gap a closed contact cut off carries (FSI runs with
+    /// `[[solid.contact]]`): `nearest-mouth` (default: the fluid at the gap's mouth nearest each
+    /// facet) or `lowest-mouth` (the lowest of the gap's mouths at the step's start; see
+    /// [`crate::discretize::fsi::FilmPressure`]).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub film_pressure: crate::discretize::fsi::FilmPressure,
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
@@ -1301,7 +1307,7 @@ impl Case {
     }
 
     /// The first (or only) solid: with several, the options of the whole solid are its (`model`
-    /// as fixed or not, `multiplier`, `covered_fluid`, `eps_hat`, `min_move_quality`, `boundary_cuts`,
+    /// as fixed or not, `multiplier`, `covered_fluid`, `film_pressure`, `eps_hat`, `min_move_quality`, `boundary_cuts`,
     /// `min_cut_quality`, `loading`; validation holds them
     /// equal).
     pub fn first_solid(&self) -> Option<&SolidSpec> {

@@ -459,10 +459,11 @@ fn solids(c: &Case, p: &mut Problems) {
     }
     // Each option of the whole solid as a text to compare.
     type Spelled = fn(&SolidSpec) -> String;
-    let shared: [(&str, Spelled); 8] = [
+    let shared: [(&str, Spelled); 9] = [
         ("model (fixed or a material law)", |s| (s.model == SolidModel::Fixed).to_string()),
         ("multiplier", |s| spelled(&s.multiplier)),
         ("covered_fluid", |s| spelled(&s.covered_fluid)),
+        ("film_pressure", |s| spelled(&s.film_pressure)),
         ("eps_hat", |s| s.eps_hat.to_string()),
         ("min_move_quality", |s| s.min_move_quality.to_string()),
         ("boundary_cuts", |s| spelled(&s.boundary_cuts)),

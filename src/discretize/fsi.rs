@@ -63,8 +63,8 @@ use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
 use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards};
 use fdfsi_fem::adapt::{
-    adapt_with, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background, GammaFacet,
-    GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
+    adapt_with, p1disc_value, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background,
+    CellLocator, GammaFacet, GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
 };
 use fdfsi_fem::dofs::NodeMap;
 use fdfsi_fem::element::{ReferenceElement, MAX_DOFS};
@@ -121,6 +121,30 @@ pub enum FsiError {
     Restart(String),
     #[error("multiplier space: {0}")]
     Multiplier(String),
+}
+
+/// Whose pressure the film of blood in a closed gap carries ([`FilmLoad`]; in case files
+/// `[solid] film_pressure`).
+///
+/// A gap cut off between a solid and a plane is open at its mouths: where the band of the solid
+/// in the gap does not quite touch the plane, the film is a channel between them, and its pressure
+/// falls to that of its lower end. Taken at the mouth nearest each facet, the films of a 3D
+/// leaflet's coaptation band split by height: the upper ones took the aorta's pressure in
+/// diastole and pushed the band off its plane from inside the gap, and the closed valve leaked
+/// (`runs/valve-3d-sector/NOTES.md`, session 48). At the gap's lowest mouth the films carry the
+/// ventricle's pressure in diastole, which presses the band on, and the aorta's at the reopening,
+/// which leaves the band free for the ventricle's pressure to lift.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FilmPressure {
+    /// The kept cell at the gap's mouth nearest the film's facet ([`fdfsi_fem::adapt::gap::CutSide::mouth`]).
+    #[default]
+    NearestMouth,
+    /// Of the mouths of the film's gap ([`Adapted::gap_mouths`]), the cell whose pressure at its
+    /// centroid was lowest at the step's start (the last step's pressure there; the choice is
+    /// lagged by a step, the pressure it carries is the step's unknown). A gap none of whose
+    /// mouths lies in the last step's mesh keeps the nearest.
+    LowestMouth,
 }
 
 /// The multiplier space on gamma_f.
@@ -183,6 +207,8 @@ pub struct FsiModel<const D: usize> {
     pub multiplier: MultiplierSpace,
     /// The fluid cells under the solid (default: kept, the paper's).
     pub covered_fluid: CoveredFluid,
+    /// Whose pressure the films in closed gaps carry (default: the nearest mouth's).
+    pub film_pressure: FilmPressure,
     /// Where the fluid is cut off once each contact of the solid closes ([`remove_closed_gaps`]),
     /// in the order of the solid problem's contacts.
     pub closed_gaps: Vec<ClosedGap<D>>,
@@ -224,6 +250,12 @@ impl<const D: usize> FsiModel<D> {
     /// The model with the covered fluid kept or removed.
     pub fn with_covered_fluid(mut self, covered_fluid: CoveredFluid) -> Self {
         self.covered_fluid = covered_fluid;
+        self
+    }
+
+    /// The model with the films in closed gaps at the pressure `film_pressure` says.
+    pub fn with_film_pressure(mut self, film_pressure: FilmPressure) -> Self {
+        self.film_pressure = film_pressure;
         self
     }
 
@@ -280,9 +312,19 @@ impl<const D: usize> FsiModel<D> {
             solid,
             multiplier: MultiplierSpace::default(),
             covered_fluid: CoveredFluid::default(),
+            film_pressure: FilmPressure::default(),
             closed_gaps,
             solid_part,
         })
+    }
+
+    /// The films of `adapted` (its [`Adapted::cut_sides`]) at the mouths [`FsiModel::film_pressure`]
+    /// says, `last` the fluid of the step's start: the nearest as the cut leaves them, or the
+    /// lowest in `last`'s pressure ([`FilmPressure::LowestMouth`]).
+    pub fn choose_film_mouths(&self, last: Option<&FluidSnapshot<D>>, adapted: &mut Adapted<D>) {
+        if let (FilmPressure::LowestMouth, Some(last)) = (self.film_pressure, last) {
+            last.take_lowest_mouths(adapted);
+        }
     }
 
     /// `adapted` (to gamma_s `surface` at the solid displacement `solid_x`) with the fluid cut
@@ -662,6 +704,42 @@ impl<const D: usize> FluidSnapshot<D> {
         Ok(transfer_p1disc(&self.mesh, &self.pressure, &disc.flow.mesh, 0.0)?)
     }
 
+    /// Each film of `adapted` at the mouth of its closed gap whose pressure in this snapshot, at
+    /// the mouth cell's centroid, is lowest ([`FilmPressure::LowestMouth`]). A mouth whose centroid
+    /// lies outside this snapshot's mesh (in the hole of a gap cut off then) has no pressure to
+    /// compare; a gap without any, or a snapshot without pressure, leaves its films at the nearest
+    /// mouth.
+    fn take_lowest_mouths(&self, adapted: &mut Adapted<D>) {
+        if self.pressure.is_empty() || adapted.cut_sides.is_empty() {
+            return;
+        }
+        let locator = CellLocator::new(&self.mesh);
+        let pressure_at = |cell: usize| {
+            let x = adapted.mesh.vertex_centroid(cell);
+            let (old, _) = locator.locate(&self.mesh, &x)?;
+            Some(p1disc_value(&self.mesh, &self.pressure, old, &x))
+        };
+        let lowest: Vec<Option<(f64, usize)>> = adapted
+            .gap_mouths
+            .iter()
+            .map(|mouths| mouths.iter().filter_map(|&m| Some((pressure_at(m)?, m))).min_by(|a, b| a.0.total_cmp(&b.0)))
+            .collect();
+        for (g, low) in lowest.iter().enumerate() {
+            if let Some((p, m)) = low {
+                tracing::debug!(
+                    "closed gap {g}: {} mouths, the lowest pressure {p:.6e} at {:?}",
+                    adapted.gap_mouths[g].len(),
+                    adapted.mesh.vertex_centroid(*m)
+                );
+            }
+        }
+        for side in &mut adapted.cut_sides {
+            if let Some((_, m)) = side.gap.and_then(|g| lowest[g]) {
+                side.mouth = Some(m);
+            }
+        }
+    }
+
     /// The velocity transferred to the velocity nodes of `disc` (fluid numbering, zero pressure).
     ///
     /// With the covered fluid removed, the old mesh has a hole where the solid was (at
@@ -996,10 +1074,24 @@ impl<const D: usize> FsiDiscretization<D> {
     /// none. The fluid's own discretisation has its pattern for the whole system only (it is
     /// assembled into it as a block); otherwise it prepares none.
     pub fn build_with(model: &FsiModel<D>, solid_x: &[f64], carried: &CouplingPattern, entries: Entries) -> Result<Self, FsiError> {
+        Self::build_after(model, solid_x, carried, entries, None)
+    }
+
+    /// [`FsiDiscretization::build_with`] for the step after `last` (the fluid of the step's
+    /// start), which chooses the films' mouths where the model's [`FilmPressure`] asks for the
+    /// pressure there.
+    fn build_after(
+        model: &FsiModel<D>,
+        solid_x: &[f64],
+        carried: &CouplingPattern,
+        entries: Entries,
+        last: Option<&FluidSnapshot<D>>,
+    ) -> Result<Self, FsiError> {
         let clock = Instant::now();
         let surface = model.gamma_s(solid_x)?;
         let adapted = model.covered_fluid.apply(adapt_with(&model.background, &surface, &model.problem.adapt)?, &surface)?;
-        let adapted = model.cut_off_closed_gaps(adapted, &surface, solid_x)?;
+        let mut adapted = model.cut_off_closed_gaps(adapted, &surface, solid_x)?;
+        model.choose_film_mouths(last, &mut adapted);
         let adapt_seconds = clock.elapsed().as_secs_f64();
         if adapted.gamma_f.is_empty() {
             return Err(FsiError::EmptyGammaF(model.problem.surface.clone()));
@@ -2215,7 +2307,7 @@ impl<const D: usize> StepStart<D> {
         let omega = step_ratio(dt, state.dt);
         let geometry = step_geometry(&state.solid_x, previous.map(|p| p.solid_x.as_slice()), omega);
         let clock = Instant::now();
-        let disc = FsiDiscretization::build_with(model, &geometry, &state.coupling_pattern, entries)?;
+        let disc = FsiDiscretization::build_after(model, &geometry, &state.coupling_pattern, entries, state.fluid.as_ref())?;
         let build = clock.elapsed().as_secs_f64();
         let mut seconds = StepTimings { adapt: disc.adapt_seconds, build: build - disc.adapt_seconds, ..Default::default() };
         let time = state.time + dt;

@@ -7,14 +7,16 @@
 //! next step of an FSI run from its checkpoint; where a closed gap's cells are cut off there,
 //! also `films.vtu`: the facets of gamma_f that carry a film
 //! ([`fdfsi_fem::adapt::gap::CutSide`]), with the facet's normal into the film and the centroid
-//! of the kept cell at the gap's mouth whose pressure the film carries (NaN where there is none).
+//! of the kept cell at the gap's mouth whose pressure the film carries (NaN where there is none;
+//! with `film_pressure = "lowest-mouth"`, chosen from the checkpoint's pressure as the run's next
+//! step would).
 //! Where the covered fluid is to be removed and gamma_f does not enclose it, the files show the
 //! adaptation with it kept, and the command fails.
 
 use super::{RunError, RunOptions};
 use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{Case, CaseError, RunKind};
-use crate::discretize::fsi::FsiError;
+use crate::discretize::fsi::{FilmPressure, FsiError, FsiState};
 use crate::io::checkpoint::Checkpoint;
 use crate::io::{write_atomic, OutputError};
 use crate::setup::{adapt_fluid_with, build_mesh, fsi_model};
@@ -109,8 +111,13 @@ fn adapted_at<const D: usize>(
     let solid = model.current_solid_mesh(&geometry);
     let surface = model.gamma_s(&geometry)?;
     let mut adapted = AdaptedFluid::new(fluid_mesh, &model.background, solid, surface, &model.problem.adapt, covered).map_err(FsiError::from)?;
-    // Where the solid has closed on a contact plane, the run cuts the gap's cells off too.
+    // Where the solid has closed on a contact plane, the run cuts the gap's cells off too, and
+    // its films take the mouths the case's `film_pressure` says, from the checkpoint's fluid.
     adapted.adapted = model.cut_off_closed_gaps(adapted.adapted, &adapted.surface, &geometry)?;
+    if model.film_pressure != FilmPressure::default() && !adapted.adapted.cut_sides.is_empty() {
+        let state = FsiState::from_restart(&model, checkpoint.time, restart)?;
+        model.choose_film_mouths(state.fluid.as_ref(), &mut adapted.adapted);
+    }
     Ok(adapted)
 }
 

@@ -21,5 +21,6 @@ pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &s
     Ok(FsiModel::new(problem, fluid_mesh, solid_mesh.mesh)?
         .with_multiplier(spec.multiplier)
         .with_covered_fluid(spec.covered_fluid)
+        .with_film_pressure(spec.film_pressure)
         .with_cut_offs(&cut_offs))
 }

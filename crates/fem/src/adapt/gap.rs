@@ -46,7 +46,7 @@ use super::{Adapted, GammaFacet, Surface};
 use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
 use rstar::primitives::GeomWithData;
 use rstar::RTree;
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 
 /// Name of the boundary [`remove_closed_gaps`] gives the facets between kept and cut-off cells.
 pub const CLOSED_GAP: &str = "closed_gap";
@@ -68,6 +68,10 @@ pub struct CutSide<const D: usize> {
     /// The kept cell at the gap's mouth nearest the facet: the one across the [`CLOSED_GAP`]
     /// facet whose centroid is nearest the facet's; `None` where there is none.
     pub mouth: Option<usize>,
+    /// The closed gap the side opens to, an index into [`Adapted::gap_mouths`]: the region of
+    /// cut-off cells its own cell was in, or, for a facet lying on a plane (no cell on that side),
+    /// a region `mouth` is a mouth of; `None` where there is none.
+    pub gap: Option<usize>,
 }
 
 /// A rigid plane and the gap below which the fluid between it and the solid is cut off.
@@ -230,13 +234,91 @@ pub fn remove_closed_gaps<const D: usize>(
         cut.extend(pockets(&adapted, &cut, open));
     }
     let count = cut.len();
-    let lost_sides = lost_sides(&adapted, &cut, pressed_on);
+    let gaps = Gaps::of_cut(&adapted, &cut);
+    let lost_sides = lost_sides(&adapted, &cut, &gaps, pressed_on);
     let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
-    out.cut_sides = cut_sides(&out, &lost_sides);
+    out.cut_sides = cut_sides(&out, &lost_sides, &gaps);
+    out.gap_mouths = gaps.mouths;
     out.stats.closed_gap_cells = count;
     out.stats.closed_gap_pieces = layers.len() + pressed.len();
     out.stats.coupling_facets = out.gamma_f.len();
     out
+}
+
+/// The closed gaps of a cut: the connected regions of its cells (joined across facets off
+/// gamma_f, numbered in the order of their lowest cell), and each region's mouths, the kept cells
+/// across its facets off gamma_f, where the film of blood in the gap opens to the fluid.
+struct Gaps {
+    /// The region of each cut cell.
+    of_cell: HashMap<usize, usize>,
+    /// The mouths of each region, in the kept cells' numbering ([`without_cells`]'s), ascending.
+    mouths: Vec<Vec<usize>>,
+}
+
+impl Gaps {
+    /// The closed gaps of the cells `cut` of `adapted`.
+    fn of_cut<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>) -> Self {
+        let mesh = &adapted.mesh;
+        let ct = mesh.cell_type;
+        let topology = Topology::build(mesh);
+        let on_gamma_f = gamma_f_facets(mesh, &adapted.gamma_f, &topology);
+        let kept_index = kept_numbering(mesh.num_cells(), cut);
+        let mut seeds: Vec<usize> = cut.iter().copied().collect();
+        seeds.sort_unstable();
+        let mut gaps = Gaps { of_cell: HashMap::new(), mouths: Vec::new() };
+        for seed in seeds {
+            if gaps.of_cell.contains_key(&seed) {
+                continue;
+            }
+            let region = gaps.mouths.len();
+            gaps.of_cell.insert(seed, region);
+            let (mut flood, mut mouths) = (vec![seed], Vec::new());
+            while let Some(c) = flood.pop() {
+                let across = (0..ct.num_facets()).filter(|&f| !on_gamma_f.contains(&topology.facet(ct, c, f)));
+                for n in across.filter_map(|f| topology.neighbour(ct, c, f)) {
+                    if !cut.contains(&n) {
+                        mouths.push(kept_index[n]);
+                    } else if let std::collections::hash_map::Entry::Vacant(e) = gaps.of_cell.entry(n) {
+                        e.insert(region);
+                        flood.push(n);
+                    }
+                }
+            }
+            mouths.sort_unstable();
+            mouths.dedup();
+            gaps.mouths.push(mouths);
+        }
+        gaps
+    }
+
+    /// The first region that `mouth` (a kept cell) is a mouth of.
+    fn opening_at(&self, mouth: usize) -> Option<usize> {
+        self.mouths.iter().position(|m| m.binary_search(&mouth).is_ok())
+    }
+}
+
+/// The facets of `mesh` ([`Topology`]'s numbering) on gamma_f `gamma_f`.
+fn gamma_f_facets<const D: usize>(mesh: &Mesh<D>, gamma_f: &[GammaFacet<D>], topology: &Topology) -> HashSet<usize> {
+    let ct = mesh.cell_type;
+    gamma_f.iter().flat_map(|g| g.sides).filter(|&s| s != NO_CELL).map(|(c, f)| topology.facet(ct, c, f)).collect()
+}
+
+/// The new number of each of `num_cells` cells once those in `removed` are gone (the kept in
+/// their old order), `usize::MAX` for a removed one.
+fn kept_numbering(num_cells: usize, removed: &HashSet<usize>) -> Vec<usize> {
+    let mut new_cell = vec![usize::MAX; num_cells];
+    for (k, c) in (0..num_cells).filter(|c| !removed.contains(c)).enumerate() {
+        new_cell[c] = k;
+    }
+    new_cell
+}
+
+/// A side of a gamma_f facet the cut takes ([`lost_sides`]): which of the facet's sides, and the
+/// closed gap its cell was in (none for a facet on a plane, which has no cell on that side).
+#[derive(Clone, Copy, Debug)]
+struct LostSide {
+    side: usize,
+    gap: Option<usize>,
 }
 
 /// For each facet of gamma_f in `adapted` that keeps a cell (as [`without_cells`] keeps them, in
@@ -244,7 +326,7 @@ pub fn remove_closed_gaps<const D: usize>(
 /// on one of the planes `pressed_on` (its corners within `1e-6 cut_off`, as
 /// [`GapPlane::is_closed`] tells touching), the side beyond the plane: gamma_s pressed on it, with
 /// no fluid between them in the mesh but a film in the blood.
-fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, pressed_on: &[GapPlane<D>]) -> Vec<Option<usize>> {
+fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, gaps: &Gaps, pressed_on: &[GapPlane<D>]) -> Vec<Option<LostSide>> {
     let kept = |s: (usize, usize)| s != NO_CELL && !cut.contains(&s.0);
     let on_plane = |g: &GammaFacet<D>| {
         pressed_on.iter().any(|plane| g.vertices.iter().all(|&v| plane.distance(&adapted.mesh.points[v]).abs() <= 1e-6 * plane.cut_off))
@@ -258,14 +340,15 @@ fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, presse
                 NO_CELL => on_plane(g),
                 (c, _) => cut.contains(&c),
             };
-            (0..2).find(|&i| lost(i) && kept(g.sides[1 - i]))
+            let side = (0..2).find(|&i| lost(i) && kept(g.sides[1 - i]))?;
+            Some(LostSide { side, gap: gaps.of_cell.get(&g.sides[side].0).copied() })
         })
         .collect()
 }
 
 /// The [`CutSide`]s of `out` (the kept cells, its boundary [`CLOSED_GAP`] set), from the side
-/// each of its gamma_f facets lost ([`lost_sides`]).
-fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<usize>]) -> Vec<CutSide<D>> {
+/// each of its gamma_f facets lost ([`lost_sides`]) and the closed gaps of the cut.
+fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<LostSide>], gaps: &Gaps) -> Vec<CutSide<D>> {
     debug_assert_eq!(lost.len(), out.gamma_f.len());
     if lost.iter().all(Option::is_none) {
         return Vec::new();
@@ -288,9 +371,11 @@ fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<usize>]) -> Vec<Cu
         .enumerate()
         .filter_map(|(facet, (g, side))| {
             let n = super::surface::piece_normal(&g.vertices.map(|v| mesh.points[v]));
-            let sign = if (*side)? == 1 { 1.0 } else { -1.0 };
+            let lost = (*side)?;
+            let sign = if lost.side == 1 { 1.0 } else { -1.0 };
             let mouth = mouths.nearest_neighbor(centroid(mesh, &g.vertices)).map(|m| m.data);
-            Some(CutSide { facet, normal: n.map(|c| sign * c), mouth })
+            let gap = lost.gap.or_else(|| gaps.opening_at(mouth?));
+            Some(CutSide { facet, normal: n.map(|c| sign * c), mouth, gap })
         })
         .collect()
 }
@@ -310,8 +395,7 @@ fn regions<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, open: &[u
     let mesh = &adapted.mesh;
     let ct = mesh.cell_type;
     let topology = Topology::build(mesh);
-    let on_gamma_f: HashSet<usize> =
-        adapted.gamma_f.iter().flat_map(|g| g.sides).filter(|&s| s != NO_CELL).map(|(c, f)| topology.facet(ct, c, f)).collect();
+    let on_gamma_f = gamma_f_facets(mesh, &adapted.gamma_f, &topology);
     let beside_open: HashSet<usize> = mesh.boundary.iter().filter(|b| open.contains(&b.tag)).map(|b| b.cell).collect();
     let mut flooded = vec![false; mesh.num_cells()];
     let mut regions = Vec::new();
@@ -410,21 +494,14 @@ pub(super) fn without_cells<const D: usize>(adapted: Adapted<D>, removed: &HashS
     let Adapted { mesh, new_to_old_cell, on_surface, gamma_f, stats, .. } = adapted;
     let nc = mesh.num_cells();
     let npc = mesh.nodes_per_cell();
-    let mut new_cell = vec![usize::MAX; nc];
-    let mut kept = 0;
-    for (c, slot) in new_cell.iter_mut().enumerate() {
-        if !removed.contains(&c) {
-            *slot = kept;
-            kept += 1;
-        }
-    }
+    let new_cell = kept_numbering(nc, removed);
+    let kept = nc - removed.len();
     // Facets between kept and removed cells, off gamma_f (before renumbering).
     let mut wall_facets = Vec::new();
     if walls.is_some() && !removed.is_empty() {
         let topology = Topology::build(&mesh);
         let ct = mesh.cell_type;
-        let on_gamma_f: HashSet<usize> =
-            gamma_f.iter().flat_map(|g| g.sides).filter(|&s| s != NO_CELL).map(|(c, f)| topology.facet(ct, c, f)).collect();
+        let on_gamma_f = gamma_f_facets(&mesh, &gamma_f, &topology);
         for c in (0..nc).filter(|&c| new_cell[c] != usize::MAX) {
             for f in 0..ct.num_facets() {
                 let beside_removed = topology.neighbour(ct, c, f).is_some_and(|n| new_cell[n] == usize::MAX);
@@ -468,7 +545,7 @@ pub(super) fn without_cells<const D: usize>(adapted: Adapted<D>, removed: &HashS
         .collect::<Vec<_>>();
     let on_surface = (0..mesh.points.len()).filter(|&p| new_point[p] != usize::MAX).map(|p| on_surface[p]).collect();
     let new_to_old_cell = (0..nc).filter(|&c| new_cell[c] != usize::MAX).map(|c| new_to_old_cell[c]).collect();
-    Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, cut_sides: Vec::new(), stats }
+    Adapted { mesh: out, new_to_old_cell, on_surface, gamma_f, cut_sides: Vec::new(), gap_mouths: Vec::new(), stats }
 }
 
 #[cfg(test)]
@@ -595,6 +672,32 @@ mod tests {
             let m = mesh.vertex_centroid(mouth);
             let end = if x < 0.5 { [0.3, 0.05] } else { [0.7, 0.05] };
             assert!((m[0] - end[0]).hypot(m[1] - end[1]) < 0.125, "facet at x = {x}: mouth at {m:?}, not by the end of the piece");
+        }
+    }
+
+    /// The gap below the flat piece is one region of cut cells, open at both ends of the piece:
+    /// every cut side opens to it, and its mouths (the kept cells across its facets off gamma_f)
+    /// lie by the piece's two ends, within 0.15 (the cells are 0.125 wide) of each end along x and
+    /// below y = 0.2, none over the middle of the piece (across gamma_f), and hold each side's
+    /// nearest mouth.
+    #[test]
+    fn the_sides_over_the_gap_open_to_its_mouths_at_both_ends() {
+        let (cut, _, _) = cut_below_a_flat_piece(false);
+        assert_eq!(cut.gap_mouths.len(), 1, "one gap");
+        let mouths = &cut.gap_mouths[0];
+        assert!(mouths.windows(2).all(|w| w[0] < w[1]), "ascending, each once");
+        let by_end = |m: usize, end: f64| {
+            let c = cut.mesh.vertex_centroid(m);
+            (c[0] - end).abs() < 0.15 && c[1] < 0.2
+        };
+        assert!(mouths.iter().any(|&m| by_end(m, 0.3)) && mouths.iter().any(|&m| by_end(m, 0.7)), "open at both ends");
+        for &m in mouths {
+            assert!(by_end(m, 0.3) || by_end(m, 0.7), "mouth at {:?}", cut.mesh.vertex_centroid(m));
+        }
+        assert!(!cut.cut_sides.is_empty());
+        for side in &cut.cut_sides {
+            assert_eq!(side.gap, Some(0));
+            assert!(mouths.binary_search(&side.mouth.expect("a mouth")).is_ok(), "the nearest mouth is one of the gap's");
         }
     }
 

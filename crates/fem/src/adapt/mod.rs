@@ -130,7 +130,7 @@ pub use background::Background;
 pub use enclosed::remove_enclosed;
 pub use gap::{remove_closed_gaps, GapPlane, CLOSED_GAP};
 pub use surface::{Surface, SurfacePoint};
-pub use transfer::{transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
+pub use transfer::{p1disc_value, transfer_p1disc, transfer_p2plus, transfer_p2plus_or, CellLocator};
 pub use verify::{verify_adapted, verify_adapted_within};
 
 use crate::element::ReferenceCell;
@@ -382,6 +382,10 @@ pub struct Adapted<const D: usize> {
     /// The sides of gamma_f facets whose fluid a closed gap cut off ([`remove_closed_gaps`]);
     /// empty before that.
     pub cut_sides: Vec<gap::CutSide<D>>,
+    /// The mouths of each closed gap ([`gap::CutSide::gap`]): the kept cells across the facets
+    /// off gamma_f of a connected region of cells the cut took, where the gap's film of blood
+    /// opens to the fluid, ascending; empty before [`remove_closed_gaps`].
+    pub gap_mouths: Vec<Vec<usize>>,
     pub stats: AdaptStats,
 }
 
@@ -504,7 +508,15 @@ pub fn adapt_with<const D: usize>(bg: &Background<D>, surface: &Surface<D>, opts
         + stats.flat_cells
         + stats.rejected_facets
         + stats.two_sided_cells;
-    Ok(Adapted { mesh: out.mesh, new_to_old_cell: out.new_to_old_cell, on_surface, gamma_f, cut_sides: Vec::new(), stats: out.stats })
+    Ok(Adapted {
+        mesh: out.mesh,
+        new_to_old_cell: out.new_to_old_cell,
+        on_surface,
+        gamma_f,
+        cut_sides: Vec::new(),
+        gap_mouths: Vec::new(),
+        stats: out.stats,
+    })
 }
 
 /// Step 2's decisions: moved nodes and new nodes.

@@ -123,11 +123,18 @@ pub fn transfer_p1disc<const D: usize>(old_mesh: &Mesh<D>, old_values: &[f64], n
     for (c, values) in out.chunks_exact_mut(D + 1).enumerate() {
         let x = new_mesh.vertex_centroid(c);
         let Some((old, _)) = locator.locate_within(old_mesh, &x, extend) else { continue };
-        let (x_old, p) = (old_mesh.vertex_centroid(old), &old_values[old * (D + 1)..(old + 1) * (D + 1)]);
-        values[0] = p[0] + (0..D).map(|d| p[d + 1] * (x[d] - x_old[d])).sum::<f64>();
-        values[1..].copy_from_slice(&p[1..]);
+        values[0] = p1disc_value(old_mesh, old_values, old, &x);
+        values[1..].copy_from_slice(&old_values[old * (D + 1) + 1..(old + 1) * (D + 1)]);
     }
     Ok(out)
+}
+
+/// The value at `x` of cell `cell`'s linear function in the P1-discontinuous field `values` of
+/// `mesh` (linear simplices; `D + 1` values per cell, the value at the centroid, then the
+/// gradient): `p(x) = p_c + grad p . (x - x_c)`.
+pub fn p1disc_value<const D: usize>(mesh: &Mesh<D>, values: &[f64], cell: usize, x: &[f64; D]) -> f64 {
+    let (x_c, p) = (mesh.vertex_centroid(cell), &values[cell * (D + 1)..(cell + 1) * (D + 1)]);
+    p[0] + (0..D).map(|d| p[d + 1] * (x[d] - x_c[d])).sum::<f64>()
 }
 
 /// The P2+ element of dimension `D` (2 or 3).
