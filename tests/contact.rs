@@ -655,6 +655,7 @@ fn adapt_at_a_checkpoint_puts_the_films_at_the_lowest_mouth() {
         run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
         fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
         let films = fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap();
+        assert!(films.cell_array("gap").unwrap().values.iter().all(|&g| g == 0.0), "one gap under the strip");
         films.cell_array("mouth").unwrap().values.chunks(3).map(|m| m[0]).collect::<Vec<f64>>()
     };
     let lowest = mouths_x("lowest-mouth");

@@ -722,7 +722,13 @@ impl<const D: usize> FluidSnapshot<D> {
         let lowest: Vec<Option<(f64, usize)>> = adapted
             .gap_mouths
             .iter()
-            .map(|mouths| mouths.iter().filter_map(|&m| Some((pressure_at(m)?, m))).min_by(|a, b| a.0.total_cmp(&b.0)))
+            .enumerate()
+            .map(|(g, mouths)| {
+                let pressures = mouths.iter().filter_map(|&m| Some((pressure_at(m)?, m)));
+                let pressures =
+                    pressures.inspect(|(p, m)| tracing::trace!("closed gap {g}: mouth at {:?}, pressure {p:.6e}", adapted.mesh.vertex_centroid(*m)));
+                pressures.min_by(|a, b| a.0.total_cmp(&b.0))
+            })
             .collect();
         for (g, low) in lowest.iter().enumerate() {
             if let Some((p, m)) = low {

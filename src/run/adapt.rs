@@ -6,8 +6,9 @@
 //! [`AdaptStats`] and the measures of gamma_s and gamma_f). With `--at RUN_DIR`, the mesh of the
 //! next step of an FSI run from its checkpoint; where a closed gap's cells are cut off there,
 //! also `films.vtu`: the facets of gamma_f that carry a film
-//! ([`fdfsi_fem::adapt::gap::CutSide`]), with the facet's normal into the film and the centroid
-//! of the kept cell at the gap's mouth whose pressure the film carries (NaN where there is none;
+//! ([`fdfsi_fem::adapt::gap::CutSide`]), with the facet's normal into the film, the closed gap
+//! (a connected region of cut cells) it opens to, and the centroid of the kept cell at the gap's
+//! mouth whose pressure the film carries (NaN where there is none;
 //! with `film_pressure = "lowest-mouth"`, chosen from the checkpoint's pressure as the run's next
 //! step would).
 //! Where the covered fluid is to be removed and gamma_f does not enclose it, the files show the
@@ -163,14 +164,16 @@ fn piece_grid<const D: usize>(points: &[[f64; D]], pieces: &[[usize; D]]) -> Res
 }
 
 /// The facets of gamma_f that carry a film in a closed gap, with cell data `normal` (into the
-/// film) and `mouth` (the centroid of the kept cell whose pressure the film carries; NaN where
-/// there is none).
+/// film), `mouth` (the centroid of the kept cell whose pressure the film carries; NaN where
+/// there is none) and `gap` (the closed gap the film opens to, [`fdfsi_fem::adapt::gap::CutSide::gap`];
+/// -1 where there is none).
 fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>) -> Result<UnstructuredGrid, VtkError> {
     let facets: Vec<[usize; D]> = a.cut_sides.iter().map(|s| a.gamma_f[s.facet].vertices).collect();
     let mut grid = piece_grid(&a.mesh.points, &facets)?;
     grid.add_cell_data("normal", 3, a.cut_sides.iter().flat_map(|s| padded(s.normal)).collect())?;
     let mouths = a.cut_sides.iter().flat_map(|s| s.mouth.map_or([f64::NAN; 3], |c| padded(a.mesh.vertex_centroid(c))));
     grid.add_cell_data("mouth", 3, mouths.collect())?;
+    grid.add_cell_data("gap", 1, a.cut_sides.iter().map(|s| s.gap.map_or(-1.0, |g| g as f64)).collect())?;
     Ok(grid)
 }
 
