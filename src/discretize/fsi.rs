@@ -628,7 +628,7 @@ impl<const D: usize> FsiState<D> {
     /// The state at `time` from a checkpoint; the fluid's adapted mesh is rebuilt from the solid
     /// position it was made for, which reproduces it exactly (the adaptation is deterministic).
     pub fn from_restart(model: &FsiModel<D>, time: f64, r: &FsiRestart) -> Result<Self, FsiError> {
-        let fluid = r.fluid.as_ref().map(|f| FluidSnapshot::from_restart(model, f)).transpose()?;
+        let fluid = r.fluid_snapshot(model)?;
         let previous = match &r.previous {
             None => None,
             Some(p) => Some(Box::new(FsiPrevious {
@@ -727,18 +727,14 @@ impl<const D: usize> FluidSnapshot<D> {
                 let pressures = mouths.iter().filter_map(|&m| Some((pressure_at(m)?, m)));
                 let pressures =
                     pressures.inspect(|(p, m)| tracing::trace!("closed gap {g}: mouth at {:?}, pressure {p:.6e}", adapted.mesh.vertex_centroid(*m)));
-                pressures.min_by(|a, b| a.0.total_cmp(&b.0))
+                let low = pressures.min_by(|a, b| a.0.total_cmp(&b.0));
+                if let Some((p, m)) = low {
+                    let at = adapted.mesh.vertex_centroid(m);
+                    tracing::debug!("closed gap {g}: {} mouths, the lowest pressure {p:.6e} at {at:?}", mouths.len());
+                }
+                low
             })
             .collect();
-        for (g, low) in lowest.iter().enumerate() {
-            if let Some((p, m)) = low {
-                tracing::debug!(
-                    "closed gap {g}: {} mouths, the lowest pressure {p:.6e} at {:?}",
-                    adapted.gap_mouths[g].len(),
-                    adapted.mesh.vertex_centroid(*m)
-                );
-            }
-        }
         for side in &mut adapted.cut_sides {
             if let Some((_, m)) = side.gap.and_then(|g| lowest[g]) {
                 side.mouth = Some(m);
@@ -2289,6 +2285,12 @@ fn step_geometry(x_n: &[f64], x_prev: Option<&[f64]>, omega: f64) -> Vec<f64> {
 }
 
 impl FsiRestart {
+    /// The fluid of the state, its adapted mesh rebuilt (as [`FsiState::from_restart`] does, without
+    /// the state one step back); `None` while the fluid is at rest.
+    pub fn fluid_snapshot<const D: usize>(&self, model: &FsiModel<D>) -> Result<Option<FluidSnapshot<D>>, FsiError> {
+        self.fluid.as_ref().map(|f| FluidSnapshot::from_restart(model, f)).transpose()
+    }
+
     /// The solid displacement the step of size `dt` from this state adapts the fluid mesh to
     /// (as [`StepStart::with_scheme`] does; `fdfsi adapt --at`).
     pub fn next_geometry(&self, dt: f64, scheme: TimeScheme) -> Vec<f64> {

@@ -17,7 +17,7 @@
 use super::{RunError, RunOptions};
 use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{Case, CaseError, RunKind};
-use crate::discretize::fsi::{FilmPressure, FsiError, FsiState};
+use crate::discretize::fsi::{FilmPressure, FsiError};
 use crate::io::checkpoint::Checkpoint;
 use crate::io::{write_atomic, OutputError};
 use crate::setup::{adapt_fluid_with, build_mesh, fsi_model};
@@ -115,9 +115,8 @@ fn adapted_at<const D: usize>(
     // Where the solid has closed on a contact plane, the run cuts the gap's cells off too, and
     // its films take the mouths the case's `film_pressure` says, from the checkpoint's fluid.
     adapted.adapted = model.cut_off_closed_gaps(adapted.adapted, &adapted.surface, &geometry)?;
-    if model.film_pressure != FilmPressure::default() && !adapted.adapted.cut_sides.is_empty() {
-        let state = FsiState::from_restart(&model, checkpoint.time, restart)?;
-        model.choose_film_mouths(state.fluid.as_ref(), &mut adapted.adapted);
+    if model.film_pressure == FilmPressure::LowestMouth && !adapted.adapted.cut_sides.is_empty() {
+        model.choose_film_mouths(restart.fluid_snapshot(&model)?.as_ref(), &mut adapted.adapted);
     }
     Ok(adapted)
 }

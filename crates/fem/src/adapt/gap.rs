@@ -230,11 +230,16 @@ pub fn remove_closed_gaps<const D: usize>(
             cut.insert(c);
         }
     }
-    if !cut.is_empty() {
-        cut.extend(pockets(&adapted, &cut, open));
-    }
+    // The floods over the cells (pockets, closed gaps) share one facet graph, built only when
+    // something is cut off.
+    let gaps = if cut.is_empty() {
+        Gaps::default()
+    } else {
+        let graph = FacetGraph::of(&adapted);
+        cut.extend(pockets(&adapted, &graph, &cut, open));
+        Gaps::of_cut(&adapted, &graph, &cut)
+    };
     let count = cut.len();
-    let gaps = Gaps::of_cut(&adapted, &cut);
     let lost_sides = lost_sides(&adapted, &cut, &gaps, pressed_on);
     let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
     out.cut_sides = cut_sides(&out, &lost_sides, &gaps);
@@ -248,6 +253,7 @@ pub fn remove_closed_gaps<const D: usize>(
 /// The closed gaps of a cut: the connected regions of its cells (joined across facets off
 /// gamma_f, numbered in the order of their lowest cell), and each region's mouths, the kept cells
 /// across its facets off gamma_f, where the film of blood in the gap opens to the fluid.
+#[derive(Default)]
 struct Gaps {
     /// The region of each cut cell.
     of_cell: HashMap<usize, usize>,
@@ -256,12 +262,11 @@ struct Gaps {
 }
 
 impl Gaps {
-    /// The closed gaps of the cells `cut` of `adapted`.
-    fn of_cut<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>) -> Self {
+    /// The closed gaps of the cells `cut` of `adapted` (`graph` its [`FacetGraph`]).
+    fn of_cut<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, cut: &HashSet<usize>) -> Self {
         let mesh = &adapted.mesh;
         let ct = mesh.cell_type;
-        let topology = Topology::build(mesh);
-        let on_gamma_f = gamma_f_facets(mesh, &adapted.gamma_f, &topology);
+        let FacetGraph { topology, on_gamma_f } = graph;
         let kept_index = kept_numbering(mesh.num_cells(), cut);
         let mut seeds: Vec<usize> = cut.iter().copied().collect();
         seeds.sort_unstable();
@@ -294,6 +299,22 @@ impl Gaps {
     /// The first region that `mouth` (a kept cell) is a mouth of.
     fn opening_at(&self, mouth: usize) -> Option<usize> {
         self.mouths.iter().position(|m| m.binary_search(&mouth).is_ok())
+    }
+}
+
+/// The facets of an adapted mesh ([`Topology`]) and which of them lie on gamma_f: what the floods
+/// over its cells ([`regions`], [`Gaps::of_cut`]) may cross.
+struct FacetGraph {
+    topology: Topology,
+    /// The facets on gamma_f ([`Topology`]'s numbering).
+    on_gamma_f: HashSet<usize>,
+}
+
+impl FacetGraph {
+    fn of<const D: usize>(adapted: &Adapted<D>) -> Self {
+        let topology = Topology::build(&adapted.mesh);
+        let on_gamma_f = gamma_f_facets(&adapted.mesh, &adapted.gamma_f, &topology);
+        FacetGraph { topology, on_gamma_f }
     }
 }
 
@@ -390,12 +411,12 @@ struct Region {
 }
 
 /// The cells of `adapted` outside `cut` in regions joined across facets off gamma_f (flooded one
-/// at a time); `open`: the tags of the boundaries that set the pressure's level.
-fn regions<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, open: &[u32]) -> Vec<Region> {
+/// at a time; `graph` its [`FacetGraph`]); `open`: the tags of the boundaries that set the
+/// pressure's level.
+fn regions<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, cut: &HashSet<usize>, open: &[u32]) -> Vec<Region> {
     let mesh = &adapted.mesh;
     let ct = mesh.cell_type;
-    let topology = Topology::build(mesh);
-    let on_gamma_f = gamma_f_facets(mesh, &adapted.gamma_f, &topology);
+    let FacetGraph { topology, on_gamma_f } = graph;
     let beside_open: HashSet<usize> = mesh.boundary.iter().filter(|b| open.contains(&b.tag)).map(|b| b.cell).collect();
     let mut flooded = vec![false; mesh.num_cells()];
     let mut regions = Vec::new();
@@ -429,8 +450,8 @@ fn regions<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, open: &[u
 /// where the velocity is held: the level of its pressure is free and the system singular. (A
 /// region that borders gamma_f has it set through the solid, by the volume it holds.) Where
 /// every region is a pocket, none is taken: the problem then fixes the pressure itself.
-fn pockets<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, open: &[u32]) -> Vec<usize> {
-    let regions = regions(adapted, cut, open);
+fn pockets<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, cut: &HashSet<usize>, open: &[u32]) -> Vec<usize> {
+    let regions = regions(adapted, graph, cut, open);
     let is_pocket = |r: &Region| !r.reaches_open && !r.wets_gamma_f;
     if regions.iter().all(is_pocket) {
         return Vec::new();
