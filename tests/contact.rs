@@ -531,10 +531,20 @@ animation = false
 /// lower face's normal). The films carry the pressure at the wedge's mouth, `p0`: their force is
 /// `-p0 L n` to 10 % (the cut cells cover the wedge up to a cell), the fluid's force on the strip
 /// (the multiplier's and the films') is zero to round-off every step, and so is the contact force:
-/// the strip is loaded as with the fluid on both sides.
+/// the strip is loaded as with the fluid on both sides. So too with the films at the mean of the
+/// gap's mouths by Reynolds' equation (`film_pressure = "reynolds"`): the mean of a uniform
+/// pressure is that pressure.
 #[test]
 fn a_film_carries_the_pressure_at_the_mouth_of_a_closed_gap() {
-    let (_, header, rows) = run_history(FILM_CASE, "film.toml");
+    for rule in ["nearest-mouth", "reynolds"] {
+        println!("film_pressure = {rule}");
+        let case = FILM_CASE.replace("surface = \"bottom\"", &format!("surface = \"bottom\"\nfilm_pressure = \"{rule}\""));
+        films_carry_the_pressure_of_a_uniform_fluid(&case);
+    }
+}
+
+fn films_carry_the_pressure_of_a_uniform_fluid(case: &str) {
+    let (_, header, rows) = run_history(case, "film.toml");
     assert_eq!(rows.len(), 3);
     let col = |name: &str| {
         let i = header.iter().position(|c| c == name).unwrap_or_else(|| panic!("no column {name}"));
@@ -614,7 +624,7 @@ fn films_take_the_lowest_mouth_of_their_gap_from_the_last_pressure() {
             .zip(&disc.adapted.cut_sides)
             .map(|(film, side)| {
                 let m = side.mouth.expect("a mouth");
-                assert_eq!(film.pressure_dof, pf.dof(pf.nodes.cell(m)[0], 0), "the film carries its mouth's pressure");
+                assert_eq!(film.pressure, vec![(pf.dof(pf.nodes.cell(m)[0], 0), 1.0)], "the film carries its mouth's pressure");
                 let nearest = rest.disc.adapted.cut_sides.iter().find(|r| r.facet == side.facet).and_then(|r| r.mouth).unwrap();
                 (m, side.gap.expect("in a gap"), nearest)
             })
@@ -635,6 +645,45 @@ fn films_take_the_lowest_mouth_of_their_gap_from_the_last_pressure() {
         let ends = nearest.iter().map(|&(m, _, _)| x(m) < 0.5);
         assert!(ends.clone().any(|left| left) && ends.clone().any(|left| !left), "the nearest mouths at both ends");
     }
+}
+
+/// The films of a gap at the mean of its mouths by Reynolds' equation (`[solid] film_pressure =
+/// "reynolds"`, `fdfsi::discretize::fsi::FilmPressure`): [`flat_film_case`]'s strip on its stop,
+/// the gap below it even. Every cut side carries a film whose pressure is its gap's film weights
+/// (`CutSide::film`: positive, summing to one, over the gap's mouths) on the mouth cells' pressure
+/// unknowns; films away from the ends take several mouths, and the weights give back `p = x`
+/// at the mouths at each facet within 0.05 (cells 1/32 wide; the stop lies inside the fluid, and
+/// the film flows through the cells below the cells that touch the strip, which the strip lying
+/// on the plane seals): a film that falls linearly from one end to the other, where one mouth per
+/// film would be up to 0.2 off.
+#[test]
+fn reynolds_films_carry_the_mean_of_their_gaps_mouths() {
+    use fdfsi::case::Case;
+    use fdfsi::discretize::fsi::{FsiState, StepStart};
+    use fdfsi::fem::gmsh::AnyMesh;
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let case = Case::from_toml_str(&flat_film_case("reynolds"), "film.toml").unwrap();
+    let AnyMesh::D2(mesh) = fdfsi::setup::build_mesh(&case, &cases).unwrap() else { panic!("a 2D mesh") };
+    let model = fdfsi::setup::fsi_model::<2>(&case, &mesh, &cases).unwrap();
+    let start = StepStart::new(&model, &FsiState::at_rest(&model), 0.1).unwrap();
+    let (disc, pf) = (&start.disc, start.disc.flow.pressure_field());
+    let (adapted, m) = (&disc.adapted, &disc.flow.mesh);
+    assert_eq!(adapted.gap_mouths.len(), 1, "one gap under the strip");
+    assert!(disc.films.len() > 8 && disc.films.len() == adapted.cut_sides.len(), "{} films", disc.films.len());
+    let mut worst: f64 = 0.0;
+    for (film, side) in disc.films.iter().zip(&adapted.cut_sides) {
+        let expected: Vec<(usize, f64)> = side.film.iter().map(|&(c, w)| (pf.dof(pf.nodes.cell(c)[0], 0), w)).collect();
+        assert_eq!(film.pressure, expected, "the film carries its gap's mean");
+        assert!(side.film.iter().all(|&(c, w)| w > 0.0 && adapted.gap_mouths[0].binary_search(&c).is_ok()));
+        assert!((side.film.iter().map(|(_, w)| w).sum::<f64>() - 1.0).abs() < 1e-12);
+        let g = &adapted.gamma_f[side.facet];
+        let x = 0.5 * (m.points[g.vertices[0]][0] + m.points[g.vertices[1]][0]);
+        let p: f64 = side.film.iter().map(|&(c, w)| w * m.vertex_centroid(c)[0]).sum();
+        worst = worst.max((p - x).abs());
+    }
+    println!("reynolds films: p = x off by at most {worst:.4}");
+    assert!(disc.films.iter().filter(|f| f.pressure.len() > 1).count() > disc.films.len() / 2, "films away from the ends take several mouths");
+    assert!(worst < 0.05, "{worst}");
 }
 
 /// `fdfsi adapt --at` chooses the films' mouths as the run's next step would: with

@@ -236,7 +236,8 @@ pub struct SolidSpec {
     pub covered_fluid: crate::adapt::CoveredFluid,
     /// Whose pressure the film of blood in a gap a closed contact cut off carries (FSI runs with
     /// `[[solid.contact]]`): `nearest-mouth` (default: the fluid at the gap's mouth nearest each
-    /// facet) or `lowest-mouth` (the lowest of the gap's mouths at the step's start; see
+    /// facet), `lowest-mouth` (the lowest of the gap's mouths at the step's start) or `reynolds`
+    /// (the film's own pressure by Reynolds' equation on the gap, a mean of its mouths'; see
     /// [`crate::discretize::fsi::FilmPressure`]).
     #[serde(default, skip_serializing_if = "is_default")]
     pub film_pressure: crate::discretize::fsi::FilmPressure,

@@ -145,6 +145,17 @@ pub enum FilmPressure {
     /// lagged by a step, the pressure it carries is the step's unknown). A gap none of whose
     /// mouths lies in the last step's mesh keeps the nearest.
     LowestMouth,
+    /// The film's own pressure by Reynolds' equation `div (h^3 grad p) = 0` on the gap's cut
+    /// cells, `h` the gap's height, with the mouths' pressures at its ends
+    /// ([`fdfsi_fem::adapt::gap::CutSide::film`]): at each facet a mean `sum_m w_m p_m` of the
+    /// pressure unknowns of the gap's mouths, its weights from the gap's geometry alone. Where
+    /// the band touches its plane along a line the film is sealed there and carries each side's
+    /// pressure; where it stands off the plane evenly the pressure falls along it from one end's
+    /// to the other's; and no one mouth cell decides it unless the film opens to it alone (the
+    /// lowest mouth was at times a cell with a pressure the flow did not explain,
+    /// `runs/valve-3d-sector/NOTES.md`, session 49). A side whose gap has no film (a degenerate
+    /// cell) takes the nearest mouth.
+    Reynolds,
 }
 
 /// The multiplier space on gamma_f.
@@ -812,18 +823,28 @@ impl<const D: usize> FluidSnapshot<D> {
 }
 
 /// The films on the sides of gamma_f the closed gaps of `adapted` cut off that have a mouth
-/// ([`Adapted::cut_sides`]), with the unknown of the mouth cell's pressure at its centroid in
-/// `pressure` (the fluid's P1-discontinuous field, whose first unknown of a cell is that value).
-fn film_loads<const D: usize>(adapted: &Adapted<D>, pressure: &fdfsi_fem::dofs::Field) -> Vec<FilmLoad<D>> {
+/// ([`Adapted::cut_sides`]), at the pressure `rule` says: the unknown of the mouth cell's
+/// pressure at its centroid in `pressure` (the fluid's P1-discontinuous field, whose first
+/// unknown of a cell is that value), or the mean of the gap's mouths' by its film's weights
+/// ([`FilmPressure::Reynolds`]; the mouth where its gap has none).
+fn film_loads<const D: usize>(adapted: &Adapted<D>, pressure: &fdfsi_fem::dofs::Field, rule: FilmPressure) -> Vec<FilmLoad<D>> {
+    let unknown = |m: usize| pressure.dof(pressure.nodes.cell(m)[0], 0);
+    let mut at_mouth = 0;
     let films: Vec<FilmLoad<D>> = adapted
         .cut_sides
         .iter()
         .filter_map(|side| {
-            side.mouth.map(|m| FilmLoad { element: side.facet, normal: side.normal, pressure_dof: pressure.dof(pressure.nodes.cell(m)[0], 0) })
+            let pressure = if rule == FilmPressure::Reynolds && !side.film.is_empty() {
+                side.film.iter().map(|&(m, w)| (unknown(m), w)).collect()
+            } else {
+                at_mouth += 1;
+                vec![(unknown(side.mouth?), 1.0)]
+            };
+            Some(FilmLoad { element: side.facet, normal: side.normal, pressure })
         })
         .collect();
     if !adapted.cut_sides.is_empty() {
-        tracing::debug!("films on {} of the {} sides of gamma_f cut off", films.len(), adapted.cut_sides.len());
+        tracing::debug!("films on {} of the {} sides of gamma_f cut off, {at_mouth} at one mouth", films.len(), adapted.cut_sides.len());
     }
     films
 }
@@ -959,21 +980,31 @@ pub struct FsiDiscretization<const D: usize> {
 
 /// The load of a thin film of fluid on a side of a gamma_f facet whose fluid a closed gap cut off
 /// ([`fdfsi_fem::adapt::gap::CutSide`]): the traction `t = -p n` on the solid, `n` the facet's
-/// normal into the film and `p` the pressure of the kept cell at the gap's mouth, its value at
-/// the cell's centroid (the first of its P1-discontinuous unknowns): `R_s -= int_e t . w ds`,
-/// that is `R_s += int_e p n . w ds`, over the facet's coupling points, with its Jacobian
-/// `int_e (n . w) ds` in the column of `p` (the coupling element's unknowns include it). An
-/// unknown of the step, not the last step's pressure: lagged by a step, the film's load was an
-/// explicit coupling of the leaflet to the fluid at the mouth, whose pressure swung by up to
-/// 1e4 Pa from one sub-step to the next as the 3D valve's gap opened (session 47).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// normal into the film and `p = sum_k w_k p_k` the film's pressure, a mean of the pressures of
+/// kept cells at the gap's mouths, each its value at the cell's centroid (the first of its
+/// P1-discontinuous unknowns; one mouth with weight one but for [`FilmPressure::Reynolds`]):
+/// `R_s -= int_e t . w ds`, that is `R_s += int_e p n . w ds`, over the facet's coupling points,
+/// with its Jacobian `w_k int_e (n . w) ds` in the column of each `p_k` (the coupling element's
+/// unknowns include them). Unknowns of the step, not the last step's pressure: lagged by a step,
+/// the film's load was an explicit coupling of the leaflet to the fluid at the mouth, whose
+/// pressure swung by up to 1e4 Pa from one sub-step to the next as the 3D valve's gap opened
+/// (session 47).
+#[derive(Clone, Debug, PartialEq)]
 pub struct FilmLoad<const D: usize> {
     /// The coupling element (gamma_f facet).
     pub element: usize,
     /// The facet's unit normal into the film.
     pub normal: [f64; D],
-    /// The unknown of the film's pressure (the mouth cell's pressure at its centroid).
-    pub pressure_dof: usize,
+    /// The film's pressure, `(unknown, weight)` pairs whose weights sum to one: the unknowns of
+    /// mouth cells' pressures at their centroids.
+    pub pressure: Vec<(usize, f64)>,
+}
+
+impl<const D: usize> FilmLoad<D> {
+    /// The film's pressure `sum_k w_k p_k` at the iterate `x`.
+    pub fn pressure_at(&self, x: &[f64]) -> f64 {
+        self.pressure.iter().map(|&(k, w)| w * x[k]).sum()
+    }
 }
 
 /// Where an [`FsiDiscretization`]'s systems are assembled.
@@ -1155,7 +1186,7 @@ impl<const D: usize> FsiDiscretization<D> {
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
         // displacement of every solid cell its points land in (and of the carried ones).
         let sf = model.solid.displacement_field();
-        let films = film_loads(&adapted, flow.pressure_field());
+        let films = film_loads(&adapted, flow.pressure_field(), model.film_pressure);
         let coupling_pattern = coupling_pattern(&flow.mesh, &coupling, carried);
         let mut coupling_dofs: Vec<Vec<usize>> = (0..ne)
             .map(|e| {
@@ -1178,11 +1209,13 @@ impl<const D: usize> FsiDiscretization<D> {
                 d
             })
             .collect();
-        // A film's pressure unknown joins its element's.
+        // A film's pressure unknowns join its element's.
         for film in &films {
             let d = &mut coupling_dofs[film.element];
-            if let Err(at) = d.binary_search(&film.pressure_dof) {
-                d.insert(at, film.pressure_dof);
+            for &(k, _) in &film.pressure {
+                if let Err(at) = d.binary_search(&k) {
+                    d.insert(at, k);
+                }
             }
         }
         // The system's "cells", whose unknowns are coupled: the fluid's (its cells and Windkessel
@@ -1607,9 +1640,9 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
-        // The films' loads on the solid: `R_s += int p n . w ds`, linear in the mouth's `p`.
+        // The films' loads on the solid: `R_s += int p n . w ds`, linear in the mouths' `p_k`.
         for film in &self.films {
-            let (e, p) = (film.element, x[film.pressure_dof]);
+            let (e, p) = (film.element, film.pressure_at(x));
             for q in c.point_start[e]..c.point_start[e + 1] {
                 for (i, &node) in sf.nodes.cell(c.solid_cell[q]).iter().enumerate() {
                     for a in 0..D {
@@ -1617,7 +1650,9 @@ impl<const D: usize> FsiDiscretization<D> {
                         if !constrained[row] && target.holds(row) {
                             let v = c.weight[q] * c.phi_s[q * ns + i] * film.normal[a];
                             target.add_rhs(row, -v * p);
-                            target.add_matrix(row, film.pressure_dof, v);
+                            for &(k, w) in &film.pressure {
+                                target.add_matrix(row, k, v * w);
+                            }
                         }
                     }
                 }
@@ -1844,8 +1879,9 @@ impl<const D: usize> FsiDiscretization<D> {
         let mut f = [0.0; D];
         for film in &self.films {
             let area: f64 = c.weight[c.point_start[film.element]..c.point_start[film.element + 1]].iter().sum();
+            let p = film.pressure_at(x);
             for a in 0..D {
-                f[a] -= area * x[film.pressure_dof] * film.normal[a];
+                f[a] -= area * p * film.normal[a];
             }
         }
         f.map(|v| v * formulation.around())

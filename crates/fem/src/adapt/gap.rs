@@ -44,9 +44,12 @@
 use super::enclosed::centroid;
 use super::{Adapted, GammaFacet, Surface};
 use crate::mesh::{BoundaryFacet, Mesh, Topology, NO_CELL};
+use film::Films;
 use rstar::primitives::GeomWithData;
 use rstar::RTree;
 use std::collections::{HashMap, HashSet};
+
+mod film;
 
 /// Name of the boundary [`remove_closed_gaps`] gives the facets between kept and cut-off cells.
 pub const CLOSED_GAP: &str = "closed_gap";
@@ -57,8 +60,8 @@ pub const CLOSED_GAP: &str = "closed_gap";
 /// loads the solid with its pressure; cut off, the side would carry no load at all, and a leaflet
 /// pressed on its plane by the pressure behind it could not be lifted off by the ventricle's
 /// (`runs/valve-3d-sector/NOTES.md`, session 46). The caller loads these sides with the pressure
-/// of `mouth`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// of `mouth`, or with the film's mean of the mouths' pressures by Reynolds' equation, `film`.
+#[derive(Clone, Debug, PartialEq)]
 pub struct CutSide<const D: usize> {
     /// The facet: its index in [`Adapted::gamma_f`].
     pub facet: usize,
@@ -72,6 +75,12 @@ pub struct CutSide<const D: usize> {
     /// cut-off cells its own cell was in, or, for a facet lying on a plane (no cell on that side),
     /// a region `mouth` is a mouth of; `None` where there is none.
     pub gap: Option<usize>,
+    /// The film's pressure at the facet by Reynolds' equation on the gap's cells (module
+    /// `film`): the weights `w_m` of the gap's mouths (kept cells, ascending) in its mean
+    /// `p = sum_m w_m p_m`, at the cell the side lost or, for a facet lying on a plane, at the
+    /// gap's cell nearest the facet; `w_m >= 0`, summing to one. Empty where the gap has no mouth
+    /// or its film's system could not be solved.
+    pub film: Vec<(usize, f64)>,
 }
 
 /// A rigid plane and the gap below which the fluid between it and the solid is cut off.
@@ -232,17 +241,19 @@ pub fn remove_closed_gaps<const D: usize>(
     }
     // The floods over the cells (pockets, closed gaps) share one facet graph, built only when
     // something is cut off.
-    let gaps = if cut.is_empty() {
-        Gaps::default()
+    let (gaps, films) = if cut.is_empty() {
+        (Gaps::default(), Films::default())
     } else {
         let graph = FacetGraph::of(&adapted);
         cut.extend(pockets(&adapted, &graph, &cut, open));
-        Gaps::of_cut(&adapted, &graph, &cut)
+        let gaps = Gaps::of_cut(&adapted, &graph, &cut);
+        let films = Films::solve(&adapted, &graph, &gaps, &[layers, pressed].concat());
+        (gaps, films)
     };
     let count = cut.len();
     let lost_sides = lost_sides(&adapted, &cut, &gaps, pressed_on);
     let mut out = without_cells(adapted, &cut, Some(CLOSED_GAP));
-    out.cut_sides = cut_sides(&out, &lost_sides, &gaps);
+    out.cut_sides = cut_sides(&out, &lost_sides, &gaps, &films);
     out.gap_mouths = gaps.mouths;
     out.stats.closed_gap_cells = count;
     out.stats.closed_gap_pieces = layers.len() + pressed.len();
@@ -257,8 +268,12 @@ pub fn remove_closed_gaps<const D: usize>(
 struct Gaps {
     /// The region of each cut cell.
     of_cell: HashMap<usize, usize>,
+    /// The cells of each region, in the order flooded.
+    cells: Vec<Vec<usize>>,
     /// The mouths of each region, in the kept cells' numbering ([`without_cells`]'s), ascending.
     mouths: Vec<Vec<usize>>,
+    /// Each cell's number among the kept ([`kept_numbering`]).
+    kept_index: Vec<usize>,
 }
 
 impl Gaps {
@@ -270,27 +285,29 @@ impl Gaps {
         let kept_index = kept_numbering(mesh.num_cells(), cut);
         let mut seeds: Vec<usize> = cut.iter().copied().collect();
         seeds.sort_unstable();
-        let mut gaps = Gaps { of_cell: HashMap::new(), mouths: Vec::new() };
+        let mut gaps = Gaps { of_cell: HashMap::new(), cells: Vec::new(), mouths: Vec::new(), kept_index };
         for seed in seeds {
             if gaps.of_cell.contains_key(&seed) {
                 continue;
             }
             let region = gaps.mouths.len();
             gaps.of_cell.insert(seed, region);
-            let (mut flood, mut mouths) = (vec![seed], Vec::new());
+            let (mut flood, mut cells, mut mouths) = (vec![seed], vec![seed], Vec::new());
             while let Some(c) = flood.pop() {
                 let across = (0..ct.num_facets()).filter(|&f| !on_gamma_f.contains(&topology.facet(ct, c, f)));
                 for n in across.filter_map(|f| topology.neighbour(ct, c, f)) {
                     if !cut.contains(&n) {
-                        mouths.push(kept_index[n]);
+                        mouths.push(gaps.kept_index[n]);
                     } else if let std::collections::hash_map::Entry::Vacant(e) = gaps.of_cell.entry(n) {
                         e.insert(region);
                         flood.push(n);
+                        cells.push(n);
                     }
                 }
             }
             mouths.sort_unstable();
             mouths.dedup();
+            gaps.cells.push(cells);
             gaps.mouths.push(mouths);
         }
         gaps
@@ -334,11 +351,13 @@ fn kept_numbering(num_cells: usize, removed: &HashSet<usize>) -> Vec<usize> {
     new_cell
 }
 
-/// A side of a gamma_f facet the cut takes ([`lost_sides`]): which of the facet's sides, and the
-/// closed gap its cell was in (none for a facet on a plane, which has no cell on that side).
+/// A side of a gamma_f facet the cut takes ([`lost_sides`]): which of the facet's sides, its cell
+/// and the closed gap that cell was in (none for a facet on a plane, which has no cell on that
+/// side).
 #[derive(Clone, Copy, Debug)]
 struct LostSide {
     side: usize,
+    cell: Option<usize>,
     gap: Option<usize>,
 }
 
@@ -362,14 +381,15 @@ fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, gaps: 
                 (c, _) => cut.contains(&c),
             };
             let side = (0..2).find(|&i| lost(i) && kept(g.sides[1 - i]))?;
-            Some(LostSide { side, gap: gaps.of_cell.get(&g.sides[side].0).copied() })
+            let cell = Some(g.sides[side].0).filter(|_| g.sides[side] != NO_CELL);
+            Some(LostSide { side, cell, gap: cell.and_then(|c| gaps.of_cell.get(&c).copied()) })
         })
         .collect()
 }
 
 /// The [`CutSide`]s of `out` (the kept cells, its boundary [`CLOSED_GAP`] set), from the side
-/// each of its gamma_f facets lost ([`lost_sides`]) and the closed gaps of the cut.
-fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<LostSide>], gaps: &Gaps) -> Vec<CutSide<D>> {
+/// each of its gamma_f facets lost ([`lost_sides`]), the closed gaps of the cut and their films.
+fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<LostSide>], gaps: &Gaps, films: &Films<D>) -> Vec<CutSide<D>> {
     debug_assert_eq!(lost.len(), out.gamma_f.len());
     if lost.iter().all(Option::is_none) {
         return Vec::new();
@@ -394,9 +414,15 @@ fn cut_sides<const D: usize>(out: &Adapted<D>, lost: &[Option<LostSide>], gaps: 
             let n = super::surface::piece_normal(&g.vertices.map(|v| mesh.points[v]));
             let lost = (*side)?;
             let sign = if lost.side == 1 { 1.0 } else { -1.0 };
-            let mouth = mouths.nearest_neighbor(centroid(mesh, &g.vertices)).map(|m| m.data);
+            let at = centroid(mesh, &g.vertices);
+            let mouth = mouths.nearest_neighbor(at).map(|m| m.data);
             let gap = lost.gap.or_else(|| gaps.opening_at(mouth?));
-            Some(CutSide { facet, normal: n.map(|c| sign * c), mouth, gap })
+            let film = match lost.cell {
+                Some(c) => films.at(c),
+                None => gap.and_then(|gap| films.nearest(gap, &at)),
+            };
+            let film = film.map(|f| f.weights.clone()).unwrap_or_default();
+            Some(CutSide { facet, normal: n.map(|c| sign * c), mouth, gap, film })
         })
         .collect()
 }
@@ -769,6 +795,69 @@ mod tests {
         let open = remove_closed_gaps(adapted, &layer, &[], &[], &surface, &[left, right]);
         assert!(area(&open, -1.0) > 0.5 - 0.125 - 1e-12, "only the strip's cells leave");
         assert!(open.stats.closed_gap_cells < sealed.stats.closed_gap_cells);
+    }
+
+    /// gamma_s along `polyline` over the unit square (`n` by `n` cells), pressed on the plane y =
+    /// 0 (cut-off 0.1), its normals down: the cut's sides with the x of their facet's centroid.
+    fn pressed_polyline(polyline: Vec<[f64; 2]>, n: usize) -> (Adapted<2>, Vec<(f64, CutSide<2>)>) {
+        use crate::generate::{rectangle_triangles, DiagonalPattern};
+        let mesh = rectangle_triangles(0.0, 1.0, 0.0, 1.0, n, n, DiagonalPattern::Right);
+        let surface = Surface::from_polyline(polyline).unwrap();
+        let adapted = super::super::adapt(&mesh, &surface, 0.2).unwrap();
+        let plane = GapPlane { point: [0.0, 0.0], normal: [0.0, 1.0], cut_off: 0.1 };
+        let cut = remove_closed_gaps(adapted, &[], &plane.layer(&surface), &[], &surface, &[]);
+        let sides = cut.cut_sides.iter().map(|s| (centroid(&cut.mesh, &cut.gamma_f[s.facet].vertices)[0], s.clone())).collect();
+        (cut, sides)
+    }
+
+    /// The film's mean `sum_m w_m f(x_m)` of a function `f` of the mouths' centroids.
+    fn film_mean(cut: &Adapted<2>, side: &CutSide<2>, f: impl Fn([f64; 2]) -> f64) -> f64 {
+        side.film.iter().map(|&(m, w)| w * f(cut.mesh.vertex_centroid(m))).sum()
+    }
+
+    /// Under a flat piece at y = 0.02 over x = 0.3-0.7 the gap is even, Reynolds' equation is
+    /// Laplace's along it, and the film's pressure falls linearly from one end's mouths to the
+    /// other's: the weights are a mean (non-negative, summing to one, over the gap's mouths), and
+    /// they give `p = x` at the mouths back at each facet, within 0.02 (cells 1/32 wide). At its
+    /// nearest mouth alone, or at the mean of all the mouths, a facet would be up to 0.2 off.
+    #[test]
+    fn an_even_film_falls_linearly_from_one_mouth_to_the_other() {
+        let (cut, sides) = pressed_polyline(vec![[0.3, 0.02], [0.7, 0.02]], 32);
+        assert_eq!(cut.gap_mouths.len(), 1, "one gap");
+        assert!(sides.len() > 10, "{} sides", sides.len());
+        let mut worst: f64 = 0.0;
+        for (x, side) in &sides {
+            assert!(!side.film.is_empty(), "a film at x = {x}");
+            assert!(side.film.iter().all(|&(m, w)| w > 0.0 && cut.gap_mouths[0].binary_search(&m).is_ok()));
+            assert!((side.film.iter().map(|(_, w)| w).sum::<f64>() - 1.0).abs() < 1e-12);
+            let p = film_mean(&cut, side, |c| c[0]);
+            worst = worst.max((p - x).abs());
+        }
+        println!("the even film: p = x off by at most {worst:.4}");
+        assert!(worst < 0.02, "{worst}");
+    }
+
+    /// Where the gap narrows to a seal its film's pressure is the pressure of its own side's
+    /// mouths: under a piece dipping from y = 0.08 at x = 0.3 and 0.7 to 0.004 at x = 0.5 the
+    /// resistance `int dx / h^3` of the film lies almost all at the dip, and a facet at x < 0.45
+    /// (x > 0.55) takes more than 0.95 of its weight from the left (right) end's mouths; an even
+    /// film would give it at most 0.875.
+    #[test]
+    fn a_film_narrowing_to_a_seal_carries_its_own_sides_pressure() {
+        let (cut, sides) = pressed_polyline(vec![[0.3, 0.08], [0.5, 0.004], [0.7, 0.08]], 32);
+        assert_eq!(cut.gap_mouths.len(), 1, "one gap");
+        let mut checked = 0;
+        for (x, side) in &sides {
+            let left = film_mean(&cut, side, |c| if c[0] < 0.5 { 1.0 } else { 0.0 });
+            if *x < 0.45 {
+                assert!(left > 0.95, "x = {x}: {left} of its weight from the left");
+                checked += 1;
+            } else if *x > 0.55 {
+                assert!(left < 0.05, "x = {x}: {left} of its weight from the left");
+                checked += 1;
+            }
+        }
+        assert!(checked > 10, "{checked} sides away from the dip");
     }
 
     #[test]

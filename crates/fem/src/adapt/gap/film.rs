@@ -1,0 +1,222 @@
+//! The pressure of the film of blood in a closed gap by Reynolds' equation: at each of the gap's
+//! cells, a mean of the pressures at the gap's mouths.
+//!
+//! A gap the cut takes is thinner than the cells (that is why it is cut), but the blood in it is
+//! a film whose flow is lubrication flow: across a film of height `h` the flux per unit width is
+//! `q = -h^3 / (12 mu) grad p`, and in a film whose height does not change (quasi-static: the
+//! squeeze term `12 mu dh/dt` left out) it is conserved, Reynolds' equation
+//!
+//! ```text
+//! div (h^3 grad p) = 0   in the film,      p = p_m   at its mouths m,
+//! ```
+//!
+//! the mouths' pressures those of the fluid the film opens to. The gap's cells fill its height,
+//! so the film is Darcy flow through them with the permeability `k = h^2` of a film `h` high
+//! (`k h = h^3`; the factor `1 / (12 mu)` is common to all and cancels): two-point fluxes across
+//! the facets off gamma_f between the gap's cells and from them to its mouths (the kept cells
+//! across its facets off gamma_f, where the pressure is the mouth cell's at its centroid), each
+//! facet's transmissibility `T = A / (d_a / k_a + d_b / k_b)` (`A` its measure, `d` the distance
+//! from each cell's centroid to the facet's). `h` is the film's height at a cell's centroid: the
+//! height of the gap layer's piece nearest it ([`film_height`]), whatever the cell's shape (its
+//! least altitude, tried first, made slivers at the gap's ends into seals: an even film's
+//! pressure fell by a third of its drop across one cell there); cells the layer does not reach
+//! (pockets cut with the gap, mouths) are open fluid, `h` their size `(D! |K|)^(1/D)`. The discrete solution at each cell is then a
+//! mean of the mouths' pressures with weights `w_m >= 0`, `sum_m w_m = 1` (an M-matrix's
+//! maximum principle), linear in them: where the gap narrows to a seal the weights switch from
+//! one side's mouths to the other's; where it is even they fall off with the distance along
+//! it; and no single mouth cell decides the film's load unless the film opens to it alone.
+
+use super::{FacetGraph, Gaps};
+use crate::adapt::surface::piece_measure;
+use crate::adapt::Adapted;
+use crate::mesh::Mesh;
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+use std::collections::HashMap;
+
+/// Weights below this fraction of a cell's sum are dropped (and the rest scaled back to one):
+/// they change its pressure by less than a thousandth of the spread of its mouths', and each
+/// kept weight couples the film's facet to another mouth's unknown.
+const LEAST_WEIGHT: f64 = 1e-3;
+
+/// A permeability below this fraction of the largest in its gap is raised to it, so that the
+/// film's system stays definite where a cell is a sliver (the weights across it are then within
+/// round-off of a seal's).
+const LEAST_PERMEABILITY: f64 = 1e-12;
+
+/// The film's pressure at a cut cell: its centroid and its weights over the gap's mouths (the
+/// kept cells' numbering), a mean `p = sum_m w_m p_m`; none where the gap has no mouth, or its
+/// film's system could not be solved (a degenerate cell).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct CellFilm<const D: usize> {
+    pub centroid: [f64; D],
+    pub weights: Vec<(usize, f64)>,
+}
+
+/// The films of a cut's closed gaps ([`Gaps`]), cell by cell.
+#[derive(Default)]
+pub(super) struct Films<const D: usize> {
+    /// The cells of each gap, in [`Gaps::cells`]' order.
+    pub by_gap: Vec<Vec<CellFilm<D>>>,
+    /// The gap of each cut cell and its place in that gap's list.
+    at_cell: HashMap<usize, (usize, usize)>,
+}
+
+impl<const D: usize> Films<D> {
+    /// Reynolds' films in the gaps `gaps` of `adapted` (before the cut; `graph` its facets), whose
+    /// heights are those of the gap layers `layers` (each a piece's `D` corners, then their feet
+    /// on the plane or the other body).
+    pub fn solve(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gaps, layers: &[Vec<[f64; D]>]) -> Self {
+        let mut films = Films::default();
+        for (g, cells) in gaps.cells.iter().enumerate() {
+            films.at_cell.extend(cells.iter().enumerate().map(|(i, &c)| (c, (g, i))));
+            films.by_gap.push(gap_film(adapted, graph, gaps, layers, g));
+        }
+        films
+    }
+
+    /// The film at the cut cell `cell`.
+    pub fn at(&self, cell: usize) -> Option<&CellFilm<D>> {
+        self.at_cell.get(&cell).map(|&(g, i)| &self.by_gap[g][i])
+    }
+
+    /// The film of gap `gap` at its cell nearest `x` (for a facet with no cell of the gap on its
+    /// side: gamma_s lying on a plane it is pressed on).
+    pub fn nearest(&self, gap: usize, x: &[f64; D]) -> Option<&CellFilm<D>> {
+        let dist = |f: &&CellFilm<D>| (0..D).map(|d| (f.centroid[d] - x[d]).powi(2)).sum::<f64>();
+        self.by_gap.get(gap)?.iter().min_by(|a, b| dist(a).total_cmp(&dist(b)))
+    }
+}
+
+/// The size `(D! |K|)^(1/D)` of cell `c`: the height of open fluid there.
+fn cell_size<const D: usize>(mesh: &Mesh<D>, c: usize) -> f64 {
+    let factorial = if D == 3 { 6.0 } else { 2.0 };
+    (factorial * mesh.signed_vertex_measure(c).abs()).powf(1.0 / D as f64)
+}
+
+/// The film's height at `x` from the gap layer `layers` (each a piece's `D` corners `a_k`, then
+/// their feet `f_k`): of the layer nearest `x`, `h = sum_k l_k |a_k - f_k|`, `l_k` the barycentric
+/// coordinates of `x` projected on the feet's simplex (clamped to it), the layer nearest being
+/// the one whose mid-surface point `sum_k l_k (a_k + f_k) / 2` lies nearest `x`, farther than
+/// `reach` from every one: `None`.
+fn film_height<const D: usize>(layers: &[Vec<[f64; D]>], x: &[f64; D], reach: f64) -> Option<f64> {
+    let mut best: Option<(f64, f64)> = None;
+    for layer in layers.iter().filter(|l| l.len() == 2 * D) {
+        let (corners, feet) = layer.split_at(D);
+        let l = clamped_barycentric(feet, x);
+        let mid: [f64; D] = std::array::from_fn(|d| (0..D).map(|k| l[k] * 0.5 * (corners[k][d] + feet[k][d])).sum());
+        let off = distance(&mid, x);
+        if off <= reach && best.is_none_or(|(o, _)| off < o) {
+            best = Some((off, (0..D).map(|k| l[k] * distance(&corners[k], &feet[k])).sum()));
+        }
+    }
+    best.map(|(_, h)| h)
+}
+
+/// The barycentric coordinates of `x` projected on the simplex of the `D` points `p` (a segment
+/// in 2D, a triangle in 3D), clamped to `[0, 1]` and scaled back to sum to one; the centre's
+/// for a degenerate simplex.
+fn clamped_barycentric<const D: usize>(p: &[[f64; D]], x: &[f64; D]) -> [f64; D] {
+    let sub = |a: &[f64; D], b: &[f64; D]| -> [f64; D] { std::array::from_fn(|d| a[d] - b[d]) };
+    let dot = |a: &[f64; D], b: &[f64; D]| (0..D).map(|d| a[d] * b[d]).sum::<f64>();
+    let r = sub(x, &p[0]);
+    let edges: Vec<[f64; D]> = (1..D).map(|k| sub(&p[k], &p[0])).collect();
+    // The normal equations `G t = E^T r` of the least squares `x - p0 ~ sum_k t_k e_k`.
+    let mut t = [0.0; D];
+    let centre = [1.0 / D as f64; D];
+    if D == 2 {
+        let g = dot(&edges[0], &edges[0]);
+        if g <= 0.0 {
+            return centre;
+        }
+        t[1] = dot(&edges[0], &r) / g;
+    } else {
+        let (g00, g01, g11) = (dot(&edges[0], &edges[0]), dot(&edges[0], &edges[1]), dot(&edges[1], &edges[1]));
+        let det = g00 * g11 - g01 * g01;
+        if det <= 1e-14 * g00 * g11 {
+            return centre;
+        }
+        let (b0, b1) = (dot(&edges[0], &r), dot(&edges[1], &r));
+        t[1] = (g11 * b0 - g01 * b1) / det;
+        t[2] = (g00 * b1 - g01 * b0) / det;
+    }
+    t[0] = 1.0 - (1..D).map(|k| t[k]).sum::<f64>();
+    let clamped = t.map(|v| v.clamp(0.0, 1.0));
+    let sum: f64 = clamped.iter().sum();
+    clamped.map(|v| v / sum)
+}
+
+/// The corners of facet `f` of cell `c`.
+fn facet_corners<const D: usize>(mesh: &Mesh<D>, c: usize, f: usize) -> [[f64; D]; D] {
+    let nodes = mesh.cell(c);
+    let local = mesh.facet_local_nodes(f);
+    std::array::from_fn(|k| mesh.points[nodes[local[k]]])
+}
+
+fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
+    (0..D).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>().sqrt()
+}
+
+/// The film of gap `g`: the weights of its mouths at each of its cells (see the module
+/// documentation). A gap without mouths has no film (empty weights).
+fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gaps, layers: &[Vec<[f64; D]>], g: usize) -> Vec<CellFilm<D>> {
+    let mesh = &adapted.mesh;
+    let ct = mesh.cell_type;
+    let (cells, mouths) = (&gaps.cells[g], &gaps.mouths[g]);
+    let centroids: Vec<[f64; D]> = cells.iter().map(|&c| mesh.vertex_centroid(c)).collect();
+    let no_film = || centroids.iter().map(|&centroid| CellFilm { centroid, weights: Vec::new() }).collect();
+    if mouths.is_empty() {
+        return no_film();
+    }
+    // A layer reaches a cell within its size of the cell's centroid.
+    let height = |c: usize, x: &[f64; D]| {
+        let size = cell_size(mesh, c);
+        film_height(layers, x, size).unwrap_or(size)
+    };
+    let permeability: HashMap<usize, f64> = cells.iter().zip(&centroids).map(|(&c, x)| (c, height(c, x).powi(2))).collect();
+    let floor = LEAST_PERMEABILITY * permeability.values().copied().fold(0.0, f64::max);
+    let k = |c: usize| permeability.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(floor);
+    let local: HashMap<usize, usize> = cells.iter().enumerate().map(|(i, &c)| (c, i)).collect();
+    let (n, m) = (cells.len(), mouths.len());
+    let mut matrix = Vec::new();
+    let mut rhs = Mat::<f64>::zeros(n, m);
+    let FacetGraph { topology, on_gamma_f } = graph;
+    for (i, &c) in cells.iter().enumerate() {
+        for f in (0..ct.num_facets()).filter(|&f| !on_gamma_f.contains(&topology.facet(ct, c, f))) {
+            let Some(nb) = topology.neighbour(ct, c, f) else { continue };
+            let corners = facet_corners(mesh, c, f);
+            let at: [f64; D] = std::array::from_fn(|d| corners.iter().map(|x| x[d]).sum::<f64>() / D as f64);
+            let resistance = |cell: usize, x: &[f64; D]| distance(x, &at) / k(cell);
+            let t = piece_measure(&corners) / (resistance(c, &centroids[i]) + resistance(nb, &mesh.vertex_centroid(nb)));
+            matrix.push(Triplet::new(i, i, t));
+            match local.get(&nb) {
+                Some(&j) => matrix.push(Triplet::new(i, j, -t)),
+                None => {
+                    let mouth = mouths.binary_search(&gaps.kept_index[nb]).expect("a kept neighbour of a gap's cell is one of its mouths");
+                    rhs[(i, mouth)] += t;
+                }
+            }
+        }
+    }
+    let solved = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &matrix)
+        .ok()
+        .and_then(|a| a.sp_cholesky(Side::Lower).ok())
+        .map(|llt| llt.solve(&rhs));
+    // Definite unless a cell is degenerate (no permeability anywhere): then the caller's
+    // fallback, the nearest mouth.
+    let Some(w) = solved.filter(|w| (0..n).all(|i| (0..m).all(|j| w[(i, j)].is_finite()))) else {
+        return no_film();
+    };
+    centroids
+        .into_iter()
+        .enumerate()
+        .map(|(i, centroid)| {
+            let row: Vec<f64> = (0..m).map(|j| w[(i, j)].max(0.0)).collect();
+            let sum: f64 = row.iter().sum();
+            let kept: Vec<(usize, f64)> = row.iter().enumerate().filter(|(_, &v)| v >= LEAST_WEIGHT * sum).map(|(j, &v)| (mouths[j], v)).collect();
+            let total: f64 = kept.iter().map(|(_, v)| v).sum();
+            CellFilm { centroid, weights: kept.into_iter().map(|(mouth, v)| (mouth, v / total)).collect() }
+        })
+        .collect()
+}
