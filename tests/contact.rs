@@ -713,6 +713,45 @@ fn adapt_at_a_checkpoint_puts_the_films_at_the_lowest_mouth() {
     assert!(nearest.iter().any(|x| (x - 0.3).abs() < 0.1) && nearest.iter().any(|x| (x - 0.7).abs() < 0.1), "nearest-mouth: {nearest:?}");
 }
 
+/// `fdfsi adapt --at` writes each film's pressure in the checkpoint's fluid (`films.vtu`,
+/// `pressure`, and the number of mouths it is a mean of, `mouths`). In [`flat_film_case`]'s flow
+/// from the inlet's pressure 2 to the outlet's 1, after one step: at the nearest mouths each film
+/// carries one mouth's pressure, and they differ (by more than 0.1); at the lowest mouth every film
+/// carries the same, no higher than any nearest mouth's (the nearest mouths are the gap's too);
+/// with `film_pressure = "reynolds"` most films carry a mean of several mouths, each no lower
+/// than the lowest mouth's.
+#[test]
+fn adapt_at_a_checkpoint_writes_the_pressure_each_film_carries() {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    // (mouths, pressure) of each film.
+    let films = |rule: &str| {
+        let text = flat_film_case(rule).replace("end = 0.3", "end = 0.1").replacen("value = [1.0]", "value = [2.0]", 1);
+        let case = Case::from_toml_str(&text, "film.toml").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
+        fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
+        let grid = fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap();
+        let (mouths, pressure) = (&grid.cell_array("mouths").unwrap().values, &grid.cell_array("pressure").unwrap().values);
+        let films: Vec<(f64, f64)> = mouths.iter().copied().zip(pressure.iter().copied()).collect();
+        assert!(films.len() > 8 && films.iter().all(|f| f.1.is_finite()), "{rule}: {films:?}");
+        films
+    };
+    let nearest = films("nearest-mouth");
+    assert!(nearest.iter().all(|f| f.0 == 1.0), "{nearest:?}");
+    let (high, low) = nearest.iter().fold((f64::NEG_INFINITY, f64::INFINITY), |(h, l), f| (h.max(f.1), l.min(f.1)));
+    assert!(high - low > 0.1, "the nearest mouths' pressures {low} to {high}");
+    let lowest = films("lowest-mouth");
+    let p_low = lowest[0].1;
+    assert!(lowest.iter().all(|f| f.0 == 1.0 && f.1 == p_low) && p_low <= low, "lowest-mouth {p_low}: {lowest:?}; the nearest's lowest {low}");
+    let reynolds = films("reynolds");
+    println!("reynolds films (mouths, pressure): {reynolds:?}; the nearest mouths' {low:.4} to {high:.4}, the lowest {p_low:.4}");
+    assert!(reynolds.iter().filter(|f| f.0 > 1.0).count() > reynolds.len() / 2, "films take several mouths");
+    assert!(reynolds.iter().all(|f| f.1 >= p_low - 1e-12), "a mean of the gap's mouths, none below the lowest");
+}
+
 /// `fdfsi adapt --at` a checkpoint of [`FILM_CASE`] writes `films.vtu`: the facets of gamma_f
 /// over the cut wedge, each with its normal into the film (below the strip: a unit normal with
 /// y < 0) and its mouth, the centroid of a kept cell beside the wedge's open end (x = 0.5, where

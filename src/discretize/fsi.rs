@@ -61,7 +61,7 @@ use crate::solve::augmented::{MultiplierBlock, MultiplierRole, SaddlePointSplit}
 use crate::solve::linear::{LinearSolveError, LinearSolver};
 use crate::solve::newton::{self, NewtonError, NewtonOptions, NewtonReport};
 use crate::solve::partition::{row_solver_of, Nodes, Partition};
-use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards};
+use fdfsi_fem::adapt::gap::{cell_height_at, cell_size_at, layer_towards, CutSide};
 use fdfsi_fem::adapt::{
     adapt_with, p1disc_value, remove_closed_gaps, transfer_p1disc, transfer_p2plus_or, AdaptError, AdaptOptions, AdaptStats, Adapted, Background,
     CellLocator, GammaFacet, GapPlane, Surface, CLOSED_GAP, GAMMA_F_REL_TOL,
@@ -335,6 +335,18 @@ impl<const D: usize> FsiModel<D> {
     pub fn choose_film_mouths(&self, last: Option<&FluidSnapshot<D>>, adapted: &mut Adapted<D>) {
         if let (FilmPressure::LowestMouth, Some(last)) = (self.film_pressure, last) {
             last.take_lowest_mouths(adapted);
+        }
+    }
+
+    /// The mean whose pressure the film on `side` carries, `(kept cell, weight)` pairs whose
+    /// weights sum to one ([`FsiModel::film_pressure`]): its mouth alone, or with
+    /// [`FilmPressure::Reynolds`] its gap's film weights (the mouth where its gap has none);
+    /// empty for a side without a mouth.
+    pub fn film_weights(&self, side: &CutSide<D>) -> Vec<(usize, f64)> {
+        if self.film_pressure == FilmPressure::Reynolds && !side.film.is_empty() {
+            side.film.clone()
+        } else {
+            side.mouth.map(|m| (m, 1.0)).into_iter().collect()
         }
     }
 
@@ -724,12 +736,8 @@ impl<const D: usize> FluidSnapshot<D> {
         if self.pressure.is_empty() || adapted.cut_sides.is_empty() {
             return;
         }
-        let locator = CellLocator::new(&self.mesh);
-        let pressure_at = |cell: usize| {
-            let x = adapted.mesh.vertex_centroid(cell);
-            let (old, _) = locator.locate(&self.mesh, &x)?;
-            Some(p1disc_value(&self.mesh, &self.pressure, old, &x))
-        };
+        let probe = self.pressure_probe();
+        let pressure_at = |cell: usize| probe(&adapted.mesh.vertex_centroid(cell));
         let lowest: Vec<Option<(f64, usize)>> = adapted
             .gap_mouths
             .iter()
@@ -750,6 +758,15 @@ impl<const D: usize> FluidSnapshot<D> {
             if let Some((_, m)) = side.gap.and_then(|g| lowest[g]) {
                 side.mouth = Some(m);
             }
+        }
+    }
+
+    /// The snapshot's pressure at a point (`None` outside its mesh, or without a pressure).
+    pub fn pressure_probe(&self) -> impl Fn(&[f64; D]) -> Option<f64> + '_ {
+        let locator = (!self.pressure.is_empty()).then(|| CellLocator::new(&self.mesh));
+        move |x| {
+            let (old, _) = locator.as_ref()?.locate(&self.mesh, x)?;
+            Some(p1disc_value(&self.mesh, &self.pressure, old, x))
         }
     }
 
@@ -823,28 +840,24 @@ impl<const D: usize> FluidSnapshot<D> {
 }
 
 /// The films on the sides of gamma_f the closed gaps of `adapted` cut off that have a mouth
-/// ([`Adapted::cut_sides`]), at the pressure `rule` says: the unknown of the mouth cell's
-/// pressure at its centroid in `pressure` (the fluid's P1-discontinuous field, whose first
-/// unknown of a cell is that value), or the mean of the gap's mouths' by its film's weights
-/// ([`FilmPressure::Reynolds`]; the mouth where its gap has none).
-fn film_loads<const D: usize>(adapted: &Adapted<D>, pressure: &fdfsi_fem::dofs::Field, rule: FilmPressure) -> Vec<FilmLoad<D>> {
+/// ([`Adapted::cut_sides`]), at the mean of mouth cells' pressures the model's rule says
+/// ([`FsiModel::film_weights`]), each the unknown of the cell's pressure at its centroid in
+/// `pressure` (the fluid's P1-discontinuous field, whose first unknown of a cell is that value).
+fn film_loads<const D: usize>(model: &FsiModel<D>, adapted: &Adapted<D>, pressure: &fdfsi_fem::dofs::Field) -> Vec<FilmLoad<D>> {
     let unknown = |m: usize| pressure.dof(pressure.nodes.cell(m)[0], 0);
-    let mut at_mouth = 0;
     let films: Vec<FilmLoad<D>> = adapted
         .cut_sides
         .iter()
-        .filter_map(|side| {
-            let pressure = if rule == FilmPressure::Reynolds && !side.film.is_empty() {
-                side.film.iter().map(|&(m, w)| (unknown(m), w)).collect()
-            } else {
-                at_mouth += 1;
-                vec![(unknown(side.mouth?), 1.0)]
-            };
-            Some(FilmLoad { element: side.facet, normal: side.normal, pressure })
+        .map(|side| FilmLoad {
+            element: side.facet,
+            normal: side.normal,
+            pressure: model.film_weights(side).iter().map(|&(m, w)| (unknown(m), w)).collect(),
         })
+        .filter(|film| !film.pressure.is_empty())
         .collect();
     if !adapted.cut_sides.is_empty() {
-        tracing::debug!("films on {} of the {} sides of gamma_f cut off, {at_mouth} at one mouth", films.len(), adapted.cut_sides.len());
+        let at_one = films.iter().filter(|f| f.pressure.len() == 1).count();
+        tracing::debug!("films on {} of the {} sides of gamma_f cut off, {at_one} of them at one mouth", films.len(), adapted.cut_sides.len());
     }
     films
 }
@@ -1186,7 +1199,7 @@ impl<const D: usize> FsiDiscretization<D> {
         // Dofs of each coupling element: multiplier, fluid velocity of its cell, solid
         // displacement of every solid cell its points land in (and of the carried ones).
         let sf = model.solid.displacement_field();
-        let films = film_loads(&adapted, flow.pressure_field(), model.film_pressure);
+        let films = film_loads(model, &adapted, flow.pressure_field());
         let coupling_pattern = coupling_pattern(&flow.mesh, &coupling, carried);
         let mut coupling_dofs: Vec<Vec<usize>> = (0..ne)
             .map(|e| {

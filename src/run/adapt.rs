@@ -10,14 +10,16 @@
 //! (a connected region of cut cells) it opens to, and the centroid of the kept cell at the gap's
 //! mouth whose pressure the film carries (NaN where there is none;
 //! with `film_pressure = "lowest-mouth"`, chosen from the checkpoint's pressure as the run's next
-//! step would).
+//! step would), the number of mouths whose mean it carries (`mouths`: one but for
+//! `film_pressure = "reynolds"`) and that mean in the checkpoint's pressure (`pressure`: the
+//! mouth cells' pressures at their centroids; NaN where one lies outside the checkpoint's mesh).
 //! Where the covered fluid is to be removed and gamma_f does not enclose it, the files show the
 //! adaptation with it kept, and the command fails.
 
 use super::{RunError, RunOptions};
 use crate::adapt::{AdaptedFluid, CoveredFluid};
 use crate::case::{Case, CaseError, RunKind};
-use crate::discretize::fsi::{FilmPressure, FsiError};
+use crate::discretize::fsi::FsiError;
 use crate::io::checkpoint::Checkpoint;
 use crate::io::{write_atomic, OutputError};
 use crate::setup::{adapt_fluid_with, build_mesh, fsi_model};
@@ -34,8 +36,8 @@ use std::path::Path;
 pub fn adapt_case(case: &Case, case_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, RunError> {
     let covered = case.covered_fluid();
     match build_mesh(case, case_dir)? {
-        AnyMesh::D2(m) => report_or_leak(|c| Ok(adapt_fluid_with(case, m.clone(), case_dir, c)?), covered, out_dir),
-        AnyMesh::D3(m) => report_or_leak(|c| Ok(adapt_fluid_with(case, m.clone(), case_dir, c)?), covered, out_dir),
+        AnyMesh::D2(m) => report_or_leak(|c| Ok(AdaptReport::of(adapt_fluid_with(case, m.clone(), case_dir, c)?)), covered, out_dir),
+        AnyMesh::D3(m) => report_or_leak(|c| Ok(AdaptReport::of(adapt_fluid_with(case, m.clone(), case_dir, c)?)), covered, out_dir),
     }
 }
 
@@ -55,7 +57,7 @@ fn is_not_enclosed(e: &RunError) -> bool {
 /// not enclose them), the adaptation with them kept is written, to show where gamma_f is open,
 /// and the error returned.
 fn report_or_leak<const D: usize>(
-    adapt: impl Fn(CoveredFluid) -> Result<AdaptedFluid<D>, RunError>,
+    adapt: impl Fn(CoveredFluid) -> Result<AdaptReport<D>, RunError>,
     covered: CoveredFluid,
     out_dir: &Path,
 ) -> Result<AdaptSummary, RunError> {
@@ -92,7 +94,8 @@ pub fn adapt_checkpoint(run_dir: &Path, out_dir: &Path) -> Result<AdaptSummary, 
 }
 
 /// The original fluid mesh adapted to the solid of a checkpoint written in `run_dir` (what the
-/// run's next step starts from), with gamma_f tagged.
+/// run's next step starts from), with gamma_f tagged, and its films' pressures in the
+/// checkpoint's fluid.
 fn adapted_at<const D: usize>(
     case: &Case,
     fluid_mesh: Mesh<D>,
@@ -100,7 +103,7 @@ fn adapted_at<const D: usize>(
     checkpoint: &Checkpoint,
     run_dir: &std::path::Path,
     covered: CoveredFluid,
-) -> Result<AdaptedFluid<D>, RunError> {
+) -> Result<AdaptReport<D>, RunError> {
     let model = fsi_model(case, &fluid_mesh, case_dir)?;
     let restart = checkpoint.fsi_state(run_dir, model.solid.num_dofs())?;
     // The solid the next step (of the run's schedule) adapts to: extrapolated to its end when
@@ -115,10 +118,44 @@ fn adapted_at<const D: usize>(
     // Where the solid has closed on a contact plane, the run cuts the gap's cells off too, and
     // its films take the mouths the case's `film_pressure` says, from the checkpoint's fluid.
     adapted.adapted = model.cut_off_closed_gaps(adapted.adapted, &adapted.surface, &geometry)?;
-    if model.film_pressure == FilmPressure::LowestMouth && !adapted.adapted.cut_sides.is_empty() {
-        model.choose_film_mouths(restart.fluid_snapshot(&model)?.as_ref(), &mut adapted.adapted);
+    if adapted.adapted.cut_sides.is_empty() {
+        return Ok(AdaptReport::of(adapted));
     }
-    Ok(adapted)
+    let fluid = restart.fluid_snapshot(&model)?;
+    model.choose_film_mouths(fluid.as_ref(), &mut adapted.adapted);
+    let probe = fluid.as_ref().map(|f| f.pressure_probe());
+    let cells = &adapted.adapted.mesh;
+    let pressure_of = |m: usize| probe.as_ref().and_then(|p| p(&cells.vertex_centroid(m))).unwrap_or(f64::NAN);
+    let films = adapted
+        .adapted
+        .cut_sides
+        .iter()
+        .map(|side| {
+            let weights = model.film_weights(side);
+            FilmReport { mouths: weights.len(), pressure: weights.iter().map(|&(m, w)| w * pressure_of(m)).sum() }
+        })
+        .collect();
+    Ok(AdaptReport { fluid: adapted, films })
+}
+
+/// What `fdfsi adapt` writes: the adapted fluid and, at a checkpoint, each film's
+/// ([`fdfsi_fem::adapt::Adapted::cut_sides`]' order).
+struct AdaptReport<const D: usize> {
+    fluid: AdaptedFluid<D>,
+    films: Vec<FilmReport>,
+}
+
+impl<const D: usize> AdaptReport<D> {
+    fn of(fluid: AdaptedFluid<D>) -> Self {
+        AdaptReport { fluid, films: Vec::new() }
+    }
+}
+
+/// A film at a checkpoint: the number of mouths whose mean it carries and that mean in the
+/// checkpoint's pressure (NaN where a mouth lies outside its mesh, or it holds no fluid).
+struct FilmReport {
+    mouths: usize,
+    pressure: f64,
 }
 
 /// What `fdfsi adapt` writes to `summary.json`.
@@ -164,21 +201,27 @@ fn piece_grid<const D: usize>(points: &[[f64; D]], pieces: &[[usize; D]]) -> Res
 
 /// The facets of gamma_f that carry a film in a closed gap, with cell data `normal` (into the
 /// film), `mouth` (the centroid of the kept cell whose pressure the film carries; NaN where
-/// there is none) and `gap` (the closed gap the film opens to, [`fdfsi_fem::adapt::gap::CutSide::gap`];
-/// -1 where there is none).
-fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>) -> Result<UnstructuredGrid, VtkError> {
+/// there is none), `gap` (the closed gap the film opens to, [`fdfsi_fem::adapt::gap::CutSide::gap`];
+/// -1 where there is none) and, where `films` reports them, `mouths` and `pressure`
+/// ([`FilmReport`]).
+fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>, films: &[FilmReport]) -> Result<UnstructuredGrid, VtkError> {
     let facets: Vec<[usize; D]> = a.cut_sides.iter().map(|s| a.gamma_f[s.facet].vertices).collect();
     let mut grid = piece_grid(&a.mesh.points, &facets)?;
     grid.add_cell_data("normal", 3, a.cut_sides.iter().flat_map(|s| padded(s.normal)).collect())?;
     let mouths = a.cut_sides.iter().flat_map(|s| s.mouth.map_or([f64::NAN; 3], |c| padded(a.mesh.vertex_centroid(c))));
     grid.add_cell_data("mouth", 3, mouths.collect())?;
     grid.add_cell_data("gap", 1, a.cut_sides.iter().map(|s| s.gap.map_or(-1.0, |g| g as f64)).collect())?;
+    if films.len() == a.cut_sides.len() {
+        grid.add_cell_data("mouths", 1, films.iter().map(|f| f.mouths as f64).collect())?;
+        grid.add_cell_data("pressure", 1, films.iter().map(|f| f.pressure).collect())?;
+    }
     Ok(grid)
 }
 
 /// `fdfsi adapt`: adapts the case's fluid mesh to its solid and writes the files listed in the
 /// module documentation.
-pub fn write_adapt_report<const D: usize>(a: &AdaptedFluid<D>, out_dir: &Path) -> Result<AdaptSummary, RunError> {
+fn write_adapt_report<const D: usize>(report: &AdaptReport<D>, out_dir: &Path) -> Result<AdaptSummary, RunError> {
+    let a = &report.fluid;
     std::fs::create_dir_all(out_dir).map_err(|source| OutputError::Io { path: out_dir.display().to_string(), source })?;
     write_vtu(&out_dir.join("original.vtu"), &linear_grid(&a.original)?)?;
     write_vtu(&out_dir.join("adapted.vtu"), &linear_grid(&a.adapted.mesh)?)?;
@@ -186,7 +229,7 @@ pub fn write_adapt_report<const D: usize>(a: &AdaptedFluid<D>, out_dir: &Path) -
     let gf: Vec<[usize; D]> = a.adapted.gamma_f.iter().map(|g| g.vertices).collect();
     write_vtu(&out_dir.join("gamma_f.vtu"), &piece_grid(&a.adapted.mesh.points, &gf)?)?;
     if !a.adapted.cut_sides.is_empty() {
-        write_vtu(&out_dir.join("films.vtu"), &film_grid(&a.adapted)?)?;
+        write_vtu(&out_dir.join("films.vtu"), &film_grid(&a.adapted, &report.films)?)?;
     }
     let summary = AdaptSummary {
         original_cells: a.original.num_cells(),

@@ -40,9 +40,10 @@ use std::collections::HashMap;
 /// kept weight couples the film's facet to another mouth's unknown.
 const LEAST_WEIGHT: f64 = 1e-3;
 
-/// A permeability below this fraction of the largest in its gap is raised to it, so that the
-/// film's system stays definite where a cell is a sliver (the weights across it are then within
-/// round-off of a seal's).
+/// A permeability below this fraction of the largest in its gap (or of the open fluid's, its
+/// cells' size squared) is raised to it, so that the film's system stays definite where the
+/// film's height is zero (the weights across such a cell are then within round-off of a
+/// seal's).
 const LEAST_PERMEABILITY: f64 = 1e-12;
 
 /// The film's pressure at a cut cell: its centroid and its weights over the gap's mouths (the
@@ -175,7 +176,10 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
         film_height(layers, x, size).unwrap_or(size)
     };
     let permeability: HashMap<usize, f64> = cells.iter().zip(&centroids).map(|(&c, x)| (c, height(c, x).powi(2))).collect();
-    let floor = LEAST_PERMEABILITY * permeability.values().copied().fold(0.0, f64::max);
+    // Relative to the open fluid's too: a gap whose cells all lie by the solid lying on its plane
+    // (`h = 0` throughout) is sealed evenly.
+    let open = cells.iter().map(|&c| cell_size(mesh, c).powi(2)).fold(0.0, f64::max);
+    let floor = LEAST_PERMEABILITY * permeability.values().copied().fold(open, f64::max);
     let k = |c: usize| permeability.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(floor);
     let local: HashMap<usize, usize> = cells.iter().enumerate().map(|(i, &c)| (c, i)).collect();
     let (n, m) = (cells.len(), mouths.len());
