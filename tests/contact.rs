@@ -686,6 +686,21 @@ fn reynolds_films_carry_the_mean_of_their_gaps_mouths() {
     assert!(worst < 0.05, "{worst}");
 }
 
+/// `films.vtu` of `fdfsi adapt --at` the checkpoint after one step of [`flat_film_case`] (films at
+/// `film_pressure = rule`) in a flow from the inlet's pressure 2 to the outlet's 1.
+fn films_in_a_drop_at_a_checkpoint(rule: &str) -> fdfsi::fem::vtk::UnstructuredGrid {
+    use fdfsi::case::Case;
+    use fdfsi::run::{run_case, RunOptions};
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let text = flat_film_case(rule).replace("end = 0.3", "end = 0.1").replacen("value = [1.0]", "value = [2.0]", 1);
+    let case = Case::from_toml_str(&text, "film.toml").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
+    fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
+    fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap()
+}
+
 /// `fdfsi adapt --at` chooses the films' mouths as the run's next step would: with
 /// [`flat_film_case`]'s strip in a flow from the inlet's pressure 2 (x = 0) to the outlet's 1 (x =
 /// 1), after one step the gap's lowest mouth is by the strip's downstream end (x = 0.7), and
@@ -693,17 +708,8 @@ fn reynolds_films_carry_the_mean_of_their_gaps_mouths() {
 /// split between the two ends.
 #[test]
 fn adapt_at_a_checkpoint_puts_the_films_at_the_lowest_mouth() {
-    use fdfsi::case::Case;
-    use fdfsi::run::{run_case, RunOptions};
-    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     let mouths_x = |rule: &str| {
-        let text = flat_film_case(rule).replace("end = 0.3", "end = 0.1").replacen("value = [1.0]", "value = [2.0]", 1);
-        let case = Case::from_toml_str(&text, "film.toml").unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("out");
-        run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
-        fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
-        let films = fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap();
+        let films = films_in_a_drop_at_a_checkpoint(rule);
         assert!(films.cell_array("gap").unwrap().values.iter().all(|&g| g == 0.0), "one gap under the strip");
         films.cell_array("mouth").unwrap().values.chunks(3).map(|m| m[0]).collect::<Vec<f64>>()
     };
@@ -722,18 +728,9 @@ fn adapt_at_a_checkpoint_puts_the_films_at_the_lowest_mouth() {
 /// than the lowest mouth's.
 #[test]
 fn adapt_at_a_checkpoint_writes_the_pressure_each_film_carries() {
-    use fdfsi::case::Case;
-    use fdfsi::run::{run_case, RunOptions};
-    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
     // (mouths, pressure) of each film.
     let films = |rule: &str| {
-        let text = flat_film_case(rule).replace("end = 0.3", "end = 0.1").replacen("value = [1.0]", "value = [2.0]", 1);
-        let case = Case::from_toml_str(&text, "film.toml").unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("out");
-        run_case(&case, &RunOptions { checkpoint_every: Some(1), ..RunOptions::new(&out, &cases) }, &mut |_: &str| {}).unwrap();
-        fdfsi::run::adapt::adapt_checkpoint(&out, &dir.path().join("adapt")).unwrap();
-        let grid = fdfsi::fem::vtk::read_vtu(&dir.path().join("adapt/films.vtu")).unwrap();
+        let grid = films_in_a_drop_at_a_checkpoint(rule);
         let (mouths, pressure) = (&grid.cell_array("mouths").unwrap().values, &grid.cell_array("pressure").unwrap().values);
         let films: Vec<(f64, f64)> = mouths.iter().copied().zip(pressure.iter().copied()).collect();
         assert!(films.len() > 8 && films.iter().all(|f| f.1.is_finite()), "{rule}: {films:?}");
