@@ -732,6 +732,7 @@ fn adapt_at_a_checkpoint_writes_the_pressure_each_film_carries() {
     let films = |rule: &str| {
         let grid = films_in_a_drop_at_a_checkpoint(rule);
         let (mouths, pressure) = (&grid.cell_array("mouths").unwrap().values, &grid.cell_array("pressure").unwrap().values);
+        assert!(grid.cell_array("located").unwrap().values.iter().all(|&l| (l - 1.0).abs() < 1e-12), "{rule}: every mouth in the checkpoint's mesh");
         let films: Vec<(f64, f64)> = mouths.iter().copied().zip(pressure.iter().copied()).collect();
         assert!(films.len() > 8 && films.iter().all(|f| f.1.is_finite()), "{rule}: {films:?}");
         films

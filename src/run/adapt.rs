@@ -12,7 +12,8 @@
 //! with `film_pressure = "lowest-mouth"`, chosen from the checkpoint's pressure as the run's next
 //! step would), the number of mouths whose mean it carries (`mouths`: one but for
 //! `film_pressure = "reynolds"`) and that mean in the checkpoint's pressure (`pressure`: the
-//! mouth cells' pressures at their centroids; NaN where one lies outside the checkpoint's mesh).
+//! mouth cells' pressures at their centroids, over those that lie in the checkpoint's mesh, whose
+//! share of the weights is `located`).
 //! Where the covered fluid is to be removed and gamma_f does not enclose it, the files show the
 //! adaptation with it kept, and the command fails.
 
@@ -125,14 +126,17 @@ fn adapted_at<const D: usize>(
     model.choose_film_mouths(fluid.as_ref(), &mut adapted.adapted);
     let probe = fluid.as_ref().map(|f| f.pressure_probe());
     let cells = &adapted.adapted.mesh;
-    let pressure_of = |m: usize| probe.as_ref().and_then(|p| p(&cells.vertex_centroid(m))).unwrap_or(f64::NAN);
+    let pressure_of = |m: usize| probe.as_ref().and_then(|p| p(&cells.vertex_centroid(m)));
     let films = adapted
         .adapted
         .cut_sides
         .iter()
         .map(|side| {
             let weights = model.film_weights(side);
-            FilmReport { mouths: weights.len(), pressure: weights.iter().map(|&(m, w)| w * pressure_of(m)).sum() }
+            let located: Vec<(f64, f64)> = weights.iter().filter_map(|&(m, w)| Some((w, pressure_of(m)?))).collect();
+            let share: f64 = located.iter().map(|(w, _)| w).sum();
+            let mean = if share > 0.0 { located.iter().map(|(w, p)| w * p).sum::<f64>() / share } else { 0.0 };
+            FilmReport { mouths: weights.len(), pressure: mean, located: share }
         })
         .collect();
     Ok(AdaptReport { fluid: adapted, films })
@@ -151,11 +155,14 @@ impl<const D: usize> AdaptReport<D> {
     }
 }
 
-/// A film at a checkpoint: the number of mouths whose mean it carries and that mean in the
-/// checkpoint's pressure (NaN where a mouth lies outside its mesh, or it holds no fluid).
+/// A film at a checkpoint: the number of mouths whose mean it carries, that mean in the
+/// checkpoint's pressure over the mouths whose centroids lie in its mesh (the weights scaled back
+/// to one; 0 where none does), and the share of the weight they hold (`located`: 0 where the
+/// checkpoint holds no fluid).
 struct FilmReport {
     mouths: usize,
     pressure: f64,
+    located: f64,
 }
 
 /// What `fdfsi adapt` writes to `summary.json`.
@@ -202,7 +209,7 @@ fn piece_grid<const D: usize>(points: &[[f64; D]], pieces: &[[usize; D]]) -> Res
 /// The facets of gamma_f that carry a film in a closed gap, with cell data `normal` (into the
 /// film), `mouth` (the centroid of the kept cell whose pressure the film carries; NaN where
 /// there is none), `gap` (the closed gap the film opens to, [`fdfsi_fem::adapt::gap::CutSide::gap`];
-/// -1 where there is none) and, where `films` reports them, `mouths` and `pressure`
+/// -1 where there is none) and, where `films` reports them, `mouths`, `pressure` and `located`
 /// ([`FilmReport`]).
 fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>, films: &[FilmReport]) -> Result<UnstructuredGrid, VtkError> {
     let facets: Vec<[usize; D]> = a.cut_sides.iter().map(|s| a.gamma_f[s.facet].vertices).collect();
@@ -214,6 +221,7 @@ fn film_grid<const D: usize>(a: &fdfsi_fem::adapt::Adapted<D>, films: &[FilmRepo
     if films.len() == a.cut_sides.len() {
         grid.add_cell_data("mouths", 1, films.iter().map(|f| f.mouths as f64).collect())?;
         grid.add_cell_data("pressure", 1, films.iter().map(|f| f.pressure).collect())?;
+        grid.add_cell_data("located", 1, films.iter().map(|f| f.located).collect())?;
     }
     Ok(grid)
 }
