@@ -36,7 +36,7 @@ use faer::{Mat, Side};
 use std::collections::HashMap;
 
 /// Weights below this fraction of a cell's sum are dropped (and the rest scaled back to one):
-/// they change its pressure by less than a thousandth of the spread of its mouths', and each
+/// each changes its pressure by less than a thousandth of the spread of its mouths', and each
 /// kept weight couples the film's facet to another mouth's unknown.
 const LEAST_WEIGHT: f64 = 1e-3;
 
