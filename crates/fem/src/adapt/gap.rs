@@ -152,9 +152,14 @@ pub fn cell_size_at<const D: usize>(mesh: &Mesh<D>, points: &[[f64; D]]) -> f64 
     if cells.is_empty() {
         return 0.0;
     }
-    let factorial = if D == 3 { 6.0 } else { 2.0 };
-    let sizes: f64 = cells.iter().map(|&c| (factorial * mesh.signed_vertex_measure(c).abs()).powf(1.0 / D as f64)).sum();
+    let sizes: f64 = cells.iter().map(|&c| cell_size(mesh, c)).sum();
     sizes / cells.len() as f64
+}
+
+/// The size `(D! |K|)^(1/D)` of cell `c` of `mesh`.
+fn cell_size<const D: usize>(mesh: &Mesh<D>, c: usize) -> f64 {
+    let factorial = if D == 3 { 6.0 } else { 2.0 };
+    (factorial * mesh.signed_vertex_measure(c).abs()).powf(1.0 / D as f64)
 }
 
 /// The natural `cut_off` of a plane that bounds the fluid (a wall, a symmetry line): the mean

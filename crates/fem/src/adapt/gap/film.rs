@@ -26,7 +26,8 @@
 //! one side's mouths to the other's; where it is even they fall off with the distance along
 //! it; and no single mouth cell decides the film's load unless the film opens to it alone.
 
-use super::{FacetGraph, Gaps};
+use super::{cell_size, FacetGraph, Gaps};
+use crate::adapt::geom::{dist2, dot, sub};
 use crate::adapt::surface::piece_measure;
 use crate::adapt::Adapted;
 use crate::mesh::Mesh;
@@ -90,12 +91,6 @@ impl<const D: usize> Films<D> {
     }
 }
 
-/// The size `(D! |K|)^(1/D)` of cell `c`: the height of open fluid there.
-fn cell_size<const D: usize>(mesh: &Mesh<D>, c: usize) -> f64 {
-    let factorial = if D == 3 { 6.0 } else { 2.0 };
-    (factorial * mesh.signed_vertex_measure(c).abs()).powf(1.0 / D as f64)
-}
-
 /// The film's height at `x` from the gap layer `layers` (each a piece's `D` corners `a_k`, then
 /// their feet `f_k`): of the layer nearest `x`, `h = sum_k l_k |a_k - f_k|`, `l_k` the barycentric
 /// coordinates of `x` projected on the feet's simplex (clamped to it), the layer nearest being
@@ -119,8 +114,6 @@ fn film_height<const D: usize>(layers: &[Vec<[f64; D]>], x: &[f64; D], reach: f6
 /// in 2D, a triangle in 3D), clamped to `[0, 1]` and scaled back to sum to one; the centre's
 /// for a degenerate simplex.
 fn clamped_barycentric<const D: usize>(p: &[[f64; D]], x: &[f64; D]) -> [f64; D] {
-    let sub = |a: &[f64; D], b: &[f64; D]| -> [f64; D] { std::array::from_fn(|d| a[d] - b[d]) };
-    let dot = |a: &[f64; D], b: &[f64; D]| (0..D).map(|d| a[d] * b[d]).sum::<f64>();
     let r = sub(x, &p[0]);
     let edges: Vec<[f64; D]> = (1..D).map(|k| sub(&p[k], &p[0])).collect();
     // The normal equations `G t = E^T r` of the least squares `x - p0 ~ sum_k t_k e_k`.
@@ -156,7 +149,7 @@ fn facet_corners<const D: usize>(mesh: &Mesh<D>, c: usize, f: usize) -> [[f64; D
 }
 
 fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
-    (0..D).map(|d| (a[d] - b[d]).powi(2)).sum::<f64>().sqrt()
+    dist2(a, b).sqrt()
 }
 
 /// The film of gap `g`: the weights of its mouths at each of its cells (see the module
@@ -170,15 +163,13 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
     if mouths.is_empty() {
         return no_film();
     }
-    // A layer reaches a cell within its size of the cell's centroid.
-    let height = |c: usize, x: &[f64; D]| {
-        let size = cell_size(mesh, c);
-        film_height(layers, x, size).unwrap_or(size)
-    };
-    let permeability: HashMap<usize, f64> = cells.iter().zip(&centroids).map(|(&c, x)| (c, height(c, x).powi(2))).collect();
+    // A layer reaches a cell within its size (the height of open fluid there) of its centroid.
+    let sizes: Vec<f64> = cells.iter().map(|&c| cell_size(mesh, c)).collect();
+    let height = |x: &[f64; D], size: f64| film_height(layers, x, size).unwrap_or(size);
+    let permeability: HashMap<usize, f64> = cells.iter().zip(centroids.iter().zip(&sizes)).map(|(&c, (x, &s))| (c, height(x, s).powi(2))).collect();
     // Relative to the open fluid's too: a gap whose cells all lie by the solid lying on its plane
     // (`h = 0` throughout) is sealed evenly.
-    let open = cells.iter().map(|&c| cell_size(mesh, c).powi(2)).fold(0.0, f64::max);
+    let open = sizes.iter().map(|s| s.powi(2)).fold(0.0, f64::max);
     let floor = LEAST_PERMEABILITY * permeability.values().copied().fold(open, f64::max);
     let k = |c: usize| permeability.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(floor);
     let local: HashMap<usize, usize> = cells.iter().enumerate().map(|(i, &c)| (c, i)).collect();
