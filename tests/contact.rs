@@ -714,6 +714,92 @@ fn reynolds_films_carry_the_mean_of_their_gaps_mouths() {
     assert!(solid_entries > 0 && worst < 1e-6, "{worst}");
 }
 
+/// The films' squeeze (`[solid] film_squeeze = true`, with `film_pressure = "reynolds"` only):
+/// [`flat_film_case`]'s strip on its stop. Every film's resistance is `12 mu s` (`s` its cut
+/// side's squeeze, positive); the strip moved down into its films by `delta` raises each film's
+/// pressure by `r a delta` over its mouths' mean (`v_n = a delta`, the step's `a = 1 / dt`);
+/// and the squeeze's part of the Jacobian (the system with the squeeze less the one without)
+/// matches central differences of its part of the residual in the solid's columns, where it
+/// puts entries. (A facet's velocity summed over its components in place of `v . n` fails the
+/// rise; the squeeze's columns left out of the assembly fail the Jacobian's.) Asked for with
+/// another `film_pressure`, the squeeze is refused.
+#[test]
+fn squeezed_films_resist_the_solid_moving_into_them() {
+    use fdfsi::case::Case;
+    use fdfsi::discretize::fsi::{FsiState, StepStart};
+    use fdfsi::fem::gmsh::AnyMesh;
+    let squeezed = |rule: &str, on: bool| {
+        let text = flat_film_case(rule);
+        text.replace(&format!("film_pressure = \"{rule}\""), &format!("film_pressure = \"{rule}\"\nfilm_squeeze = {on}"))
+    };
+    let refused = Case::from_toml_str(&squeezed("nearest-mouth", true), "film.toml").unwrap().validate("film.toml").unwrap_err().to_string();
+    assert!(refused.contains("film_squeeze") && refused.contains("reynolds"), "{refused}");
+    let cases = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases");
+    let model_of = |on: bool| {
+        let case = Case::from_toml_str(&squeezed("reynolds", on), "film.toml").unwrap();
+        let AnyMesh::D2(mesh) = fdfsi::setup::build_mesh(&case, &cases).unwrap() else { panic!("a 2D mesh") };
+        fdfsi::setup::fsi_model::<2>(&case, &mesh, &cases).unwrap()
+    };
+    let (model, plain) = (model_of(true), model_of(false));
+    let state = FsiState::at_rest(&model);
+    let (start, start0) = (StepStart::new(&model, &state, 0.1).unwrap(), StepStart::new(&plain, &state, 0.1).unwrap());
+    let (disc, disc0) = (&start.disc, &start0.disc);
+    assert!(disc.films.len() > 8 && disc.films.len() == disc.adapted.cut_sides.len(), "{} films", disc.films.len());
+    for (film, side) in disc.films.iter().zip(&disc.adapted.cut_sides) {
+        assert!(side.squeeze > 0.0 && film.squeeze == 12.0 * side.squeeze, "viscosity 1: r = 12 s, {} {}", film.squeeze, side.squeeze);
+    }
+    assert!(disc0.films.iter().all(|f| f.squeeze == 0.0), "no squeeze unless asked");
+    // The strip moved down by delta, into the films below it.
+    let input = start.input(&state);
+    let (os, n) = (disc.solid_offset(), disc.num_dofs());
+    let sf = model.solid.displacement_field();
+    let delta = 1e-3;
+    let mut x = start.x.clone();
+    for node in 0..sf.nodes.num_nodes {
+        x[os + sf.dof(node, 1)] -= delta;
+    }
+    let mut columns = Vec::new();
+    let mut worst: f64 = 0.0;
+    for film in &disc.films {
+        let rise = disc.film_pressure(&model, film, &x, input.a, None, &mut columns) - film.pressure_at(&x);
+        let expected = film.squeeze * input.a * delta * -film.normal[1];
+        worst = worst.max((rise - expected).abs() / expected.abs());
+    }
+    println!("squeeze: the films' rise off r a delta by {worst:.2e} (relative)");
+    assert!(worst < 1e-9, "{worst}");
+    // The squeeze's Jacobian against central differences of its residual.
+    let part = |x: &[f64]| -> Vec<f64> {
+        let (r, r0) = (disc.residual(&model, &input, x).unwrap(), disc0.residual(&plain, &start0.input(&state), x).unwrap());
+        r.iter().zip(&r0).map(|(a, b)| a - b).collect()
+    };
+    let (mut k, mut k0) = (fdfsi::fem::sparse::CscMatrix::zeros(disc.whole_pattern()), fdfsi::fem::sparse::CscMatrix::zeros(disc0.whole_pattern()));
+    let mut rhs = vec![0.0; n];
+    disc.assemble(&model, &input, &x, &vec![false; n], &mut k, &mut rhs).unwrap();
+    disc0.assemble(&plain, &start0.input(&state), &x, &vec![false; n], &mut k0, &mut rhs).unwrap();
+    let mut cols: Vec<usize> = Vec::new();
+    for film in &disc.films {
+        disc.film_pressure(&model, film, &x, input.a, None, &mut columns);
+        cols.extend(columns.iter().map(|&(j, _)| j));
+    }
+    cols.sort_unstable();
+    cols.dedup();
+    let (mut worst, mut entries, mut largest) = (0.0f64, 0, 0.0f64);
+    for &j in &cols {
+        let (mut xp, mut xm) = (x.clone(), x.clone());
+        xp[j] += 1e-4;
+        xm[j] -= 1e-4;
+        let (rp, rm) = (part(&xp), part(&xm));
+        for i in 0..n {
+            let (fd, kij) = ((rp[i] - rm[i]) / 2e-4, k.get(i, j) - k0.get(i, j));
+            entries += usize::from(kij != 0.0);
+            largest = largest.max(kij.abs());
+            worst = worst.max((fd - kij).abs());
+        }
+    }
+    println!("the squeeze's {} columns: max |K - FD| = {worst:.2e} against entries up to {largest:.2e}, {entries} entries", cols.len());
+    assert!(entries > 0 && worst < 1e-8 * largest, "{worst} {largest}");
+}
+
 /// `films.vtu` of `fdfsi adapt --at` the checkpoint after one step of [`flat_film_case`] (films at
 /// `film_pressure = rule`) in a flow from the inlet's pressure 2 to the outlet's 1.
 fn films_in_a_drop_at_a_checkpoint(rule: &str) -> fdfsi::fem::vtk::UnstructuredGrid {

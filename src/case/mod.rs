@@ -241,6 +241,11 @@ pub struct SolidSpec {
     /// [`crate::discretize::fsi::FilmPressure`]).
     #[serde(default, skip_serializing_if = "is_default")]
     pub film_pressure: crate::discretize::fsi::FilmPressure,
+    /// With `film_pressure = "reynolds"`: the films' squeeze term too, `12 mu dh/dt` in
+    /// Reynolds' equation (lumped to each facet, a damper against the solid's motion normal to
+    /// the film: [`crate::discretize::fsi::FilmLoad::squeeze`]); default false.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub film_squeeze: bool,
     /// The paper's eps_hat in (0, 0.5]: a cut closer than eps_hat |edge| to a node moves the node.
     #[serde(default = "default_eps_hat")]
     pub eps_hat: f64,
@@ -1308,7 +1313,7 @@ impl Case {
     }
 
     /// The first (or only) solid: with several, the options of the whole solid are its (`model`
-    /// as fixed or not, `multiplier`, `covered_fluid`, `film_pressure`, `eps_hat`, `min_move_quality`, `boundary_cuts`,
+    /// as fixed or not, `multiplier`, `covered_fluid`, `film_pressure`, `film_squeeze`, `eps_hat`, `min_move_quality`, `boundary_cuts`,
     /// `min_cut_quality`, `loading`; validation holds them
     /// equal).
     pub fn first_solid(&self) -> Option<&SolidSpec> {

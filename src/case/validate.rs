@@ -459,11 +459,12 @@ fn solids(c: &Case, p: &mut Problems) {
     }
     // Each option of the whole solid as a text to compare.
     type Spelled = fn(&SolidSpec) -> String;
-    let shared: [(&str, Spelled); 9] = [
+    let shared: [(&str, Spelled); 10] = [
         ("model (fixed or a material law)", |s| (s.model == SolidModel::Fixed).to_string()),
         ("multiplier", |s| spelled(&s.multiplier)),
         ("covered_fluid", |s| spelled(&s.covered_fluid)),
         ("film_pressure", |s| spelled(&s.film_pressure)),
+        ("film_squeeze", |s| s.film_squeeze.to_string()),
         ("eps_hat", |s| s.eps_hat.to_string()),
         ("min_move_quality", |s| s.min_move_quality.to_string()),
         ("boundary_cuts", |s| spelled(&s.boundary_cuts)),
@@ -536,6 +537,9 @@ fn solid(c: &Case, solid: &SolidSpec, p: &mut Problems) {
         p.push("solid.fibres reinforce a material law: give solid.model (e.g. \"neo-hookean\")");
     } else if !solid.contact.is_empty() {
         p.push("solid.contact needs a deforming solid: give solid.model (e.g. \"neo-hookean\")");
+    }
+    if solid.film_squeeze && solid.film_pressure != crate::discretize::fsi::FilmPressure::Reynolds {
+        p.push("solid.film_squeeze is the squeeze term of Reynolds' equation: it needs film_pressure = \"reynolds\"");
     }
     if solid.multiplier == MultiplierSpace::P1DiscontinuousTraceMode && c.dim() == 3 {
         p.push("solid.multiplier = \"p1-discontinuous-trace-mode\" is 2D only (plane or axisymmetric)");

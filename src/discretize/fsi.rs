@@ -220,6 +220,9 @@ pub struct FsiModel<const D: usize> {
     pub covered_fluid: CoveredFluid,
     /// Whose pressure the films in closed gaps carry (default: the nearest mouth's).
     pub film_pressure: FilmPressure,
+    /// With [`FilmPressure::Reynolds`], the films' squeeze term too (default: off, the
+    /// quasi-static film): see [`FilmLoad::squeeze`].
+    pub film_squeeze: bool,
     /// Where the fluid is cut off once each contact of the solid closes ([`remove_closed_gaps`]),
     /// in the order of the solid problem's contacts.
     pub closed_gaps: Vec<ClosedGap<D>>,
@@ -267,6 +270,12 @@ impl<const D: usize> FsiModel<D> {
     /// The model with the films in closed gaps at the pressure `film_pressure` says.
     pub fn with_film_pressure(mut self, film_pressure: FilmPressure) -> Self {
         self.film_pressure = film_pressure;
+        self
+    }
+
+    /// The model with the films' squeeze term on or off ([`FsiModel::film_squeeze`]).
+    pub fn with_film_squeeze(mut self, film_squeeze: bool) -> Self {
+        self.film_squeeze = film_squeeze;
         self
     }
 
@@ -324,6 +333,7 @@ impl<const D: usize> FsiModel<D> {
             multiplier: MultiplierSpace::default(),
             covered_fluid: CoveredFluid::default(),
             film_pressure: FilmPressure::default(),
+            film_squeeze: false,
             closed_gaps,
             solid_part,
         })
@@ -347,6 +357,18 @@ impl<const D: usize> FsiModel<D> {
             side.film.clone()
         } else {
             side.mouth.map(|m| (m, 1.0)).into_iter().collect()
+        }
+    }
+
+    /// The film's squeeze resistance on `side`, `12 mu s` ([`FilmLoad::squeeze`], `s` its
+    /// [`CutSide::squeeze`]): with [`FsiModel::film_squeeze`] and the films by Reynolds'
+    /// equation, where the side has its gap's film; else 0.
+    pub fn film_squeeze_resistance(&self, side: &CutSide<D>) -> f64 {
+        let on = self.film_squeeze && self.film_pressure == FilmPressure::Reynolds && !side.film.is_empty();
+        if on {
+            12.0 * self.problem.fluid.params.viscosity * side.squeeze
+        } else {
+            0.0
         }
     }
 
@@ -852,6 +874,7 @@ fn film_loads<const D: usize>(model: &FsiModel<D>, adapted: &Adapted<D>, pressur
             element: side.facet,
             normal: side.normal,
             pressure: model.film_weights(side).iter().map(|&(m, w)| (unknown(m), w)).collect(),
+            squeeze: model.film_squeeze_resistance(side),
         })
         .filter(|film| !film.pressure.is_empty())
         .collect();
@@ -1011,6 +1034,13 @@ pub struct FilmLoad<const D: usize> {
     /// The film's pressure, `(unknown, weight)` pairs whose weights sum to one: the unknowns of
     /// mouth cells' pressures at their centroids.
     pub pressure: Vec<(usize, f64)>,
+    /// The squeeze resistance `r = 12 mu s` (0: the quasi-static film): the film's pressure
+    /// rises by `r v_n`, `v_n` the solid's velocity into the film averaged over the facet,
+    /// `v_n = n . (int_e v ds) / |e|` (Reynolds' squeeze term lumped to the facet: see
+    /// [`CutSide::squeeze`]). With `v = a (Delta u - d)` of the step's scheme the load's Jacobian
+    /// in the solid's columns is `r a (int_e phi_i n ds) (int_e phi_j n ds) / |e|` (symmetric,
+    /// positive semi-definite: a damper on the film's facet).
+    pub squeeze: f64,
 }
 
 impl<const D: usize> FilmLoad<D> {
@@ -1653,9 +1683,24 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
-        // The films' loads on the solid: `R_s += int p n . w ds`, linear in the mouths' `p_k`.
+        // The films' loads on the solid: `R_s += int p n . w ds`, linear in the mouths' `p_k`
+        // and, with the squeeze, in the solid's velocity on the facet.
+        let mut squeeze_columns = Vec::new();
         for film in &self.films {
-            let (e, p) = (film.element, film.pressure_at(x));
+            let e = film.element;
+            let p = self.film_pressure(model, film, x, input.a, input.solid_shift, &mut squeeze_columns);
+            // The squeeze's damper `r a g_i g_j / |e|`, `g = int_e phi n ds`, by each dof once.
+            if !squeeze_columns.is_empty() {
+                let scale = film.squeeze * input.a / self.film_area(film);
+                for &(row, gi) in &squeeze_columns {
+                    if constrained[row] || !target.holds(row) {
+                        continue;
+                    }
+                    for &(col, gj) in &squeeze_columns {
+                        target.add_matrix(row, col, scale * gi * gj);
+                    }
+                }
+            }
             for q in c.point_start[e]..c.point_start[e + 1] {
                 for (i, &node) in sf.nodes.cell(c.solid_cell[q]).iter().enumerate() {
                     for a in 0..D {
@@ -1885,14 +1930,68 @@ impl<const D: usize> FsiDiscretization<D> {
         }
     }
 
-    /// Force of the films on the body at `x`, `int -p n ds` over their facets ([`FilmLoad`];
-    /// axisymmetric: times `2 pi`).
-    pub fn film_force(&self, x: &[f64], formulation: crate::physics::fluid::Formulation) -> [f64; D] {
+    /// The measure `|e|` of a film's facet (the sum of its coupling points' weights).
+    fn film_area(&self, film: &FilmLoad<D>) -> f64 {
         let c = &self.coupling;
+        c.weight[c.point_start[film.element]..c.point_start[film.element + 1]].iter().sum()
+    }
+
+    /// The pressure of `film` at `x` ([`FilmLoad`]): its mouths' mean `sum_k w_k p_k` and, with
+    /// its squeeze, `r v_n`, `v_n = (g . v) / |e|` the solid's velocity `v = a (Delta u - d)`
+    /// (`d` the scheme's `shift`, none: 0) into the film averaged over the facet. `columns` is
+    /// set to `g`, `int_e phi_j n ds` at each of the solid's displacement unknowns `j` under the
+    /// facet (`(unknown, g_j)`, each once, ascending; none without the squeeze): `dp/dx_j = r a
+    /// g_j / |e|`.
+    pub fn film_pressure(
+        &self,
+        model: &FsiModel<D>,
+        film: &FilmLoad<D>,
+        x: &[f64],
+        a: f64,
+        shift: Option<&[f64]>,
+        columns: &mut Vec<(usize, f64)>,
+    ) -> f64 {
+        columns.clear();
+        let p = film.pressure_at(x);
+        if film.squeeze == 0.0 {
+            return p;
+        }
+        let (c, sf, os) = (&self.coupling, model.solid.displacement_field(), self.solid_offset());
+        for q in c.point_start[film.element]..c.point_start[film.element + 1] {
+            for (j, &node) in sf.nodes.cell(c.solid_cell[q]).iter().enumerate() {
+                for b in 0..D {
+                    columns.push((os + sf.dof(node, b), c.weight[q] * c.phi_s[q * c.ns + j] * film.normal[b]));
+                }
+            }
+        }
+        columns.sort_unstable_by_key(|&(j, _)| j);
+        columns.dedup_by(|later, kept| {
+            let same = later.0 == kept.0;
+            if same {
+                kept.1 += later.1;
+            }
+            same
+        });
+        let flux: f64 = columns.iter().map(|&(j, g)| g * (x[j] - shift.map_or(0.0, |d| d[j - os]))).sum();
+        p + film.squeeze * a * flux / self.film_area(film)
+    }
+
+    /// Force of the films on the body at `x`, `int -p n ds` over their facets ([`FilmLoad`],
+    /// their squeeze with the step's `a` and `shift`: [`Self::film_pressure`]; axisymmetric:
+    /// times `2 pi`).
+    pub fn film_force(
+        &self,
+        model: &FsiModel<D>,
+        x: &[f64],
+        a: f64,
+        shift: Option<&[f64]>,
+        formulation: crate::physics::fluid::Formulation,
+    ) -> [f64; D] {
         let mut f = [0.0; D];
+        let mut columns = Vec::new();
         for film in &self.films {
-            let area: f64 = c.weight[c.point_start[film.element]..c.point_start[film.element + 1]].iter().sum();
-            let p = film.pressure_at(x);
+            let area = self.film_area(film);
+            let p = self.film_pressure(model, film, x, a, shift, &mut columns);
             for a in 0..D {
                 f[a] -= area * p * film.normal[a];
             }
@@ -2524,7 +2623,7 @@ pub fn step_with<const D: usize>(
         max_coupling_distance: disc.coupling.max_distance,
         max_relative_coupling_distance: disc.coupling.max_relative_distance,
         multiplier_force: disc.multiplier_force(&x, fluid.formulation).to_vec(),
-        film_force: disc.film_force(&x, fluid.formulation).to_vec(),
+        film_force: disc.film_force(model, &x, a, solid_shift.as_deref(), fluid.formulation).to_vec(),
         films: disc.films.len(),
         max_solid_increment,
         seconds,

@@ -22,5 +22,6 @@ pub fn fsi_model<const D: usize>(case: &Case, fluid_mesh: &Mesh<D>, case_dir: &s
         .with_multiplier(spec.multiplier)
         .with_covered_fluid(spec.covered_fluid)
         .with_film_pressure(spec.film_pressure)
+        .with_film_squeeze(spec.film_squeeze)
         .with_cut_offs(&cut_offs))
 }

@@ -25,6 +25,14 @@
 //! maximum principle), linear in them: where the gap narrows to a seal the weights switch from
 //! one side's mouths to the other's; where it is even they fall off with the distance along
 //! it; and no single mouth cell decides the film's load unless the film opens to it alone.
+//!
+//! A film whose height changes carries, besides, the squeeze term: with the solid's faces on
+//! the gap moving into it at `v_n`, `div (h^3 grad p) = 12 mu dh/dt` and the film's pressure rises
+//! by `12 mu G (v_n dA)`, `G` the film's Green's function with the mouths held. Lumped, as a
+//! mass matrix is, to its row sums, this is `12 mu s v_n` at each cell, `s` the film's pressure
+//! (per `12 mu`) when every face on the gap moves into it at unit speed ([`CellFilm::squeeze`]): the
+//! same system with each cell's source the measure of its facets on gamma_f, the mouths at zero.
+//! For an even film of height `h` between mouths `2 L` apart, `s = (L^2 - x^2) / (2 h^3)`.
 
 use super::{cell_size, FacetGraph, Gaps};
 use crate::adapt::geom::{dist2, dot, sub};
@@ -47,6 +55,12 @@ const LEAST_WEIGHT: f64 = 1e-3;
 /// seal's).
 const LEAST_PERMEABILITY: f64 = 1e-12;
 
+/// The squeeze sees no film thinner than this fraction of its cell's size: thinner films, where
+/// the solid touches its plane, would glue it there (Stefan's adhesion, `p ~ 1 / h^3`, which
+/// real films escape by cavitating), and their resistance would swamp the system's other
+/// entries.
+const SQUEEZE_LEAST_HEIGHT: f64 = 0.05;
+
 /// The film's pressure at a cut cell: its centroid and its weights over the gap's mouths (the
 /// kept cells' numbering), a mean `p = sum_m w_m p_m`; none where the gap has no mouth, or its
 /// film's system could not be solved (a degenerate cell).
@@ -54,6 +68,10 @@ const LEAST_PERMEABILITY: f64 = 1e-12;
 pub(super) struct CellFilm<const D: usize> {
     pub centroid: [f64; D],
     pub weights: Vec<(usize, f64)>,
+    /// The film's pressure per `12 mu` at the cell when the gap's faces on gamma_f all move
+    /// into it at unit speed, its mouths' pressures zero (the squeeze term lumped, module
+    /// documentation); a length's inverse, `>= 0`; 0 where there is no film.
+    pub squeeze: f64,
 }
 
 /// The films of a cut's closed gaps ([`Gaps`]), cell by cell.
@@ -152,57 +170,38 @@ fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
     dist2(a, b).sqrt()
 }
 
-/// The film of gap `g`: the weights of its mouths at each of its cells (see the module
-/// documentation). A gap without mouths has no film (empty weights).
+/// The film of gap `g`: the weights of its mouths and its squeeze at each of its cells (see the
+/// module documentation). A gap without mouths has no film (empty weights).
 fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gaps, layers: &[Vec<[f64; D]>], g: usize) -> Vec<CellFilm<D>> {
     let mesh = &adapted.mesh;
-    let ct = mesh.cell_type;
     let (cells, mouths) = (&gaps.cells[g], &gaps.mouths[g]);
     let centroids: Vec<[f64; D]> = cells.iter().map(|&c| mesh.vertex_centroid(c)).collect();
-    let no_film = || centroids.iter().map(|&centroid| CellFilm { centroid, weights: Vec::new() }).collect();
+    let no_film = || centroids.iter().map(|&centroid| CellFilm { centroid, weights: Vec::new(), squeeze: 0.0 }).collect();
     if mouths.is_empty() {
         return no_film();
     }
     // A layer reaches a cell within its size (the height of open fluid there) of its centroid.
     let sizes: Vec<f64> = cells.iter().map(|&c| cell_size(mesh, c)).collect();
-    let height = |x: &[f64; D], size: f64| film_height(layers, x, size).unwrap_or(size);
-    let permeability: HashMap<usize, f64> = cells.iter().zip(centroids.iter().zip(&sizes)).map(|(&c, (x, &s))| (c, height(x, s).powi(2))).collect();
-    // Relative to the open fluid's too: a gap whose cells all lie by the solid lying on its plane
-    // (`h = 0` throughout) is sealed evenly.
+    let heights: HashMap<usize, (f64, f64)> =
+        cells.iter().zip(centroids.iter().zip(&sizes)).map(|(&c, (x, &size))| (c, (film_height(layers, x, size).unwrap_or(size), size))).collect();
+    // The mouths' weights: relative to the open fluid's too, a gap whose cells all lie by the
+    // solid lying on its plane (`h = 0` throughout) is sealed evenly.
     let open = sizes.iter().map(|s| s.powi(2)).fold(0.0, f64::max);
-    let floor = LEAST_PERMEABILITY * permeability.values().copied().fold(open, f64::max);
-    let k = |c: usize| permeability.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(floor);
-    let local: HashMap<usize, usize> = cells.iter().enumerate().map(|(i, &c)| (c, i)).collect();
-    let (n, m) = (cells.len(), mouths.len());
-    let mut matrix = Vec::new();
-    let mut rhs = Mat::<f64>::zeros(n, m);
-    let FacetGraph { topology, on_gamma_f } = graph;
-    for (i, &c) in cells.iter().enumerate() {
-        for f in (0..ct.num_facets()).filter(|&f| !on_gamma_f.contains(&topology.facet(ct, c, f))) {
-            let Some(nb) = topology.neighbour(ct, c, f) else { continue };
-            let corners = facet_corners(mesh, c, f);
-            let at: [f64; D] = std::array::from_fn(|d| corners.iter().map(|x| x[d]).sum::<f64>() / D as f64);
-            let resistance = |cell: usize, x: &[f64; D]| distance(x, &at) / k(cell);
-            let t = piece_measure(&corners) / (resistance(c, &centroids[i]) + resistance(nb, &mesh.vertex_centroid(nb)));
-            matrix.push(Triplet::new(i, i, t));
-            match local.get(&nb) {
-                Some(&j) => matrix.push(Triplet::new(i, j, -t)),
-                None => {
-                    let mouth = mouths.binary_search(&gaps.kept_index[nb]).expect("a kept neighbour of a gap's cell is one of its mouths");
-                    rhs[(i, mouth)] += t;
-                }
-            }
-        }
-    }
-    let solved = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &matrix)
-        .ok()
-        .and_then(|a| a.sp_cholesky(Side::Lower).ok())
-        .map(|llt| llt.solve(&rhs));
+    let floor = LEAST_PERMEABILITY * heights.values().map(|(h, _)| h * h).fold(open, f64::max);
+    let weights =
+        FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| heights.get(&c).map_or_else(|| cell_size(mesh, c).powi(2), |(h, _)| h * h).max(floor))
+            .solve(true);
+    // The squeeze: no film thinner than its cell's `SQUEEZE_LEAST_HEIGHT`.
+    let squeeze_height = |(h, size): (f64, f64)| h.max(SQUEEZE_LEAST_HEIGHT * size);
+    let squeeze =
+        FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| heights.get(&c).map_or_else(|| cell_size(mesh, c), |&hs| squeeze_height(hs)).powi(2))
+            .solve(false);
     // Definite unless a cell is degenerate (no permeability anywhere): then the caller's
     // fallback, the nearest mouth.
-    let Some(w) = solved.filter(|w| (0..n).all(|i| (0..m).all(|j| w[(i, j)].is_finite()))) else {
+    let (Some(w), Some(s)) = (weights, squeeze) else {
         return no_film();
     };
+    let m = mouths.len();
     centroids
         .into_iter()
         .enumerate()
@@ -211,7 +210,61 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
             let sum: f64 = row.iter().sum();
             let kept: Vec<(usize, f64)> = row.iter().enumerate().filter(|(_, &v)| v >= LEAST_WEIGHT * sum).map(|(j, &v)| (mouths[j], v)).collect();
             let total: f64 = kept.iter().map(|(_, v)| v).sum();
-            CellFilm { centroid, weights: kept.into_iter().map(|(mouth, v)| (mouth, v / total)).collect() }
+            let weights = kept.into_iter().map(|(mouth, v)| (mouth, v / total)).collect();
+            CellFilm { centroid, weights, squeeze: s[(i, 0)].max(0.0) }
         })
         .collect()
+}
+
+/// The two-point flux system of a gap's film (module documentation) with the permeability
+/// `k(cell)`: its matrix, and the right-hand sides of its mouths (a column each, the mouth's
+/// pressure one and the others' zero) and of the squeeze (the measure of each cell's facets on
+/// gamma_f, every mouth's pressure zero).
+struct FilmSystem {
+    matrix: Vec<Triplet<usize, usize, f64>>,
+    mouths: Mat<f64>,
+    squeeze: Mat<f64>,
+}
+
+impl FilmSystem {
+    fn new<const D: usize>(mesh: &Mesh<D>, graph: &FacetGraph, cells: &[usize], mouths: &[usize], gaps: &Gaps, k: impl Fn(usize) -> f64) -> Self {
+        let ct = mesh.cell_type;
+        let local: HashMap<usize, usize> = cells.iter().enumerate().map(|(i, &c)| (c, i)).collect();
+        let n = cells.len();
+        let mut out = FilmSystem { matrix: Vec::new(), mouths: Mat::zeros(n, mouths.len()), squeeze: Mat::zeros(n, 1) };
+        let FacetGraph { topology, on_gamma_f } = graph;
+        for (i, &c) in cells.iter().enumerate() {
+            let centroid = mesh.vertex_centroid(c);
+            for f in 0..ct.num_facets() {
+                let corners = facet_corners(mesh, c, f);
+                if on_gamma_f.contains(&topology.facet(ct, c, f)) {
+                    out.squeeze[(i, 0)] += piece_measure(&corners);
+                    continue;
+                }
+                let Some(nb) = topology.neighbour(ct, c, f) else { continue };
+                let at: [f64; D] = std::array::from_fn(|d| corners.iter().map(|x| x[d]).sum::<f64>() / D as f64);
+                let resistance = |cell: usize, x: &[f64; D]| distance(x, &at) / k(cell);
+                let t = piece_measure(&corners) / (resistance(c, &centroid) + resistance(nb, &mesh.vertex_centroid(nb)));
+                out.matrix.push(Triplet::new(i, i, t));
+                match local.get(&nb) {
+                    Some(&j) => out.matrix.push(Triplet::new(i, j, -t)),
+                    None => {
+                        let mouth = mouths.binary_search(&gaps.kept_index[nb]).expect("a kept neighbour of a gap's cell is one of its mouths");
+                        out.mouths[(i, mouth)] += t;
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The solution for the mouths' right-hand sides (`mouths`) or the squeeze's; `None` where
+    /// the matrix is not definite or the solution not finite.
+    fn solve(&self, mouths: bool) -> Option<Mat<f64>> {
+        let n = self.squeeze.nrows();
+        let rhs = if mouths { &self.mouths } else { &self.squeeze };
+        let llt = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &self.matrix).ok()?.sp_cholesky(Side::Lower).ok()?;
+        let x = llt.solve(rhs);
+        (0..n).all(|i| (0..x.ncols()).all(|j| x[(i, j)].is_finite())).then_some(x)
+    }
 }
