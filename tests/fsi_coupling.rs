@@ -373,14 +373,7 @@ fn removed_3d_multiplier_modes_span_the_null_space_of_the_pairing() {
         }
     }
     for row in rows.values_mut() {
-        row.sort_unstable_by_key(|&(i, _)| i);
-        row.dedup_by(|b, a| {
-            let same = a.0 == b.0;
-            if same {
-                a.1 += b.1;
-            }
-            same
-        });
+        fdfsi::fem::sparse::sum_duplicates(row);
         for &(i, u) in row.iter() {
             for &(j, v) in row.iter() {
                 gram[(i, j)] += u * v;

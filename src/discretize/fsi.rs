@@ -1964,14 +1964,7 @@ impl<const D: usize> FsiDiscretization<D> {
                 }
             }
         }
-        columns.sort_unstable_by_key(|&(j, _)| j);
-        columns.dedup_by(|later, kept| {
-            let same = later.0 == kept.0;
-            if same {
-                kept.1 += later.1;
-            }
-            same
-        });
+        fdfsi_fem::sparse::sum_duplicates(columns);
         let flux: f64 = columns.iter().map(|&(j, g)| g * (x[j] - shift.map_or(0.0, |d| d[j - os]))).sum();
         p + film.squeeze * a * flux / self.film_area(film)
     }

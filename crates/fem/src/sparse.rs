@@ -851,6 +851,19 @@ unsafe fn scatter_rows(
     }
 }
 
+/// Sorts the `(index, value)` entries of a sparse vector by index and sums the values of equal
+/// indices into one entry each.
+pub fn sum_duplicates(entries: &mut Vec<(usize, f64)>) {
+    entries.sort_unstable_by_key(|&(i, _)| i);
+    entries.dedup_by(|later, kept| {
+        let same = later.0 == kept.0;
+        if same {
+            kept.1 += later.1;
+        }
+        same
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -858,6 +871,13 @@ mod tests {
     /// The pattern built by chunks of columns equals the union of the cells' dofs per column, on
     /// several chunks (a chain of 3 x 10^5 dofs), with unused dofs (their diagonal only), and on
     /// no dofs.
+    #[test]
+    fn duplicates_sum_into_one_entry_each() {
+        let mut v = vec![(3, 1.0), (1, 2.0), (3, 0.5), (0, 1.0), (1, -2.0)];
+        sum_duplicates(&mut v);
+        assert_eq!(v, vec![(0, 1.0), (1, 0.0), (3, 1.5)]);
+    }
+
     #[test]
     fn pattern_from_cells_is_the_union_of_the_cells_dofs() {
         let n = 3 * MIN_CHUNK + 7;
