@@ -762,6 +762,7 @@ fn squeezed_films_resist_the_solid_moving_into_them() {
     let mut worst: f64 = 0.0;
     for film in &disc.films {
         let rise = disc.film_pressure(&model, film, &x, input.a, None, &mut columns) - film.pressure_at(&x);
+        assert!(film.normal[1] < -0.99, "the films lie below the strip: {:?}", film.normal);
         let expected = film.squeeze * input.a * delta * -film.normal[1];
         worst = worst.max((rise - expected).abs() / expected.abs());
     }
@@ -793,11 +794,11 @@ fn squeezed_films_resist_the_solid_moving_into_them() {
             let (fd, kij) = ((rp[i] - rm[i]) / 2e-4, k.get(i, j) - k0.get(i, j));
             entries += usize::from(kij != 0.0);
             largest = largest.max(kij.abs());
-            worst = worst.max((fd - kij).abs());
+            worst = worst.max((fd - kij).abs() / (1.0 + kij.abs()));
         }
     }
-    println!("the squeeze's {} columns: max |K - FD| = {worst:.2e} against entries up to {largest:.2e}, {entries} entries", cols.len());
-    assert!(entries > 0 && worst < 1e-8 * largest, "{worst} {largest}");
+    println!("the squeeze's {} columns: max |K - FD| / (1 + |K|) = {worst:.2e}, entries up to {largest:.2e}, {entries} entries", cols.len());
+    assert!(entries > 0 && worst < 1e-7, "{worst} {largest}");
 }
 
 /// `films.vtu` of `fdfsi adapt --at` the checkpoint after one step of [`flat_film_case`] (films at

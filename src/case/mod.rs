@@ -242,7 +242,7 @@ pub struct SolidSpec {
     #[serde(default, skip_serializing_if = "is_default")]
     pub film_pressure: crate::discretize::fsi::FilmPressure,
     /// With `film_pressure = "reynolds"`: the films' squeeze term too, `12 mu dh/dt` in
-    /// Reynolds' equation (lumped to each facet, a damper against the solid's motion normal to
+    /// Reynolds' equation (taken at each facet alone, a damper against the solid's motion normal to
     /// the film: [`crate::discretize::fsi::FilmLoad::squeeze`]); default false.
     #[serde(default, skip_serializing_if = "is_default")]
     pub film_squeeze: bool,

@@ -1036,7 +1036,7 @@ pub struct FilmLoad<const D: usize> {
     pub pressure: Vec<(usize, f64)>,
     /// The squeeze resistance `r = 12 mu s` (0: the quasi-static film): the film's pressure
     /// rises by `r v_n`, `v_n` the solid's velocity into the film averaged over the facet,
-    /// `v_n = n . (int_e v ds) / |e|` (Reynolds' squeeze term lumped to the facet: see
+    /// `v_n = n . (int_e v ds) / |e|` (Reynolds' squeeze term taken at the facet alone: see
     /// [`CutSide::squeeze`]). With `v = a (Delta u - d)` of the step's scheme the load's Jacobian
     /// in the solid's columns is `r a (int_e phi_i n ds) (int_e phi_j n ds) / |e|` (symmetric,
     /// positive semi-definite: a damper on the film's facet).

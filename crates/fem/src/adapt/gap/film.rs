@@ -28,11 +28,17 @@
 //!
 //! A film whose height changes carries, besides, the squeeze term: with the solid's faces on
 //! the gap moving into it at `v_n`, `div (h^3 grad p) = 12 mu dh/dt` and the film's pressure rises
-//! by `12 mu G (v_n dA)`, `G` the film's Green's function with the mouths held. Lumped, as a
-//! mass matrix is, to its row sums, this is `12 mu s v_n` at each cell, `s` the film's pressure
-//! (per `12 mu`) when every face on the gap moves into it at unit speed ([`CellFilm::squeeze`]): the
-//! same system with each cell's source the measure of its facets on gamma_f, the mouths at zero.
-//! For an even film of height `h` between mouths `2 L` apart, `s = (L^2 - x^2) / (2 h^3)`.
+//! by `12 mu G (v_n dA)`, `G` the film's Green's function with the mouths held. Taken at each
+//! cell as `12 mu s v_n`, `s = G 1` the film's pressure (per `12 mu`) when every face on the gap
+//! moves into it at unit speed ([`CellFilm::squeeze`]; the same system with each cell's source
+//! the measure of its facets on gamma_f, the mouths at zero), it is exact for a uniform squeeze
+//! (the gap's faces moving as one into it or out of it) and an approximation otherwise: a face
+//! rocking about the gap's middle squeezes one half and opens the other, which this puts on
+//! each half alone, as if the whole gap moved so, a stiffer damper than the film is (`G 1`, the
+//! row sums of `G`, is not local: unlike a lumped mass matrix it does not tend to `G` as the
+//! cells shrink). For an even film of height `h` between mouths `2 L` apart, `s = (L^2 - x^2) /
+//! (2 h^3)`. No film is thinner than a twentieth of its cell for it (where the solid lies on its
+//! plane `h = 0`); in a gap of slivers this floor shrinks with them.
 
 use super::{cell_size, FacetGraph, Gaps};
 use crate::adapt::geom::{dist2, dot, sub};
@@ -191,14 +197,17 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
     let weights =
         FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| heights.get(&c).map_or_else(|| cell_size(mesh, c).powi(2), |(h, _)| h * h).max(floor))
             .solve(true);
-    // The squeeze: no film thinner than its cell's `SQUEEZE_LEAST_HEIGHT`.
-    let squeeze_height = |(h, size): (f64, f64)| h.max(SQUEEZE_LEAST_HEIGHT * size);
-    let squeeze =
-        FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| heights.get(&c).map_or_else(|| cell_size(mesh, c), |&hs| squeeze_height(hs)).powi(2))
-            .solve(false);
+    // The squeeze: no film thinner than its cell's `SQUEEZE_LEAST_HEIGHT`, nor a permeability
+    // below the weights' floor relative to its gap's.
+    let squeeze_k: HashMap<usize, f64> = heights.iter().map(|(&c, &(h, size))| (c, h.max(SQUEEZE_LEAST_HEIGHT * size).powi(2))).collect();
+    let squeeze_floor = LEAST_PERMEABILITY * squeeze_k.values().copied().fold(open, f64::max);
+    let squeeze = FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| {
+        squeeze_k.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(squeeze_floor)
+    })
+    .solve(false);
     // Definite unless a cell is degenerate (no permeability anywhere): then the caller's
-    // fallback, the nearest mouth.
-    let (Some(w), Some(s)) = (weights, squeeze) else {
+    // fallback, the nearest mouth; a squeeze that cannot be solved is left out (zero).
+    let Some(w) = weights else {
         return no_film();
     };
     let m = mouths.len();
@@ -211,7 +220,7 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
             let kept: Vec<(usize, f64)> = row.iter().enumerate().filter(|(_, &v)| v >= LEAST_WEIGHT * sum).map(|(j, &v)| (mouths[j], v)).collect();
             let total: f64 = kept.iter().map(|(_, v)| v).sum();
             let weights = kept.into_iter().map(|(mouth, v)| (mouth, v / total)).collect();
-            CellFilm { centroid, weights, squeeze: s[(i, 0)].max(0.0) }
+            CellFilm { centroid, weights, squeeze: squeeze.as_ref().map_or(0.0, |s| s[(i, 0)].max(0.0)) }
         })
         .collect()
 }
