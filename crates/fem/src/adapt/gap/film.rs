@@ -75,7 +75,7 @@ pub(super) struct CellFilm<const D: usize> {
     pub centroid: [f64; D],
     pub weights: Vec<(usize, f64)>,
     /// The film's pressure per `12 mu` at the cell when the gap's faces on gamma_f all move
-    /// into it at unit speed, its mouths' pressures zero (the squeeze term lumped, module
+    /// into it at unit speed, its mouths' pressures zero (the squeeze term, module
     /// documentation); a length's inverse, `>= 0`; 0 where there is no film.
     pub squeeze: f64,
 }
@@ -190,21 +190,12 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
     let sizes: Vec<f64> = cells.iter().map(|&c| cell_size(mesh, c)).collect();
     let heights: HashMap<usize, (f64, f64)> =
         cells.iter().zip(centroids.iter().zip(&sizes)).map(|(&c, (x, &size))| (c, (film_height(layers, x, size).unwrap_or(size), size))).collect();
-    // The mouths' weights: relative to the open fluid's too, a gap whose cells all lie by the
-    // solid lying on its plane (`h = 0` throughout) is sealed evenly.
+    // The mouths' weights; the squeeze's, no film thinner than its cell's `SQUEEZE_LEAST_HEIGHT`.
     let open = sizes.iter().map(|s| s.powi(2)).fold(0.0, f64::max);
-    let floor = LEAST_PERMEABILITY * heights.values().map(|(h, _)| h * h).fold(open, f64::max);
-    let weights =
-        FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| heights.get(&c).map_or_else(|| cell_size(mesh, c).powi(2), |(h, _)| h * h).max(floor))
-            .solve(true);
-    // The squeeze: no film thinner than its cell's `SQUEEZE_LEAST_HEIGHT`, nor a permeability
-    // below the weights' floor relative to its gap's.
-    let squeeze_k: HashMap<usize, f64> = heights.iter().map(|(&c, &(h, size))| (c, h.max(SQUEEZE_LEAST_HEIGHT * size).powi(2))).collect();
-    let squeeze_floor = LEAST_PERMEABILITY * squeeze_k.values().copied().fold(open, f64::max);
-    let squeeze = FilmSystem::new(mesh, graph, cells, mouths, gaps, |c| {
-        squeeze_k.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(squeeze_floor)
-    })
-    .solve(false);
+    let permeability = |k: &dyn Fn(f64, f64) -> f64| heights.iter().map(|(&c, &(h, size))| (c, k(h, size))).collect::<HashMap<usize, f64>>();
+    let system = |k: HashMap<usize, f64>| FilmSystem::new(mesh, graph, cells, mouths, gaps, floored(mesh, k, open));
+    let weights = system(permeability(&|h, _| h * h)).solve_mouths();
+    let squeeze = system(permeability(&|h, size| h.max(SQUEEZE_LEAST_HEIGHT * size).powi(2))).solve_squeeze();
     // Definite unless a cell is degenerate (no permeability anywhere): then the caller's
     // fallback, the nearest mouth; a squeeze that cannot be solved is left out (zero).
     let Some(w) = weights else {
@@ -223,6 +214,16 @@ fn gap_film<const D: usize>(adapted: &Adapted<D>, graph: &FacetGraph, gaps: &Gap
             CellFilm { centroid, weights, squeeze: squeeze.as_ref().map_or(0.0, |s| s[(i, 0)].max(0.0)) }
         })
         .collect()
+}
+
+/// The permeability `k(c)` of cell `c`: a gap's cell's from `gap` (the others, its mouths, are
+/// open fluid: their size squared), raised to `LEAST_PERMEABILITY` of the largest of the gap's
+/// and the open fluid's `open` (the cells' largest size squared), so that the film's system
+/// stays definite where the film's height is zero (a gap whose cells all lie by the solid lying
+/// on its plane is sealed evenly).
+fn floored<const D: usize>(mesh: &Mesh<D>, gap: HashMap<usize, f64>, open: f64) -> impl Fn(usize) -> f64 + '_ {
+    let floor = LEAST_PERMEABILITY * gap.values().copied().fold(open, f64::max);
+    move |c| gap.get(&c).copied().unwrap_or_else(|| cell_size(mesh, c).powi(2)).max(floor)
 }
 
 /// The two-point flux system of a gap's film (module documentation) with the permeability
@@ -267,11 +268,19 @@ impl FilmSystem {
         out
     }
 
-    /// The solution for the mouths' right-hand sides (`mouths`) or the squeeze's; `None` where
-    /// the matrix is not definite or the solution not finite.
-    fn solve(&self, mouths: bool) -> Option<Mat<f64>> {
+    /// The solution for the mouths' right-hand sides; `None` where the matrix is not definite
+    /// or the solution not finite.
+    fn solve_mouths(&self) -> Option<Mat<f64>> {
+        self.solve(&self.mouths)
+    }
+
+    /// The solution for the squeeze's right-hand side (as [`Self::solve_mouths`]).
+    fn solve_squeeze(&self) -> Option<Mat<f64>> {
+        self.solve(&self.squeeze)
+    }
+
+    fn solve(&self, rhs: &Mat<f64>) -> Option<Mat<f64>> {
         let n = self.squeeze.nrows();
-        let rhs = if mouths { &self.mouths } else { &self.squeeze };
         let llt = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &self.matrix).ok()?.sp_cholesky(Side::Lower).ok()?;
         let x = llt.solve(rhs);
         (0..n).all(|i| (0..x.ncols()).all(|j| x[(i, j)].is_finite())).then_some(x)
