@@ -106,7 +106,8 @@
 //! kept across Newton iterations and time steps (while the pattern and split are unchanged): a
 //! solve tries the held factors for at most that many Krylov iterations, then factorises the
 //! current matrix and goes on from the iterate reached; after such a failure the next Newton
-//! iteration factorises at once (and the one after tries its factors again). Off by default for
+//! iteration factorises at once (and the one after tries its factors again), after `k` failures
+//! in a row the next `2^(k-1)`, at most 8 ([`HeldFactorTrials`]). Off by default for
 //! steady solves: in 2D the Jacobian changes too much between Newton iterations for the held
 //! factors to pay (Schaefer-Turek 2D-1: no faster with 3 or 6), though in 3D, where the LU
 //! dominates, they do (the 3D cavity at Re 100, `n = 8`, `examples/growth3d`: 21.5 s with 6
@@ -366,9 +367,50 @@ struct Numeric {
     /// A fingerprint of the values of the matrix the held factors are of: a solve with another
     /// matrix (Newton's `reuse_factorization` skips `factorize`) treats them as held factors.
     factored: u64,
-    /// Whether the last try of held factors failed (then the next Newton iteration factorises).
-    stale_failed: bool,
+    /// When held factors are tried again after failing ([`HeldFactorTrials`]).
+    trials: HeldFactorTrials,
     factorizations: usize,
+}
+
+/// Most Newton iterations that factorise at once after held factors failed in a row
+/// ([`HeldFactorTrials`]).
+const MOST_ITERATIONS_WITHOUT_TRIAL: usize = 8;
+
+/// When to try held factors again: after `k` failed tries in a row (each `refactor_iterations`
+/// Krylov iterations lost), the next `2^(k-1)` Newton iterations that could try them, at most
+/// [`MOST_ITERATIONS_WITHOUT_TRIAL`], factorise at once instead; a try that serves resets it, so
+/// an isolated failure costs what it did before (the next iteration factorises). Where the Jacobian changes too much from one
+/// Newton iteration to the next for the held factors to serve (the closed 3D valve, whose
+/// contact set and films change between iterations: 30 Krylov iterations left the residual at
+/// 0.95 in try after try), they are tried ever more seldom, not every other iteration.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct HeldFactorTrials {
+    /// Tries that failed since the last that served.
+    failures: u32,
+    /// Factorisations still to be done at once before the next try.
+    wait: usize,
+}
+
+impl HeldFactorTrials {
+    /// Whether this Newton iteration may try the held factors (else it factorises; counted).
+    fn may_try(&mut self) -> bool {
+        if self.wait > 0 {
+            self.wait -= 1;
+            false
+        } else {
+            true
+        }
+    }
+
+    /// A try that served (`true`) or failed.
+    fn record(&mut self, served: bool) {
+        if served {
+            *self = HeldFactorTrials::default();
+        } else {
+            self.failures += 1;
+            self.wait = (1usize << (self.failures - 1).min(usize::BITS - 1)).min(MOST_ITERATIONS_WITHOUT_TRIAL);
+        }
+    }
 }
 
 /// The AL-preconditioned FGMRES solver; a plain LU ([`FaerLu`]) for systems without a split.
@@ -399,7 +441,7 @@ impl AugmentedLagrangian {
             values: Vec::new(),
             factorized: false,
             factored: 0,
-            stale_failed: false,
+            trials: HeldFactorTrials::default(),
             factorizations: 0,
         };
         AugmentedLagrangian {
@@ -1072,13 +1114,11 @@ impl LinearSolver for AugmentedLagrangian {
         }
         self.update_structure(a)?;
         let num = self.numeric.get_mut();
-        let keep = num.factorized && self.options.refactor_iterations > 0 && !num.stale_failed;
+        let keep = num.factorized && self.options.refactor_iterations > 0 && num.trials.may_try();
         if keep {
             return Ok(());
         }
-        let mut num = self.numeric.borrow_mut();
-        num.stale_failed = false; // the next Newton iteration tries these factors again
-        self.factorize_augmented(a, &mut num)
+        self.factorize_augmented(a, &mut self.numeric.borrow_mut())
     }
 
     fn solve_in_place(&self, a: &CscMatrix<'_>, rhs: &mut [f64]) -> Result<SolveStats, LinearSolveError> {
@@ -1097,7 +1137,7 @@ impl LinearSolver for AugmentedLagrangian {
             // and go on from where they got.
             let report = self.krylov_solve(a, &num, &b, rhs, self.options.refactor_iterations);
             iterations += report.iterations;
-            num.stale_failed = !report.converged;
+            num.trials.record(report.converged);
             if report.converged {
                 return Ok(SolveStats { residual: report.residual, refinements: 0, krylov_iterations: iterations });
             }
@@ -1165,5 +1205,33 @@ impl LinearSolver for AugmentedLagrangian {
         }
         self.numeric.get_mut().factorized = false;
         self.split = split;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Newton iterations that may try held factors, of `n`, after `trials`.
+    fn tries(trials: &mut HeldFactorTrials, n: usize) -> Vec<bool> {
+        (0..n).map(|_| trials.may_try()).collect()
+    }
+
+    #[test]
+    fn held_factors_that_fail_in_a_row_are_tried_ever_more_seldom() {
+        let mut trials = HeldFactorTrials::default();
+        assert_eq!(tries(&mut trials, 2), [true, true], "tried while none failed");
+        // Failures in a row: 1, 2, 4, 8, 8 iterations factorise at once before the next try.
+        for wait in [1, 2, 4, 8, 8] {
+            trials.record(false);
+            let mut expected = vec![false; wait];
+            expected.push(true);
+            assert_eq!(tries(&mut trials, wait + 1), expected, "after {} failures", trials.failures);
+        }
+        // A try that serves: the next failure waits one iteration again.
+        trials.record(true);
+        assert_eq!(trials, HeldFactorTrials::default());
+        trials.record(false);
+        assert_eq!(tries(&mut trials, 2), [false, true]);
     }
 }
