@@ -373,8 +373,9 @@ point = [4.5, 0.5]
     let peak = q_in.iter().filter(|q| q.0 < reversal).map(|q| q.1.abs()).fold(0.0, f64::max);
     let worst_gap = gap.iter().map(|g| g.1).fold(f64::INFINITY, f64::min);
     // The fluid is cut off in a step exactly when the tip touched the line at the step's start
-    // (each step adapts the mesh to the solid's last position; the gap is closed to round-off).
-    let touching = |g: f64| g <= 1e-9;
+    // (each step adapts the mesh to the solid's last position), or came within `CLOSED_WITHIN`
+    // of the cut-off of it (one cell at the line: 1/16).
+    let touching = |g: f64| g <= fdfsi_fem::adapt::gap::CLOSED_WITHIN / 16.0;
     assert!(gap.windows(2).zip(&cut[1..]).all(|(g, c)| touching(g[0].1) == (c.1 > 0.0)), "cells are cut off while, and only while, the tip touches");
     // Global flux balance every step: what enters leaves (the cut cells' walls hold the fluid).
     let balance = q_in.iter().zip(&q_out).map(|(a, b)| (a.1 + b.1).abs()).fold(0.0, f64::max) / peak;
