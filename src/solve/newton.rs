@@ -567,13 +567,19 @@ mod tests {
         let full = solve(&mut x, &p, &mut FaerLu::default(), &capped(20, 0), square(-2.0)).unwrap();
         assert_eq!(full.iterations, 10);
         let mut x = vec![64.0];
-        assert!(matches!(solve(&mut x, &p, &mut FaerLu::default(), &capped(8, 0), square(-2.0)), Err(NewtonError::NotConverged { iterations: 8, .. })));
+        assert!(matches!(
+            solve(&mut x, &p, &mut FaerLu::default(), &capped(8, 0), square(-2.0)),
+            Err(NewtonError::NotConverged { iterations: 8, .. })
+        ));
         let mut x = vec![64.0];
         let graced = solve(&mut x, &p, &mut FaerLu::default(), &capped(8, 3), square(-2.0)).unwrap();
         assert_eq!(graced.iterations, 10);
         assert!((x[0] - 2f64.sqrt()).abs() < 1e-12);
         let mut x = vec![3.0];
-        assert!(matches!(solve(&mut x, &p, &mut FaerLu::default(), &capped(8, 3), square(1.0)), Err(NewtonError::NotConverged { iterations: 8, .. })));
+        assert!(matches!(
+            solve(&mut x, &p, &mut FaerLu::default(), &capped(8, 3), square(1.0)),
+            Err(NewtonError::NotConverged { iterations: 8, .. })
+        ));
     }
 
     /// `R(x) = atan(x)` from `x = 2`: full Newton steps overshoot further each time and diverge;
