@@ -41,7 +41,7 @@ fn fibre_reinforced_cook_membrane_newton_is_quadratic() {
     let g = 1.0;
     let (cos, sin) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
     let fibres: Arc<dyn SolidMaterial> =
-        Arc::new(FibreReinforced { matrix: paper_solid(g), k1: 2.0 * g, k2: 5.0, direction: Arc::new(move |_| [cos, sin, 0.0]) });
+        Arc::new(FibreReinforced { matrix: paper_solid(g), k1: 2.0 * g, k2: 5.0, onset: 0.0, direction: Arc::new(move |_| [cos, sin, 0.0]) });
     let tip = |material: Arc<dyn SolidMaterial>| {
         let disc = SolidDiscretization::build(cook_mesh(6), Formulation::Plane, material.as_ref()).unwrap();
         let problem = SolidProblem::new(Formulation::Plane, material)
@@ -199,4 +199,13 @@ point = [1.0, 1.0]
     let grid = read_vtu(&out.join("solution_solid_000000.vtu")).unwrap();
     let stretch = &grid.cell_array("fibre_stretch").expect("the solid's fibre_stretch").values;
     assert!(stretch.iter().all(|s| (s - fib.stretch).abs() < 1e-12), "{stretch:?}");
+    // With an onset the fibres follow the published law beyond it (I4 - 1 = 0.69 here): the
+    // same stretch; a negative onset is refused.
+    let with_onset = |onset: &str| text.replace("k2 = 2, direction", &format!("k2 = 2, onset = {onset}, direction"));
+    assert!(with_onset("0.05").contains("onset = 0.05"));
+    let case = Case::from_toml_str(&with_onset("0.05"), "fibres.toml").unwrap();
+    let summary = run_case(&case, &RunOptions::new(dir.path().join("onset"), dir.path()), &mut |_: &str| {}).unwrap();
+    assert!((summary.quantities["corner"] - (fib.stretch - 1.0)).abs() < 1e-12, "with an onset: {}", summary.quantities["corner"]);
+    let refused = Case::from_toml_str(&with_onset("-0.1"), "fibres.toml").and_then(|c| c.validate("fibres.toml"));
+    assert!(refused.is_err_and(|e| e.to_string().contains("solid.fibres.onset must be a finite number >= 0")));
 }

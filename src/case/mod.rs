@@ -321,6 +321,11 @@ pub struct FibreSpec {
     /// Fibre exponent k2 (dimensionless, >= 0; 0: the quadratic fibre `k1 / 2 (I4 - 1)^2`).
     #[serde(default)]
     pub k2: f64,
+    /// The onset `delta` of `E = I4 - 1` over which the fibres engage smoothly, their tangent
+    /// continuous (>= 0; default 0: at `I4 = 1` at once, the law as published, whose tangent jumps
+    /// there; [`crate::physics::solid::FibreReinforced::fibre_derivatives`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub onset: Option<f64>,
     /// The fibre direction `a_0` in the reference configuration, one entry per dimension:
     /// numbers (a constant direction) or expressions of the reference position `x`, `y`, `z`
     /// (e.g. `["-y", "x"]`: circumferential about the z axis); normalised at every point.

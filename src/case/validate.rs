@@ -612,11 +612,14 @@ fn fluid_cut_off(k: &super::ContactSpec, what: &str, p: &mut Problems) {
     }
 }
 
-/// `[solid.fibres]`: `k1 > 0`, `k2 >= 0`, one direction entry per dimension, not a constant zero.
+/// `[solid.fibres]`: `k1 > 0`, `k2 >= 0`, `onset >= 0`, one direction entry per dimension, not a constant zero.
 fn fibres(c: &Case, f: &FibreSpec, p: &mut Problems) {
     p.positive(f.k1, "solid.fibres.k1");
     if !(f.k2 >= 0.0 && f.k2.is_finite()) {
         p.push(format!("solid.fibres.k2 must be a finite number >= 0, got {}", f.k2));
+    }
+    if let Some(onset) = f.onset.filter(|o| !(*o >= 0.0 && o.is_finite())) {
+        p.push(format!("solid.fibres.onset must be a finite number >= 0, got {onset}"));
     }
     let d = c.dim();
     if f.direction.len() != d {

@@ -299,7 +299,10 @@ pub type FibreField = Arc<dyn Fn(&[f64; 3]) -> [f64; 3] + Send + Sync>;
 ///                                                           psi'' = k1 (1 + 2 k2 E^2) exp(k2 E^2)
 /// ```
 ///
-/// and nothing where `I4 <= 1`: fibres bear no compression. `k2 -> 0` is the quadratic fibre
+/// and nothing where `I4 <= 1`: fibres bear no compression. With an onset `delta > 0` the fibres
+/// engage smoothly over `0 < E < delta` ([`FibreReinforced::fibre_derivatives`]): `psi''` rises
+/// from 0 to its value at `delta` instead of jumping to `k1` at `E = 0`, so that the tangent is
+/// continuous. `k2 -> 0` is the quadratic fibre
 /// `k1 / 2 E^2`. `I4` is that of the full `F`, not of its isochoric part: with the
 /// incompressible matrix (`det F = 1`) they are the same, and for compressible matrices the
 /// isochoric split of the fibre term is known to give unphysical responses (Sansour, Eur. J.
@@ -314,25 +317,55 @@ pub struct FibreReinforced {
     pub k1: f64,
     /// Fibre exponent `k2` (dimensionless, >= 0).
     pub k2: f64,
+    /// The onset `delta >= 0` of `E = I4 - 1` over which the fibres engage smoothly (0: at once,
+    /// the law as published).
+    pub onset: f64,
     /// Fibre direction field.
     pub direction: FibreField,
 }
 
 impl std::fmt::Debug for FibreReinforced {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FibreReinforced").field("matrix", &self.matrix).field("k1", &self.k1).field("k2", &self.k2).finish_non_exhaustive()
+        f.debug_struct("FibreReinforced")
+            .field("matrix", &self.matrix)
+            .field("k1", &self.k1)
+            .field("k2", &self.k2)
+            .field("onset", &self.onset)
+            .finish_non_exhaustive()
     }
 }
 
 impl FibreReinforced {
-    /// `psi'(I4)` and `psi''(I4)` (both 0 where `I4 <= 1`).
+    /// `psi'(I4)` and `psi''(I4)` (both 0 where `I4 <= 1`). Within the onset, `0 < E < delta`,
+    /// `psi''` is the quadratic `a E + b E^2` that is 0 at `E = 0`, the law's `h2 = psi''(delta)`
+    /// at `delta`, and integrates to the law's `h1 = psi'(delta)` over the onset:
+    ///
+    /// ```text
+    /// a = (6 h1 - 2 h2 delta) / delta^2,   b = (3 h2 delta - 6 h1) / delta^3,   psi' = a E^2 / 2 + b E^3 / 3
+    /// ```
+    ///
+    /// so that `psi'` and `psi''` are continuous everywhere (the strain energy `C^2`), and the law
+    /// is the published one from `E = delta` on. (Small `delta`: `psi'' = k1 (4 E / delta - 3 E^2 /
+    /// delta^2) >= 0`, convex.) At `E = 0` the published law's tangent jumps by `4 k1` along the
+    /// fibres; where fibres hang slack at the kink, Newton's steps cross it back and forth (the
+    /// closed 3D valve's band, a third of its quadrature points within 0.01 of `I4 = 1`).
     pub fn fibre_derivatives(&self, i4: f64) -> (f64, f64) {
         let e = i4 - 1.0;
         if !(e > 0.0) {
             return (0.0, 0.0);
         }
-        let x = (self.k2 * e * e).exp();
-        (self.k1 * e * x, self.k1 * (1.0 + 2.0 * self.k2 * e * e) * x)
+        let published = |e: f64| {
+            let x = (self.k2 * e * e).exp();
+            (self.k1 * e * x, self.k1 * (1.0 + 2.0 * self.k2 * e * e) * x)
+        };
+        let delta = self.onset;
+        if e >= delta {
+            return published(e);
+        }
+        let (h1, h2) = published(delta);
+        let a = (6.0 * h1 - 2.0 * h2 * delta) / (delta * delta);
+        let b = (3.0 * h2 * delta - 6.0 * h1) / (delta * delta * delta);
+        (a * e * e / 2.0 + b * e * e * e / 3.0, a * e + b * e * e)
     }
 }
 
@@ -835,7 +868,7 @@ mod tests {
     /// Fibres on the incompressible matrix, their direction turning with the material point.
     fn fibres() -> FibreReinforced {
         let direction: FibreField = Arc::new(|x: &[f64; 3]| [1.0 + 2.0 * x[0], 0.5 - x[1] + x[0], 0.4 + x[2]]);
-        FibreReinforced { matrix: Arc::new(NeoHookeanMixed::incompressible(1.3)), k1: 2.0, k2: 1.5, direction }
+        FibreReinforced { matrix: Arc::new(NeoHookeanMixed::incompressible(1.3)), k1: 2.0, k2: 1.5, onset: 0.0, direction }
     }
 
     fn materials() -> Vec<Box<dyn SolidMaterial>> {
@@ -846,8 +879,39 @@ mod tests {
             Box::new(NeoHookeanCompressible { mu: 0.8, lambda: 2.1 }),
             Box::new(SaintVenantKirchhoff { mu: 0.8, lambda: 2.1 }),
             Box::new(fibres()),
+            Box::new(FibreReinforced { onset: 0.3, ..fibres() }),
             Box::new(on_compressible),
         ]
+    }
+
+    /// With an onset `delta` the fibres' `psi'` and `psi''` are continuous at `E = 0` and at
+    /// `delta` (to 1e-9 of `k1`), `psi''` is the derivative of `psi'` across the onset (central
+    /// differences), non-negative, and the published law's from `delta` on.
+    #[test]
+    fn fibres_engage_over_their_onset_with_a_continuous_tangent() {
+        let delta = 0.02;
+        let smooth = FibreReinforced { k1: 1e6, k2: 5.0, onset: delta, ..fibres() };
+        let published = FibreReinforced { onset: 0.0, ..smooth.clone() };
+        let k1 = smooth.k1;
+        let at = |law: &FibreReinforced, e: f64| law.fibre_derivatives(1.0 + e);
+        // Continuous at 0 (from zero) and at delta (into the published law).
+        let (d1, d2) = at(&smooth, 1e-12);
+        assert!(d1.abs() < 1e-9 * k1 && d2.abs() < 1e-9 * k1, "{d1} {d2}");
+        let (below, above) = (at(&smooth, delta * (1.0 - 1e-12)), at(&published, delta * (1.0 + 1e-12)));
+        assert!((below.0 - above.0).abs() < 1e-9 * k1 && (below.1 - above.1).abs() < 1e-9 * k1, "{below:?} {above:?}");
+        // The published law jumps there: psi'' = k1 just past E = 0.
+        assert!((at(&published, 1e-12).1 - k1).abs() < 1e-6 * k1);
+        for i in 1..40 {
+            let e = 1.5 * delta * i as f64 / 40.0;
+            let h = 1e-7;
+            let fd = (at(&smooth, e + h).0 - at(&smooth, e - h).0) / (2.0 * h);
+            let (d1, d2) = at(&smooth, e);
+            assert!((fd - d2).abs() < 1e-5 * k1, "E = {e}: psi'' {d2} against {fd}");
+            assert!(d1 >= 0.0 && d2 >= 0.0, "E = {e}: {d1} {d2}");
+            if e >= delta {
+                assert_eq!((d1, d2), at(&published, e));
+            }
+        }
     }
 
     /// The kernel's Jacobian equals a central difference of its residual: every material, plane

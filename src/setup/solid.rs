@@ -126,7 +126,7 @@ pub fn material(spec: &SolidSpec) -> Result<Arc<dyn SolidMaterial>, SetupError> 
     let Some(fibres) = &spec.fibres else { return Ok(matrix) };
     let exprs = compile(&fibres.direction)?;
     let direction: FibreField = Arc::new(move |x: &[f64; 3]| std::array::from_fn(|a| exprs.get(a).map_or(0.0, |e| e.eval(x, 0.0))));
-    Ok(Arc::new(FibreReinforced { matrix, k1: fibres.k1, k2: fibres.k2, direction }))
+    Ok(Arc::new(FibreReinforced { matrix, k1: fibres.k1, k2: fibres.k2, onset: fibres.onset.unwrap_or(0.0), direction }))
 }
 
 fn compile(values: &[crate::case::Scalar]) -> Result<Vec<Expr>, SetupError> {

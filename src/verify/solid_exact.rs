@@ -113,7 +113,7 @@ impl FibreUniaxial {
     /// The law: fibres along `e_1` on the incompressible matrix.
     pub fn material(&self) -> Arc<dyn SolidMaterial> {
         let matrix = Arc::new(NeoHookeanMixed::incompressible(self.shear_modulus));
-        Arc::new(FibreReinforced { matrix, k1: self.k1, k2: self.k2, direction: Arc::new(|_| [1.0, 0.0, 0.0]) })
+        Arc::new(FibreReinforced { matrix, k1: self.k1, k2: self.k2, onset: 0.0, direction: Arc::new(|_| [1.0, 0.0, 0.0]) })
     }
 }
 
@@ -633,7 +633,7 @@ pub fn homogeneous_checks() -> Result<Vec<ExactnessCheck>, SolidError> {
     // Fibres across the stretch are shortened (I4 = lambda^-2 < 1) and bear nothing: the
     // neo-Hookean state of the first check.
     let matrix = Arc::new(NeoHookeanMixed::incompressible(ex.shear_modulus));
-    let across = FibreReinforced { matrix, k1: fib.k1, k2: fib.k2, direction: Arc::new(|_| [0.0, 1.0, 0.0]) };
+    let across = FibreReinforced { matrix, k1: fib.k1, k2: fib.k2, onset: 0.0, direction: Arc::new(|_| [0.0, 1.0, 0.0]) };
     push("fibre-across-plane-strain", uniaxial_plane(Arc::new(across))?);
     Ok(out)
 }
