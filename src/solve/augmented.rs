@@ -107,7 +107,7 @@
 //! solve tries the held factors for at most that many Krylov iterations, then factorises the
 //! current matrix and goes on from the iterate reached; after such a failure the next Newton
 //! iteration factorises at once (and the one after tries its factors again), after `k` failures
-//! in a row the next `2^(k-1)`, at most 8 ([`HeldFactorTrials`]). Off by default for
+//! in a row the next `2^(k-1)`, at most 8 (`HeldFactorTrials`). Off by default for
 //! steady solves: in 2D the Jacobian changes too much between Newton iterations for the held
 //! factors to pay (Schaefer-Turek 2D-1: no faster with 3 or 6), though in 3D, where the LU
 //! dominates, they do (the 3D cavity at Re 100, `n = 8`, `examples/growth3d`: 21.5 s with 6
