@@ -92,7 +92,7 @@ pub struct CutSide<const D: usize> {
 /// its gap ([`GapPlane::is_closed`]): 37.5 um for the 3D valve's 0.75 mm. The contact's Newton
 /// solve closes a touching gap to round-off, but a leaflet's band can hover just off its plane,
 /// lifted for a step by its films' and the fluid's loads: the closed 3D valve 15 um off after a
-/// step of a diastole trial, 34 um after another (session 52, `runs/valve-3d-sector/NOTES.md`).
+/// step of a diastole trial, 34 um after a step of a run (session 52, `runs/valve-3d-sector/NOTES.md`).
 /// With the test at round-off (`1e-6 cut_off` until then) the cells came back for the next step
 /// and the valve leaked through them as through an open gap (16 ml/s, whole valve). A gap this
 /// thin keeps its film (and the film's pressure) and leaks as `h^3`: between plates 10 mm wide
@@ -385,7 +385,8 @@ struct LostSide {
 /// For each facet of gamma_f in `adapted` that keeps a cell (as [`without_cells`] keeps them, in
 /// order), the side whose cell is in `cut` while the other side's is kept, or, for a facet lying
 /// on one of the planes `pressed_on` (its corners within `1e-6 cut_off`: the fluid mesh's
-/// vertices moved onto gamma_s where it lies on the plane), the side beyond the plane: gamma_s pressed on it, with
+/// vertices moved onto gamma_s where it lies on the plane), the side beyond the plane: gamma_s
+/// pressed on it, with
 /// no fluid between them in the mesh but a film in the blood.
 fn lost_sides<const D: usize>(adapted: &Adapted<D>, cut: &HashSet<usize>, gaps: &Gaps, pressed_on: &[GapPlane<D>]) -> Vec<Option<LostSide>> {
     let kept = |s: (usize, usize)| s != NO_CELL && !cut.contains(&s.0);
