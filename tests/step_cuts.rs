@@ -9,10 +9,10 @@ use fdfsi::run::{run_case, RunError, RunOptions};
 use std::path::Path;
 
 /// Model problem 2 up to `end`, steps of `dt`, at most `max_cuts` cuts, Newton limited to three
-/// iterations to an absolute residual of 1e-9.
+/// iterations (no grace iterations) to an absolute residual of 1e-9.
 fn tight_model_problem_2(dt: f64, end: f64, max_cuts: usize) -> Case {
     let text = BUILTIN_CASES.iter().find(|(n, _)| *n == "model-problem-2").unwrap().1;
-    let text = text.replace("[time]\n", "[solver.newton]\nmax_iterations = 3\nabs_tol = 1e-9\n\n[time]\n");
+    let text = text.replace("[time]\n", "[solver.newton]\nmax_iterations = 3\ngrace_iterations = 0\nabs_tol = 1e-9\n\n[time]\n");
     let mut case = Case::from_toml_str(&text, "model-problem-2").unwrap();
     let t = case.time.as_mut().unwrap();
     (t.dt, t.end, t.max_cuts) = (dt, end, max_cuts);

@@ -70,7 +70,7 @@ fn failing_steps_are_cut_and_a_hopeless_step_is_named() {
         backflow: Vec::new(),
         symmetry: Vec::new(),
     };
-    let newton = NewtonOptions { max_iterations: 3, ..Default::default() };
+    let newton = NewtonOptions { max_iterations: 3, grace_iterations: 0, ..Default::default() };
     let mut cuts = Vec::new();
     let mut x = vec![0.0; disc.num_dofs()];
     let opts = TimeOptions { dt: 1.0, t_end: 2.0, scheme: fdfsi::time::TimeScheme::Euler, max_cuts: 8 };
